@@ -1,0 +1,1 @@
+"""grippers: one interface for robot grippers from different vendors."""

@@ -1,0 +1,5 @@
+import sys
+
+from grippers.cli import main
+
+sys.exit(main())
