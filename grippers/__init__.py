@@ -1,1 +1,97 @@
-"""grippers: one interface for robot grippers from different vendors."""
+"""grippers: one interface for robot grippers from different vendors.
+
+    import grippers
+    with grippers.open("sim://wsg50") as g:
+        g.home()
+        result = g.grasp(0.040, force=20)
+
+The heavy parts (pydantic, python-can, the drivers) load on first use, so ``import grippers`` and the
+command line start fast.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+from .errors import (
+    CommandFailed,
+    ConnectionLost,
+    GripperError,
+    GripperTimeout,
+    LimitError,
+    NotSupported,
+    ProfileError,
+    ProtocolError,
+    URLError,
+)
+
+if TYPE_CHECKING:
+    from .api import open
+    from .gripper import (
+        Capability,
+        DeviceInfo,
+        FastStopActive,
+        GraspResult,
+        GraspState,
+        Gripper,
+        GripperState,
+        MotionHandle,
+        MotionResult,
+        StateStream,
+    )
+    from .profiles import Limits, Profile, load_profile
+
+__version__ = "0.1.0"
+
+_LAZY = {
+    "open": ".api",
+    "Capability": ".gripper",
+    "DeviceInfo": ".gripper",
+    "FastStopActive": ".gripper",
+    "GraspResult": ".gripper",
+    "GraspState": ".gripper",
+    "Gripper": ".gripper",
+    "GripperState": ".gripper",
+    "MotionHandle": ".gripper",
+    "MotionResult": ".gripper",
+    "StateStream": ".gripper",
+    "Limits": ".profiles",
+    "Profile": ".profiles",
+    "load_profile": ".profiles",
+}
+
+__all__ = [
+    "CommandFailed",
+    "ConnectionLost",
+    "GripperError",
+    "GripperTimeout",
+    "LimitError",
+    "NotSupported",
+    "ProfileError",
+    "ProtocolError",
+    "URLError",
+    "open",
+    "Capability",
+    "DeviceInfo",
+    "FastStopActive",
+    "GraspResult",
+    "GraspState",
+    "Gripper",
+    "GripperState",
+    "MotionHandle",
+    "MotionResult",
+    "StateStream",
+    "Limits",
+    "Profile",
+    "load_profile",
+]
+
+
+def __getattr__(name: str) -> Any:
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'grippers' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module, __name__), name)
+    globals()[name] = value
+    return value

@@ -1,0 +1,56 @@
+"""Source Robotics MSG grippers on STEPFOC / Spectral Micro BLDC drivers.
+
+Two ways in: CAN (:mod:`.can_protocol`, sans-IO; :mod:`.can_client`, python-can) and the UART text protocol
+(:mod:`.uart_protocol`, :mod:`.uart_client`). :mod:`.sim` holds the device model both simulators share.
+PROTOCOL-NOTES §2 overrides the MSG document on byte order, bit order and the object-detection bits.
+"""
+
+from drivers.stepfoc.can_client import StepfocBus, StepfocNode, open_node
+from drivers.stepfoc.can_protocol import (
+    COMMANDS,
+    Cmd,
+    Detection,
+    DeviceInfo,
+    EncoderData,
+    ErrorState,
+    FrameLengthError,
+    GripperCommand,
+    GripperStatus,
+    Watchdog,
+    WatchdogAction,
+    decode_command,
+    decode_frame,
+    decode_status,
+    describe,
+    encode_command,
+    encode_frame,
+    encode_status,
+    pack_id,
+    unpack_id,
+)
+
+__all__ = [
+    "COMMANDS",
+    "Cmd",
+    "Detection",
+    "DeviceInfo",
+    "EncoderData",
+    "ErrorState",
+    "FrameLengthError",
+    "GripperCommand",
+    "GripperStatus",
+    "StepfocBus",
+    "StepfocNode",
+    "Watchdog",
+    "WatchdogAction",
+    "decode_command",
+    "decode_frame",
+    "decode_status",
+    "describe",
+    "encode_command",
+    "encode_frame",
+    "encode_status",
+    "open_node",
+    "pack_id",
+    "unpack_id",
+]

@@ -1,0 +1,96 @@
+"""Backends: one per device family, found like python-can finds its interfaces.
+
+A backend adapts a driver to :class:`grippers.Gripper`. The built-in ones are named in
+:data:`BUILTIN_BACKENDS` and imported only when used; third-party packages add a family by declaring an entry
+point in the group ``grippers.backends`` (see docs/backends.md), with no change to this repository::
+
+    [project.entry-points."grippers.backends"]
+    acme = "acme_grippers:AcmeBackend"
+
+A backend is any object with ``family`` (the URL scheme's first part), ``profile_model`` (a
+:class:`grippers.profiles.ProfileBase` subclass, or None to reuse a built-in family's), ``open(url, profile,
+settings) -> Gripper`` and, optionally, ``simulate(profile, settings)`` returning a running simulator (an
+object with ``url`` and ``close()``) for ``sim://``.
+"""
+
+from __future__ import annotations
+
+import importlib
+from importlib.metadata import entry_points
+from typing import TYPE_CHECKING, Any, Protocol
+
+from ..errors import NotSupported
+
+if TYPE_CHECKING:
+    from ..gripper import Gripper
+    from ..profiles import ProfileBase
+    from ..settings import Settings
+    from ..urls import ConnectionURL
+
+ENTRY_POINT_GROUP = "grippers.backends"
+
+# family -> "module:attribute", imported lazily (python-can's BACKENDS table is the model).
+BUILTIN_BACKENDS: dict[str, str] = {
+    "wsg": "grippers.backends.wsg:WsgBackend",
+    "stepfoc": "grippers.backends.stepfoc:StepfocBackend",
+}
+
+
+class Backend(Protocol):
+    family: str
+    profile_model: type[ProfileBase] | None
+
+    def open(self, url: ConnectionURL, profile: ProfileBase | None, settings: Settings) -> Gripper: ...
+
+
+class SimulatedBackend(Backend, Protocol):
+    def simulate(self, profile: ProfileBase, settings: Settings) -> SimServer: ...
+
+
+class SimServer(Protocol):
+    url: str
+
+    def close(self) -> None: ...
+
+
+_cache: dict[str, Any] = {}
+
+
+def _load(spec: str) -> Any:
+    module_name, _, attribute = spec.partition(":")
+    obj = getattr(importlib.import_module(module_name), attribute)
+    return obj() if isinstance(obj, type) else obj
+
+
+def _plugin_specs() -> dict[str, Any]:
+    return {ep.name: ep for ep in entry_points(group=ENTRY_POINT_GROUP)}
+
+
+def available_backends() -> list[str]:
+    return sorted(set(BUILTIN_BACKENDS) | set(_plugin_specs()))
+
+
+def find_backend(family: str) -> Any | None:
+    """The backend of ``family``, or None when neither built in nor installed as a plugin."""
+    if family in _cache:
+        return _cache[family]
+    if family in BUILTIN_BACKENDS:
+        backend = _load(BUILTIN_BACKENDS[family])
+    else:
+        ep = _plugin_specs().get(family)
+        if ep is None:
+            return None
+        obj = ep.load()
+        backend = obj() if isinstance(obj, type) else obj
+    _cache[family] = backend
+    return backend
+
+
+def get_backend(family: str) -> Any:
+    backend = find_backend(family)
+    if backend is None:
+        raise NotSupported(
+            f"no backend for family {family!r} (available: {', '.join(available_backends())}; "
+            f"plugins register in the entry-point group {ENTRY_POINT_GROUP!r})"
+        )
+    return backend

@@ -1,62 +1,108 @@
 """The ``grippers`` command line.
 
-Each subcommand is a module in this package exposing ``HELP`` (one line), ``EXAMPLE``,
-``add_arguments(parser)`` and ``run(args) -> int``. Modules import heavy dependencies (python-can, pydantic,
-drivers) inside ``run`` only, so ``grippers --help`` stays fast.
+Each subcommand is a module (or an object in a module, ``".motion:home"``) exposing ``HELP`` (one line),
+``EXAMPLE``, ``add_arguments(parser)`` and ``run(args) -> int``. Modules import heavy things (python-can,
+pydantic, drivers) inside ``run`` only, so ``grippers --help`` stays fast.
+
+Exit codes (docs/cli.md): 0 success, 1 the device failed / nothing answered, 2 usage error, 130 interrupted.
+Errors end in one line on stderr; ``--debug`` shows the traceback instead.
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 from collections.abc import Sequence
+from typing import Any
 
-# name -> module (relative to this package); order is the order shown in --help.
+# name -> module (relative to this package) or "module:attribute"; order is the order shown in --help.
 SUBCOMMANDS: dict[str, str] = {
+    "probe": ".probe",
+    "state": ".state",
+    "info": ".info",
+    "home": ".motion:home",
+    "move": ".motion:move",
+    "grasp": ".motion:grasp",
+    "release": ".motion:release",
+    "stop": ".motion:stop",
+    "ack": ".motion:ack",
+    "profiles": ".profiles_cmd",
+    "monitor": ".monitor",
     "sim": ".sim",
 }
 
 
+def _load(spec: str) -> Any:
+    module_name, _, attribute = spec.partition(":")
+    module = importlib.import_module(module_name, __name__)
+    return getattr(module, attribute) if attribute else module
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with errors on one line (the CLI's rule for every error), still exit code 2."""
+
+    def error(self, message: str) -> Any:  # type: ignore[override]
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="grippers",
         description="Drive robot grippers (WSG, MSG/STEPFOC) and their simulators.",
-        epilog="Example: grippers probe sim://",
+        epilog="Example: grippers probe sim://\nExit codes: 0 ok, 1 failed or nothing found, 2 usage error.",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("--debug", action="store_true", help="show tracebacks on errors")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-    for name, module_name in SUBCOMMANDS.items():
-        module = importlib.import_module(module_name, __name__)
+    for name, spec in SUBCOMMANDS.items():
+        command = _load(spec)
         sp = sub.add_parser(
             name,
-            help=module.HELP,
-            description=module.HELP,
-            epilog=f"Example: {module.EXAMPLE}",
+            help=command.HELP,
+            description=command.HELP,
+            epilog=f"Example: {command.EXAMPLE}",
             formatter_class=argparse.RawDescriptionHelpFormatter,
         )
         sp.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help="show tracebacks")
-        module.add_arguments(sp)
-        sp.set_defaults(_module=module)
+        command.add_arguments(sp)
+        sp.set_defaults(_module=command)
     return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args = parser.parse_args(argv)  # exits 2 on usage errors, with argparse's message
     module = getattr(args, "_module", None)
     if module is None:
         parser.print_help()
         return 2
+    from .output import EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE, UsageError, error_line
+
     try:
         return int(module.run(args) or 0)
     except KeyboardInterrupt:
-        return 130
+        return EXIT_INTERRUPTED
+    except BrokenPipeError:  # `grippers monitor ... | head`: not an error; keep Python quiet at exit
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return EXIT_OK
     except Exception as exc:  # one line on stderr unless --debug
         if getattr(args, "debug", False):
             raise
-        print(f"grippers {args.command}: error: {exc}", file=sys.stderr)
-        return 1
+        print(error_line(args.command, exc), file=sys.stderr)
+        if isinstance(exc, UsageError) or _is_usage_error(exc):
+            return EXIT_USAGE
+        return EXIT_FAILED
+
+
+def _is_usage_error(exc: BaseException) -> bool:
+    """Errors that mean 'the command line was wrong': a malformed URL or unknown setting (URLError), an
+    unknown or invalid profile (ProfileError), a value outside the gripper's limits (LimitError)."""
+    from grippers.errors import LimitError, ProfileError, URLError
+
+    return isinstance(exc, URLError | ProfileError | LimitError)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -8,7 +8,7 @@ import importlib
 HELP = "run a simulated gripper that speaks the real protocol over TCP, UDP, a pty or a CAN bus"
 EXAMPLE = "grippers sim wsg --listen tcp://127.0.0.1:1000"
 
-FAMILIES = {"wsg": ".sim_wsg", "msg": ".sim_msg"}
+FAMILIES = {"wsg": ".sim_wsg", "msg": ".sim_msg"}  # modules of this package
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

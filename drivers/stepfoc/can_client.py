@@ -1,0 +1,664 @@
+"""MSG grippers on STEPFOC drivers over any python-can bus: one reader per bus, one handle per node.
+
+Several grippers share one CAN bus, so :class:`StepfocBus` owns the bus and ONE reader thread that decodes
+every frame and hands it to whoever waits for it, keyed by (node, command). :class:`StepfocNode` is the
+per-gripper API. The protocol has no sequence numbers: a reply is matched by (node, command) only, so at most
+one request per (node, command) is outstanding at a time (a lock per key); different nodes, or different
+commands of one node, run concurrently from different threads.
+
+Known limit of the protocol, not of this client: a status reply that arrives after its request timed out is
+indistinguishable from the reply to the next request with the same key. For 60 that is harmless (any 60 is a
+fresh status of the node); for remote requests it returns the same kind of value.
+"""
+
+from __future__ import annotations
+
+import operator
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import can
+
+from drivers.errors import (
+    CommandFailed,
+    ConnectionLost,
+    GripperError,
+    GripperTimeout,
+    LimitError,
+    ProtocolError,
+)
+from drivers.stepfoc.can_protocol import (
+    COMMANDS,
+    DEFAULT_BITRATE,
+    MAX_NODE,
+    CanFrame,
+    Cmd,
+    Detection,
+    DeviceInfo,
+    Direction,
+    EncoderData,
+    ErrorState,
+    GripperCommand,
+    GripperStatus,
+    Message,
+    Watchdog,
+    WatchdogAction,
+    decode_frame,
+    encode_command,
+    encode_frame,
+    pack_id,
+    unpack_id,
+)
+
+__all__ = ["StepfocBus", "StepfocNode", "open_node", "parse_url"]
+
+_READ_POLL_S = 0.05  # the reader's longest block, so close() returns promptly
+
+
+def parse_url(url: str) -> tuple[str, str, dict[str, str]]:
+    """``stepfoc+can://INTERFACE/CHANNEL?node=N&bitrate=B`` -> (interface, channel, query)."""
+    from drivers.stepfoc.sim.can_server import parse_can_url  # the one parser, shared with the simulator
+
+    return parse_can_url(url)
+
+
+def _byte(value: Any, what: str, device: str, command: str) -> int:
+    try:
+        v = operator.index(value)
+    except TypeError:
+        raise LimitError(
+            f"{what} must be an integer 0..255, not {value!r}", device=device, command=command
+        ) from None
+    if not 0 <= v <= 255:
+        raise LimitError(f"{what} {v} outside 0..255", device=device, command=command)
+    return v
+
+
+class _Waiter:
+    __slots__ = ("event", "message", "error")
+
+    def __init__(self) -> None:
+        self.event = threading.Event()
+        self.message: Message | None = None
+        self.error: GripperError | None = None
+
+
+@dataclass
+class _NodeState:
+    """What the reader learned about one node id from every frame it sent."""
+
+    error_bit: bool = False
+    status: GripperStatus | None = None
+    heartbeat: float | None = None  # time.monotonic() of the last heartbeat
+    heartbeat_cond: threading.Condition = field(default_factory=threading.Condition)
+
+
+class StepfocBus:
+    """One python-can bus shared by any number of :class:`StepfocNode` handles."""
+
+    def __init__(
+        self,
+        bus: can.BusABC | None = None,
+        *,
+        interface: str | None = None,
+        channel: str | None = None,
+        bitrate: int | None = DEFAULT_BITRATE,
+        device: str | None = None,
+        **bus_kwargs: Any,
+    ) -> None:
+        self.device = device or (
+            f"stepfoc+can://{interface}/{channel}" if bus is None else f"can {bus.channel_info}"
+        )
+        self._own_bus = bus is None
+        if bus is None:
+            kwargs = dict(bus_kwargs)
+            if bitrate is not None and interface not in ("virtual", "udp_multicast"):
+                kwargs["bitrate"] = bitrate
+            try:
+                bus = can.Bus(interface=interface, channel=channel, **kwargs)
+            except (can.CanError, OSError, ValueError, ImportError) as exc:
+                raise ConnectionLost(
+                    f"cannot open the CAN bus: {exc}", device=self.device, command="open"
+                ) from exc
+        self.bus = bus
+        self._lock = threading.Lock()
+        self._waiters: dict[tuple[int, int], _Waiter] = {}
+        self._request_locks: dict[tuple[int, int], threading.Lock] = {}
+        self._states: dict[int, _NodeState] = {}
+        self._listeners: list[Callable[[can.Message], None]] = []
+        self._stop = threading.Event()
+        self._error: BaseException | None = None
+        self._closed = False
+        self._thread = threading.Thread(target=self._run, name=f"stepfoc-can {self.device}", daemon=True)
+        self._thread.start()
+
+    @classmethod
+    def from_url(cls, url: str, **kw: Any) -> tuple[StepfocBus, int]:
+        """Open the bus a ``stepfoc+can://INTERFACE/CHANNEL?node=N`` URL names; returns (bus, node)."""
+        interface, channel, params = parse_url(url)
+        bitrate = int(params["bitrate"]) if "bitrate" in params else DEFAULT_BITRATE
+        if "port" in params:  # udp_multicast: a private port isolates a bus (groups do not, on Linux)
+            kw.setdefault("port", int(params["port"]))
+        return cls(interface=interface, channel=channel, bitrate=bitrate, device=url, **kw), int(
+            params.get("node", 0)
+        )
+
+    # ------------------------------------------------------------------------------------------ reader
+
+    def _run(self) -> None:
+        while not self._stop.is_set():
+            try:
+                msg = self.bus.recv(timeout=_READ_POLL_S)
+            except Exception as exc:  # noqa: BLE001 - any failure of the bus ends the reader; waiters learn why
+                if not self._stop.is_set():
+                    self._fail(exc)
+                return
+            if msg is not None:
+                self._dispatch(msg)
+
+    def _fail(self, exc: BaseException) -> None:
+        self._error = exc
+        with self._lock:
+            waiters = list(self._waiters.values())
+        for w in waiters:
+            w.error = ConnectionLost(f"CAN bus failed: {exc}", device=self.device)
+            w.event.set()
+
+    def _dispatch(self, msg: can.Message) -> None:
+        for listener in list(self._listeners):
+            try:
+                listener(msg)
+            except Exception:  # noqa: BLE001, S110 - a monitor callback must not kill the reader
+                pass
+        if msg.is_error_frame or msg.is_extended_id or msg.is_remote_frame:
+            return  # remote frames are requests from hosts, never answers
+        node, command, error = unpack_id(msg.arbitration_id)
+        spec = COMMANDS.get(command)
+        if spec is None or spec.direction is Direction.HOST_TO_NODE:
+            return  # another host's command on the same bus
+        state = self._state(node)
+        state.error_bit = error
+        key = (node, Cmd.GRIPPER_COMMAND if command == Cmd.GRIPPER_STATUS else command)
+        with self._lock:
+            waiter = self._waiters.get(key)
+        try:
+            decoded = decode_frame(msg.arbitration_id, msg.data, False)
+        except ProtocolError as exc:
+            if waiter is not None and not waiter.event.is_set():
+                waiter.error = ProtocolError(
+                    exc.message, device=f"{self.device} node {node}", command=spec.name
+                )
+                waiter.event.set()
+            return
+        if command == Cmd.GRIPPER_STATUS:
+            state.status = decoded.value
+        elif command == Cmd.HEARTBEAT:
+            with state.heartbeat_cond:
+                state.heartbeat = time.monotonic()
+                state.heartbeat_cond.notify_all()
+            return
+        if waiter is not None and not waiter.event.is_set():
+            waiter.message = decoded
+            waiter.event.set()
+
+    def _state(self, node: int) -> _NodeState:
+        st = self._states.get(node)
+        if st is None:
+            with self._lock:
+                st = self._states.setdefault(node, _NodeState())
+        return st
+
+    # ------------------------------------------------------------------------------------------ sending
+
+    def _check_open(self, device: str, command: str) -> None:
+        if self._closed:
+            raise ConnectionLost("the bus is closed", device=device, command=command)
+        if self._error is not None:
+            raise ConnectionLost(f"CAN bus failed: {self._error}", device=device, command=command)
+
+    def send_frame(
+        self,
+        frame: CanFrame,
+        *,
+        device: str | None = None,
+        command: str = "send",
+        timeout: float | None = 0.5,
+    ) -> None:
+        """Put one frame on the bus; python-can failures become ConnectionLost (the frame was not sent)."""
+        device = device or self.device
+        self._check_open(device, command)
+        msg = can.Message(
+            arbitration_id=frame.arbitration_id,
+            data=frame.data,
+            is_extended_id=False,
+            is_remote_frame=frame.remote,
+        )
+        try:
+            self.bus.send(msg, timeout=timeout)
+        except can.CanError as exc:
+            raise ConnectionLost(f"send failed: {exc}", device=device, command=command) from exc
+
+    def request(
+        self, node: int, command: int, frame: CanFrame, timeout: float, *, device: str, name: str
+    ) -> Message:
+        """Send ``frame`` and wait for the reply keyed (node, command). One request per key at a time."""
+        deadline = time.monotonic() + timeout
+        key = (node, command)
+        with self._lock:
+            lock = self._request_locks.setdefault(key, threading.Lock())
+        if not lock.acquire(timeout=max(0.0, timeout)):
+            raise GripperTimeout(
+                f"another {name} to this node did not finish within {timeout:g} s",
+                device=device,
+                command=name,
+            )
+        try:
+            waiter = _Waiter()
+            with self._lock:
+                self._waiters[key] = waiter
+            self.send_frame(frame, device=device, command=name, timeout=max(0.0, deadline - time.monotonic()))
+            if not waiter.event.wait(max(0.0, deadline - time.monotonic())):
+                self._check_open(device, name)
+                raise GripperTimeout(f"no reply within {timeout:g} s", device=device, command=name)
+            if waiter.error is not None:
+                raise waiter.error
+            assert waiter.message is not None
+            return waiter.message
+        finally:
+            with self._lock:
+                if self._waiters.get(key) is waiter:
+                    del self._waiters[key]
+            lock.release()
+
+    # ------------------------------------------------------------------------------------------ API
+
+    def node(self, n: int, *, current_limit_ma: int = 1000, timeout: float = 0.5) -> StepfocNode:
+        """A handle for node ``n`` (0..15). ``current_limit_ma``: the profile's limit; larger requests are
+        clamped to it before sending (PROTOCOL-NOTES §2: the firmware itself does not clamp)."""
+        return StepfocNode(self, n, current_limit_ma=current_limit_ma, timeout=timeout)
+
+    def subscribe(self, callback: Callable[[can.Message], None]) -> Callable[[], None]:
+        """Call ``callback`` (from the reader thread) with every frame received; returns an unsubscribe."""
+        self._listeners.append(callback)
+        return lambda: self._listeners.remove(callback) if callback in self._listeners else None
+
+    def error_bit(self, node: int) -> bool:
+        return self._state(node).error_bit
+
+    def last_status(self, node: int) -> GripperStatus | None:
+        return self._state(node).status
+
+    @property
+    def alive(self) -> bool:
+        return not self._closed and self._error is None
+
+    def close(self) -> None:
+        """Stop the reader; shut the bus down only if this object opened it. Idempotent."""
+        if self._closed:
+            return
+        self._closed = True
+        self._stop.set()
+        if threading.current_thread() is not self._thread:
+            self._thread.join(timeout=2.0)
+        self._fail(ConnectionLost("the bus was closed", device=self.device))
+        if self._own_bus:
+            self.bus.shutdown()
+
+    def __enter__(self) -> StepfocBus:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+class StepfocNode:
+    """One MSG gripper (node 0..15) on a :class:`StepfocBus`. Values are the device's: bytes 0..255 and mA."""
+
+    def __init__(
+        self,
+        bus: StepfocBus,
+        node: int,
+        *,
+        current_limit_ma: int = 1000,
+        timeout: float = 0.5,
+        owns_bus: bool = False,
+    ) -> None:
+        if not isinstance(node, int) or not 0 <= node <= MAX_NODE:
+            raise LimitError(f"node {node!r} outside 0..{MAX_NODE}", device=bus.device)
+        if current_limit_ma <= 0:
+            raise LimitError(f"current limit {current_limit_ma} mA must be positive", device=bus.device)
+        self.bus = bus
+        self._node = node
+        self.current_limit_ma = int(current_limit_ma)
+        self.timeout = timeout
+        self.last_command: GripperCommand | None = None
+        self._owns_bus = owns_bus
+
+    # ------------------------------------------------------------------------------------------ basics
+
+    @property
+    def node(self) -> int:
+        return self._node
+
+    @property
+    def device(self) -> str:
+        return f"{self.bus.device} node {self._node}"
+
+    @property
+    def last_error_bit(self) -> bool:
+        """The error bit of the last identifier received from this node (set while it has an active error)."""
+        return self.bus.error_bit(self._node)
+
+    @property
+    def last_status(self) -> GripperStatus | None:
+        return self.bus.last_status(self._node)
+
+    def _timeout(self, timeout: float | None) -> float:
+        return self.timeout if timeout is None else timeout
+
+    def send(self, command: int, value: Any = None, *, remote: bool = False) -> None:
+        """Send one frame built from the command table; waits for nothing (for commands without a reply)."""
+        name = COMMANDS[command].name if command in COMMANDS else f"command {command}"
+        frame = encode_frame(self._node, command, value, remote=remote)
+        self.bus.send_frame(frame, device=self.device, command=name)
+
+    def _remote(self, command: Cmd, timeout: float | None) -> Any:
+        name = COMMANDS[command].name
+        frame = CanFrame(pack_id(self._node, command), b"", True)
+        return self.bus.request(
+            self._node, command, frame, self._timeout(timeout), device=self.device, name=name
+        ).value
+
+    def _status_request(self, data: bytes, timeout: float | None, name: str) -> GripperStatus:
+        frame = CanFrame(pack_id(self._node, Cmd.GRIPPER_COMMAND), data, False)
+        msg = self.bus.request(
+            self._node, Cmd.GRIPPER_COMMAND, frame, self._timeout(timeout), device=self.device, name=name
+        )
+        return msg.value
+
+    # ------------------------------------------------------------------------------------------ gripper
+
+    def poll(self, timeout: float | None = None) -> GripperStatus:
+        """Empty 61 -> 60: the status, changing nothing (safe during calibration, PROTOCOL-NOTES §2)."""
+        return self._status_request(b"", timeout, "poll")
+
+    def make_command(
+        self,
+        position: int,
+        speed: int,
+        current_ma: int | None = None,
+        *,
+        activate: bool = True,
+        action: bool = True,
+        estop: bool = False,
+    ) -> GripperCommand:
+        """Validate and clamp a 61 command without sending it."""
+        position = _byte(position, "position", self.device, "command")
+        speed = _byte(speed, "speed", self.device, "command")
+        if current_ma is None:
+            current = self.current_limit_ma
+        else:
+            try:
+                current = operator.index(current_ma)
+            except TypeError:
+                raise LimitError(
+                    f"current must be an integer in mA, not {current_ma!r}",
+                    device=self.device,
+                    command="command",
+                ) from None
+            if current < 0:
+                raise LimitError(f"current {current} mA is negative", device=self.device, command="command")
+            current = min(current, self.current_limit_ma)  # PROTOCOL-NOTES §2: clamp to the profile's limit
+        return GripperCommand(position, speed, current, bool(activate), bool(action), bool(estop))
+
+    def command(
+        self,
+        position: int,
+        speed: int,
+        current_ma: int | None = None,
+        *,
+        activate: bool = True,
+        action: bool = True,
+        estop: bool = False,
+        timeout: float | None = None,
+    ) -> GripperStatus:
+        """Send a 61 command; returns the immediate 60 reply (its detection value is still the previous one).
+        ``current_ma`` defaults to, and is clamped to, ``current_limit_ma``."""
+        return self.send_command(
+            self.make_command(position, speed, current_ma, activate=activate, action=action, estop=estop),
+            timeout=timeout,
+        )
+
+    def send_command(self, cmd: GripperCommand, *, timeout: float | None = None) -> GripperStatus:
+        """Send an already built 61 command (no clamping here beyond the byte layout)."""
+        data = encode_command(cmd)
+        self.last_command = cmd
+        return self._status_request(data, timeout, "command")
+
+    def wait_motion(self, *, timeout: float = 10.0, poll_interval: float = 0.01) -> GripperStatus:
+        """Poll until detection is not MOVING. Call after :meth:`command`: the poll that follows a command
+        already reflects it (only the command's own reply carries the stale detection value)."""
+        deadline = time.monotonic() + timeout
+        while True:
+            st = self.poll(timeout=min(self.timeout, max(0.01, deadline - time.monotonic())))
+            if st.estop_error or st.timeout_error or st.temperature_error:
+                raise CommandFailed(
+                    f"motion stopped by an error: {_errors(st)}",
+                    status_name=_errors(st),
+                    device=self.device,
+                    command="move",
+                )
+            if st.detection is not Detection.MOVING:
+                return st
+            if time.monotonic() >= deadline:
+                raise GripperTimeout(
+                    f"still moving after {timeout:g} s (position {st.position})",
+                    device=self.device,
+                    command="move",
+                )
+            time.sleep(poll_interval)
+
+    def move(
+        self,
+        position: int,
+        speed: int,
+        current_ma: int | None = None,
+        *,
+        wait: bool = True,
+        timeout: float = 10.0,
+        poll_interval: float = 0.01,
+    ) -> GripperStatus:
+        """Go to ``position`` (0 open .. 255 closed); with ``wait`` return the status once detection says
+        at position (3) or object found (1 closing / 2 opening)."""
+        st = self.command(position, speed, current_ma)
+        if not st.calibrated:
+            raise CommandFailed(
+                "the gripper is not calibrated (calibrate after every power-up)",
+                status_name="not calibrated",
+                device=self.device,
+                command="move",
+            )
+        if st.estop_error or st.timeout_error or st.temperature_error:
+            raise CommandFailed(
+                f"error active: {_errors(st)}", status_name=_errors(st), device=self.device, command="move"
+            )
+        return self.wait_motion(timeout=timeout, poll_interval=poll_interval) if wait else st
+
+    def calibrate(
+        self, *, wait: bool = True, timeout: float = 30.0, poll_interval: float = 0.05
+    ) -> GripperStatus | None:
+        """Send 62 and (``wait``) poll with empty 61 frames, which do not abort it, until calibrated.
+        ``timeout`` is wall time; calibration takes seconds on the device."""
+        self.send(Cmd.GRIPPER_CALIBRATE)
+        self.last_command = None  # the node forgets it too: the next command always runs
+        if not wait:
+            return None
+        deadline = time.monotonic() + timeout
+        while True:
+            st = self.poll(timeout=min(self.timeout, max(0.01, deadline - time.monotonic())))
+            if st.estop_error or st.timeout_error or st.temperature_error:
+                raise CommandFailed(
+                    f"calibration refused or stopped: {_errors(st)}",
+                    status_name=_errors(st),
+                    device=self.device,
+                    command="calibrate",
+                )
+            if st.calibrated:
+                return st
+            if time.monotonic() >= deadline:
+                raise GripperTimeout(
+                    f"not calibrated after {timeout:g} s", device=self.device, command="calibrate"
+                )
+            time.sleep(poll_interval)
+
+    def estop(self) -> None:
+        """Command 0: the node stops and reports the estop error until :meth:`clear_error`."""
+        self.send(Cmd.ESTOP)
+
+    def clear_error(self, *, resume: bool = False, timeout: float | None = None) -> GripperStatus:
+        """Clear errors so that they stay cleared.
+
+        Command 1 alone is not enough: the firmware keeps acting on the last 61 frame, and if that one had the
+        estop bit the error comes back (PROTOCOL-NOTES §2, command 1). The notes suggest 1 and then a 61 with
+        estop 0, but that order races the firmware's control loop (the error may return between the frames).
+        So this sends the 61 FIRST: estop 0, the last command's position, speed, current and activate bit, and
+        action 0 so that clearing never restarts a motion by itself (``resume=True`` keeps the last action
+        bit); then 1. The returned status is a fresh poll; CommandFailed if an error is still active."""
+        last = self.last_command
+        if last is None:
+            st = self.poll(timeout)
+            cmd = GripperCommand(st.position, 0, 0, activate=False, action=False, estop=False)
+        else:
+            cmd = GripperCommand(
+                last.position,
+                last.speed,
+                last.current_ma,
+                last.activate,
+                last.action if resume else False,
+                False,
+            )
+        self.send_command(cmd, timeout=timeout)
+        self.send(Cmd.CLEAR_ERROR)
+        st = self.poll(timeout)
+        if st.estop_error or st.timeout_error or st.temperature_error:
+            raise CommandFailed(
+                f"error still active after clearing: {_errors(st)}",
+                status_name=_errors(st),
+                device=self.device,
+                command="clear_error",
+            )
+        return st
+
+    def idle(self) -> None:
+        """Command 12: motor idle (no torque)."""
+        self.send(Cmd.IDLE)
+
+    # ------------------------------------------------------------------------------------------ driver
+
+    def device_info(self, timeout: float | None = None) -> DeviceInfo:
+        return self._remote(Cmd.DEVICE_INFO, timeout)
+
+    def temperature(self, timeout: float | None = None) -> int:
+        """Driver temperature in °C."""
+        return self._remote(Cmd.TEMPERATURE, timeout)
+
+    def bus_voltage(self, timeout: float | None = None) -> int:
+        """Supply voltage in mV."""
+        return self._remote(Cmd.BUS_VOLTAGE, timeout)
+
+    def error_state(self, timeout: float | None = None) -> ErrorState:
+        return self._remote(Cmd.ERROR_STATE, timeout)
+
+    def iq(self, timeout: float | None = None) -> int:
+        """Measured motor current (Iq) in mA."""
+        return self._remote(Cmd.IQ, timeout)
+
+    def encoder(self, timeout: float | None = None) -> EncoderData:
+        return self._remote(Cmd.ENCODER, timeout)
+
+    def ping(self, timeout: float | None = None) -> bool:
+        """Remote frame 10; True when the node answers in time, False when it does not."""
+        try:
+            self._remote(Cmd.PING, timeout)
+        except GripperTimeout:
+            return False
+        return True
+
+    def set_node_id(self, new: int) -> None:
+        """Command 11; this handle follows the node to its new id. Lost at reset unless saved (13)."""
+        if not isinstance(new, int) or not 0 <= new <= MAX_NODE:
+            raise LimitError(f"node {new!r} outside 0..{MAX_NODE}", device=self.device, command="set_can_id")
+        self.send(Cmd.SET_CAN_ID, new)
+        self._node = new
+
+    def save_config(self) -> None:
+        self.send(Cmd.SAVE_CONFIG)
+
+    def reset(self) -> None:
+        """Command 14: the driver reboots and loses its calibration (PROTOCOL-NOTES §2)."""
+        self.send(Cmd.RESET)
+        self.last_command = None
+
+    def watchdog(self, ms: int, action: WatchdogAction | int = WatchdogAction.IDLE) -> None:
+        """Command 15: the node raises a timeout error if no frame reaches it within ``ms`` (0 = off)."""
+        if not 0 <= ms <= 0xFFFFFFFF:
+            raise LimitError(
+                f"watchdog time {ms} ms outside 0..2^32-1", device=self.device, command="watchdog"
+            )
+        self.send(Cmd.WATCHDOG, Watchdog(ms, WatchdogAction(action)))
+
+    def heartbeat(self, ms: int) -> None:
+        """Command 30: the node sends a heartbeat (9) every ``ms`` (0 = off, the default)."""
+        if not 0 <= ms <= 0xFFFFFFFF:
+            raise LimitError(
+                f"heartbeat period {ms} ms outside 0..2^32-1", device=self.device, command="heartbeat_setup"
+            )
+        self.send(Cmd.HEARTBEAT_SETUP, ms)
+
+    @property
+    def last_heartbeat(self) -> float | None:
+        """``time.monotonic()`` of the last heartbeat received from this node."""
+        return self.bus._state(self._node).heartbeat
+
+    def wait_heartbeat(self, timeout: float = 1.0) -> float:
+        """Block until the next heartbeat arrives; returns its monotonic time."""
+        state = self.bus._state(self._node)
+        with state.heartbeat_cond:
+            before = state.heartbeat
+            if not state.heartbeat_cond.wait_for(lambda: state.heartbeat != before, timeout):
+                raise GripperTimeout(
+                    f"no heartbeat within {timeout:g} s", device=self.device, command="heartbeat"
+                )
+            assert state.heartbeat is not None
+            return state.heartbeat
+
+    def close(self) -> None:
+        """Close the bus if this handle opened it (see :func:`open_node`); otherwise nothing."""
+        if self._owns_bus:
+            self.bus.close()
+
+    def __enter__(self) -> StepfocNode:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def _errors(st: GripperStatus) -> str:
+    names = [n for n in ("estop_error", "timeout_error", "temperature_error") if getattr(st, n)]
+    return ",".join(names) or "none"
+
+
+def open_node(
+    url: str, *, current_limit_ma: int = 1000, timeout: float = 0.5, **bus_kwargs: Any
+) -> StepfocNode:
+    """Open ``stepfoc+can://INTERFACE/CHANNEL?node=N`` as a node handle that owns (and closes) its bus."""
+    bus, node = StepfocBus.from_url(url, **bus_kwargs)
+    try:
+        return StepfocNode(bus, node, current_limit_ma=current_limit_ma, timeout=timeout, owns_bus=True)
+    except GripperError:
+        bus.close()
+        raise

@@ -1,0 +1,223 @@
+"""Serve one or several simulated MSG nodes on a python-can bus (virtual, udp_multicast, socketcan, …).
+
+The server is thin: one thread reads the bus, advances every model to the scaled clock, lets the model whose
+node id matches answer, and applies the test's :class:`~drivers.simkit.FaultHooks` to each reply. Heartbeats
+(command 9) are sent from the same thread; only replies a test asked to DELAY leave from a timer thread.
+
+Reach: python-can's ``udp_multicast`` bus binds to all interfaces and sends with TTL / hop limit 1, so its
+frames stay on the local link but are NOT confined to loopback; on Linux every bus on the host with the same
+port sees every group (PROTOCOL-NOTES §2, "Testing without CAN hardware"). Use ``virtual`` in-process.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Iterable
+from urllib.parse import parse_qs
+
+import can
+
+from drivers.errors import ConnectionLost, GripperError
+from drivers.simkit import FaultHooks, FaultKind, SimClock
+from drivers.stepfoc.can_protocol import DEFAULT_BITRATE, CanFrame
+from drivers.stepfoc.sim.model import MsgModel
+
+__all__ = ["CanSimServer", "parse_can_url", "serve_can"]
+
+_POLL_S = 0.02  # longest wall time the reader blocks, so heartbeats and close() stay prompt
+
+
+def parse_can_url(listen: str) -> tuple[str, str, dict[str, str]]:
+    """``can://INTERFACE/CHANNEL?k=v`` -> (interface, channel, query). Parsed by hand because a multicast
+    channel may be an IPv6 address full of colons."""
+    scheme, sep, rest = listen.partition("://")
+    if not sep or scheme not in ("can", "stepfoc+can"):
+        raise ValueError(f"not a CAN URL: {listen!r} (expected can://INTERFACE/CHANNEL)")
+    rest, _, query = rest.partition("?")
+    interface, _, channel = rest.partition("/")
+    if not interface or not channel:
+        raise ValueError(f"CAN URL needs an interface and a channel: {listen!r}")
+    params = {k: v[-1] for k, v in parse_qs(query).items()}
+    return interface, channel, params
+
+
+class CanSimServer:
+    """A running CAN simulator. ``models`` share one bus; ``url`` names the first node for a client."""
+
+    def __init__(
+        self,
+        models: list[MsgModel],
+        bus: can.BusABC,
+        *,
+        interface: str,
+        channel: str,
+        own_bus: bool,
+        time_scale: float = 1.0,
+    ) -> None:
+        self.models = models
+        self.bus = bus
+        self.interface = interface
+        self.channel = channel
+        self.faults = FaultHooks()
+        self.clock = SimClock(time_scale)
+        self.error: BaseException | None = None  # what stopped the thread, if anything did
+        self._own_bus = own_bus
+        self._lock = threading.Lock()  # guards the models against a test poking them from another thread
+        self._stop = threading.Event()
+        self._timers: list[threading.Timer] = []
+        self._closed = False
+        now = self.clock.now()
+        for m in models:
+            m.advance(now)
+        self._thread = threading.Thread(target=self._run, name=f"stepfoc-can-sim {channel}", daemon=True)
+        self._thread.start()
+
+    @property
+    def model(self) -> MsgModel:
+        return self.models[0]
+
+    @property
+    def url(self) -> str:
+        return f"stepfoc+can://{self.interface}/{self.channel}?node={self.models[0].node}"
+
+    def urls(self) -> list[str]:
+        return [f"stepfoc+can://{self.interface}/{self.channel}?node={m.node}" for m in self.models]
+
+    def now(self) -> float:
+        return self.clock.now()
+
+    # ------------------------------------------------------------------------------------------ thread
+
+    def _run(self) -> None:
+        try:
+            while not self._stop.is_set():
+                msg = self.bus.recv(timeout=self._wait())
+                with self._lock:
+                    now = self.clock.now()
+                    out: list[CanFrame] = []
+                    for m in self.models:
+                        m.advance(now)
+                    if msg is not None and not msg.is_error_frame and not msg.is_extended_id:
+                        for m in list(self.models):
+                            out.extend(
+                                m.handle_frame(msg.arbitration_id, bytes(msg.data), msg.is_remote_frame, now)
+                            )
+                    beats = [f for m in self.models for f in m.due_frames(now)]
+                for frame in out:
+                    self._reply(frame)
+                if not self.faults.silent:
+                    for frame in beats:
+                        self._send(frame)
+        except BaseException as exc:  # noqa: BLE001 - kept for the test that asks why the server stopped
+            if not self._stop.is_set():
+                self.error = exc
+
+    def _wait(self) -> float:
+        due = [t for t in (m.next_event() for m in self.models) if t is not None]
+        if not due:
+            return _POLL_S
+        return max(0.0, min(_POLL_S, self.clock.wall(min(due) - self.clock.now())))
+
+    def _reply(self, frame: CanFrame) -> None:
+        if self.faults.silent:
+            return
+        fault = self.faults.take()
+        arbitration_id, data = frame.arbitration_id, frame.data
+        if fault is not None:
+            if fault.kind is FaultKind.DROP:
+                return
+            if fault.kind is FaultKind.ERROR_BIT:
+                arbitration_id |= 1
+            elif fault.kind is FaultKind.CORRUPT and data:
+                data = data[:-1] + bytes([data[-1] ^ 0xFF])
+            elif fault.kind is FaultKind.TRUNCATE:
+                data = data[: len(data) // 2]
+            elif fault.kind is FaultKind.DELAY:
+                timer = threading.Timer(fault.seconds, self._send, (CanFrame(arbitration_id, data, False),))
+                timer.daemon = True
+                self._timers.append(timer)
+                timer.start()
+                return
+        self._send(CanFrame(arbitration_id, data, False))
+
+    def _send(self, frame: CanFrame) -> None:
+        if self._closed:
+            return
+        msg = can.Message(
+            arbitration_id=frame.arbitration_id,
+            data=frame.data,
+            is_extended_id=False,
+            is_remote_frame=frame.remote,
+        )
+        try:
+            self.bus.send(msg, timeout=0.5)
+        except can.CanError:
+            if not self._stop.is_set():
+                raise
+
+    # ------------------------------------------------------------------------------------------ control
+
+    def close(self) -> None:
+        """Stop the thread and release the bus (only if this server opened it). Idempotent."""
+        if self._closed:
+            return
+        self._stop.set()
+        self._thread.join(timeout=2.0)
+        self._closed = True
+        for t in self._timers:
+            t.cancel()
+        if self._own_bus:
+            self.bus.shutdown()
+
+    def __enter__(self) -> CanSimServer:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def serve_can(
+    models: Iterable[MsgModel] | MsgModel | None = None,
+    listen: str = "can://virtual/stepfoc-sim",
+    *,
+    bus: can.BusABC | None = None,
+    time_scale: float = 1.0,
+) -> CanSimServer:
+    """Start a CAN simulator. ``listen``: ``can://INTERFACE/CHANNEL[?node=N&bitrate=B]``; ``node`` renumbers a
+    single model (or creates one when ``models`` is None). ``bus`` (optional) is used instead of opening one
+    and is left open on close."""
+    interface, channel, params = parse_can_url(listen)
+    if models is None:
+        model_list = [MsgModel(node=int(params.get("node", 0)))]
+    elif isinstance(models, MsgModel):
+        model_list = [models]
+    else:
+        model_list = list(models)
+    if not model_list:
+        raise ValueError("serve_can needs at least one model")
+    if "node" in params and len(model_list) == 1:
+        model_list[0].node = model_list[0].saved_node = int(params["node"])
+    nodes = [m.node for m in model_list]
+    if len(set(nodes)) != len(nodes):
+        raise ValueError(f"two simulated nodes share a node id: {nodes}")
+    own = bus is None
+    if bus is None:
+        kwargs: dict[str, object] = {}
+        if interface != "virtual":
+            kwargs["bitrate"] = int(params.get("bitrate", DEFAULT_BITRATE))
+        if interface == "udp_multicast":
+            kwargs.pop("bitrate")
+            if "port" in params:
+                kwargs["port"] = int(params["port"])
+        try:
+            bus = can.Bus(interface=interface, channel=channel, **kwargs)
+        except (can.CanError, OSError, ValueError, ImportError) as exc:
+            raise ConnectionLost(f"cannot open the CAN bus: {exc}", device=listen, command="serve") from exc
+    try:
+        return CanSimServer(
+            model_list, bus, interface=interface, channel=channel, own_bus=own, time_scale=time_scale
+        )
+    except GripperError:
+        if own:
+            bus.shutdown()
+        raise

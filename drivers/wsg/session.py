@@ -1,0 +1,298 @@
+"""Request/reply matching for one WSG connection (sans-IO: bytes and time in, events out).
+
+The WSG protocol has no sequence numbers: a reply carries only its command id. Three kinds of packets share
+that id space, and this module decides which is which:
+
+* **Immediate replies.** The device answers requests in order, so the first packet of id X after a request
+  for X is its reply. To keep that unambiguous the session allows **one exchange per command id** on the
+  wire at a time; a second request for X waits (in the client, bounded by its timeout) until the first is
+  finished. Requests with different ids run concurrently, which is what lets state queries flow while a
+  motion is pending.
+* **E_CMD_PENDING, then the final reply** (WSG manual 4.0.x §1.3). A PENDING reply moves the exchange to the
+  pending phase; the next packet of that id is its final reply. The slot of that id stays busy until then.
+* **Auto updates** (40h, 41h, 43h-45h; PROTOCOL-NOTES §1) reuse the id of their command. A packet of a
+  subscribed id is an update whenever no request of that id is outstanding; while one is outstanding, the next
+  packet of that id is taken as its reply. The two carry the same data (the current value), so the only
+  consequence of an update overtaking a reply is that the reply itself is then delivered as an update.
+* **Late replies.** A request that timed out is *abandoned*, not forgotten: a stale marker for its id swallows
+  the next packet of that id (for a pending motion: the final reply, which may come much later), so a late
+  reply is never matched to a later request. The slot stays busy while the marker lives. Markers expire after
+  ``stale_ttl`` seconds (``stale_final_ttl`` for a pending motion), which bounds the damage when the late
+  reply was lost altogether.
+
+A reply that fails its checksum fails the exchange waiting on that id at once (with ProtocolError) instead of
+letting it run into a timeout, except for subscribed ids, where the corrupt packet may as well have been an
+update.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import Enum
+from typing import Any
+
+from drivers.errors import GripperError, ProtocolError
+from drivers.wsg.commands import command_name
+from drivers.wsg.protocol import (
+    MAX_PAYLOAD,
+    ChecksumError,
+    Packet,
+    PacketParser,
+    ParseEvent,
+    Status,
+    encode_packet,
+)
+
+__all__ = [
+    "Acknowledged",
+    "AutoUpdate",
+    "Completed",
+    "Exchange",
+    "ExchangeFailed",
+    "ExchangeState",
+    "Session",
+    "SessionEvent",
+    "StaleReply",
+    "Unsolicited",
+]
+
+
+class ExchangeState(Enum):
+    SENT = "sent"  # waiting for the immediate reply
+    PENDING = "pending"  # E_CMD_PENDING received, waiting for the final reply
+    DONE = "done"  # final reply received
+    FAILED = "failed"  # corrupted reply or connection lost
+    ABANDONED = "abandoned"  # timed out; a stale marker swallows its late reply
+
+
+@dataclass(eq=False)
+class Exchange:
+    """One request and its replies. ``context`` belongs to the caller (the client keeps its waiter there)."""
+
+    command: int
+    payload: bytes
+    sent_at: float
+    state: ExchangeState = ExchangeState.SENT
+    ack: Packet | None = None
+    reply: Packet | None = None
+    error: GripperError | None = None
+    context: Any = field(default=None, repr=False)
+
+    @property
+    def finished(self) -> bool:
+        return self.state in (ExchangeState.DONE, ExchangeState.FAILED, ExchangeState.ABANDONED)
+
+
+@dataclass(frozen=True, slots=True)
+class Acknowledged:
+    """E_CMD_PENDING for ``exchange``: the command runs, the final reply follows later."""
+
+    exchange: Exchange
+    packet: Packet
+
+
+@dataclass(frozen=True, slots=True)
+class Completed:
+    """The final reply of ``exchange`` (any status but E_CMD_PENDING)."""
+
+    exchange: Exchange
+    packet: Packet
+
+
+@dataclass(frozen=True, slots=True)
+class ExchangeFailed:
+    exchange: Exchange
+    error: GripperError
+
+
+@dataclass(frozen=True, slots=True)
+class AutoUpdate:
+    packet: Packet
+
+
+@dataclass(frozen=True, slots=True)
+class StaleReply:
+    """A late reply to an abandoned exchange, swallowed."""
+
+    packet: Packet
+    exchange: Exchange
+
+
+@dataclass(frozen=True, slots=True)
+class Unsolicited:
+    """A packet nobody waits for: no request, no subscription, no stale marker of its id."""
+
+    packet: Packet
+
+
+SessionEvent = Acknowledged | Completed | ExchangeFailed | AutoUpdate | StaleReply | Unsolicited | ParseEvent
+
+
+@dataclass(slots=True)
+class _Stale:
+    exchange: Exchange
+    expects_final: bool
+    expires: float
+
+
+class Session:
+    """The matching state of one connection; the caller owns the transport, the threads and the clock."""
+
+    def __init__(
+        self,
+        *,
+        verify_checksum: bool = True,
+        max_payload: int = MAX_PAYLOAD,
+        stale_ttl: float = 2.0,
+        stale_final_ttl: float = 60.0,
+    ) -> None:
+        self.parser = PacketParser(verify_checksum=verify_checksum, max_payload=max_payload)
+        self.stale_ttl = stale_ttl
+        self.stale_final_ttl = stale_final_ttl
+        self._active: dict[int, Exchange] = {}
+        self._stale: dict[int, _Stale] = {}
+        self._subscribed: set[int] = set()
+
+    # ------------------------------------------------------------------------------------------- requests
+
+    def is_busy(self, command: int, now: float) -> bool:
+        """Whether a request for ``command`` must wait: an exchange or a live stale marker holds its slot."""
+        if command in self._active:
+            return True
+        stale = self._stale.get(command)
+        if stale is not None and stale.expires <= now:
+            del self._stale[command]
+            stale = None
+        return stale is not None
+
+    def send(
+        self, command: int, payload: bytes = b"", *, now: float, context: Any = None
+    ) -> tuple[Exchange, bytes]:
+        """Register a request and return it with the bytes to write. The slot must be free (see is_busy)."""
+        if self.is_busy(command, now):
+            raise GripperError("another exchange of this id is outstanding", command=command_name(command))
+        raw = encode_packet(command, payload)
+        exchange = Exchange(command, bytes(payload), now, context=context)
+        self._active[command] = exchange
+        return exchange, raw
+
+    def abandon(self, exchange: Exchange, now: float) -> None:
+        """The caller stopped waiting (timeout): leave a stale marker that swallows the late reply."""
+        if self._active.get(exchange.command) is not exchange:
+            return
+        del self._active[exchange.command]
+        pending = exchange.state is ExchangeState.PENDING
+        exchange.state = ExchangeState.ABANDONED
+        ttl = self.stale_final_ttl if pending else self.stale_ttl
+        self._stale[exchange.command] = _Stale(exchange, pending, now + ttl)
+
+    def fail_all(self, error: GripperError) -> list[Exchange]:
+        """Connection lost or closed: every outstanding exchange fails with ``error``."""
+        failed = list(self._active.values())
+        for exchange in failed:
+            exchange.state = ExchangeState.FAILED
+            exchange.error = error
+        self._active.clear()
+        self._stale.clear()
+        return failed
+
+    def outstanding(self) -> list[Exchange]:
+        return list(self._active.values())
+
+    def stale_ids(self, now: float) -> list[int]:
+        return [cmd for cmd, s in self._stale.items() if s.expires > now]
+
+    # ---------------------------------------------------------------------------------------- subscriptions
+
+    def subscribe(self, command: int) -> None:
+        """Packets of ``command`` that answer no request are auto updates from now on."""
+        self._subscribed.add(command)
+
+    def unsubscribe(self, command: int) -> None:
+        self._subscribed.discard(command)
+
+    @property
+    def subscribed(self) -> frozenset[int]:
+        return frozenset(self._subscribed)
+
+    # ---------------------------------------------------------------------------------------------- input
+
+    def receive(self, data: bytes, now: float) -> list[SessionEvent]:
+        """Bytes from the transport in, events out. Never raises on any input."""
+        return self._route(self.parser.feed(data), now)
+
+    def reset_parser(self, now: float) -> list[SessionEvent]:
+        """After a silent gap: drop a half-received packet and rescan what the parser held."""
+        if not self.parser.buffered:
+            return []
+        self.parser.reset()
+        return self._route(self.parser.feed(b""), now)
+
+    def _route(self, items: list[Packet | ParseEvent], now: float) -> list[SessionEvent]:
+        out: list[SessionEvent] = []
+        for item in items:
+            if isinstance(item, Packet):
+                self._on_packet(item, now, out)
+            else:
+                out.append(item)
+                if isinstance(item, ChecksumError):
+                    self._on_corrupt(item, out)
+        return out
+
+    def _on_packet(self, packet: Packet, now: float, out: list[SessionEvent]) -> None:
+        cmd = packet.command
+        stale = self._stale.get(cmd)
+        if stale is not None:
+            if stale.expires <= now:
+                del self._stale[cmd]
+            else:
+                # The device answers in order: this packet belongs to the abandoned exchange.
+                if not stale.expects_final and _is_pending(packet):
+                    stale.expects_final = True
+                    stale.expires = now + self.stale_final_ttl
+                else:
+                    del self._stale[cmd]
+                out.append(StaleReply(packet, stale.exchange))
+                return
+        exchange = self._active.get(cmd)
+        if exchange is not None:
+            if len(packet.payload) < 2:
+                del self._active[cmd]
+                exchange.state = ExchangeState.FAILED
+                exchange.error = ProtocolError(
+                    f"reply of {len(packet.payload)} bytes has no status code", command=command_name(cmd)
+                )
+                out.append(ExchangeFailed(exchange, exchange.error))
+                return
+            if _is_pending(packet):
+                if exchange.state is ExchangeState.SENT:
+                    exchange.state = ExchangeState.PENDING
+                    exchange.ack = packet
+                    out.append(Acknowledged(exchange, packet))
+                else:  # a second PENDING for the same exchange: not in the manuals, ignore it
+                    out.append(Unsolicited(packet))
+                return
+            del self._active[cmd]
+            exchange.state = ExchangeState.DONE
+            exchange.reply = packet
+            out.append(Completed(exchange, packet))
+            return
+        out.append(AutoUpdate(packet) if cmd in self._subscribed else Unsolicited(packet))
+
+    def _on_corrupt(self, event: ChecksumError, out: list[SessionEvent]) -> None:
+        cmd = event.command
+        exchange = self._active.get(cmd)
+        if exchange is None or cmd in self._subscribed:
+            return
+        del self._active[cmd]
+        exchange.state = ExchangeState.FAILED
+        exchange.error = ProtocolError(
+            f"reply failed its checksum (received {event.received:04X}h, computed {event.expected:04X}h)",
+            command=command_name(cmd),
+        )
+        out.append(ExchangeFailed(exchange, exchange.error))
+
+
+def _is_pending(packet: Packet) -> bool:
+    p = packet.payload
+    return len(p) >= 2 and (p[0] | (p[1] << 8)) == Status.E_CMD_PENDING

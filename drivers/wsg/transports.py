@@ -1,0 +1,276 @@
+"""Byte transports for the WSG client: TCP, UDP, serial (pyserial) and CAN (python-can).
+
+A transport only moves bytes; framing lives in :mod:`drivers.wsg.protocol`. ``recv`` returns ``b""`` when
+nothing arrived within its timeout and raises :class:`ConnectionLost` when the line is gone, so the reader
+thread can tell silence from failure. Every transport may be written from one thread while another reads.
+"""
+
+from __future__ import annotations
+
+import socket
+import threading
+from typing import Protocol
+
+import can
+import serial
+
+from drivers.errors import ConnectionLost, GripperTimeout
+from drivers.wsg.protocol import can_frames
+
+__all__ = [
+    "DEFAULT_CAN_RECV_ID",
+    "DEFAULT_CAN_SEND_ID",
+    "DEFAULT_TCP_PORT",
+    "DEFAULT_UDP_LOCAL_PORT",
+    "DEFAULT_UDP_PORT",
+    "CanTransport",
+    "SerialTransport",
+    "TcpTransport",
+    "Transport",
+    "UdpTransport",
+]
+
+# PROTOCOL-NOTES §1, "Transport defaults" (from public drivers, not from the manuals).
+DEFAULT_TCP_PORT = 1000
+DEFAULT_UDP_PORT = 1500
+DEFAULT_UDP_LOCAL_PORT = 1501
+DEFAULT_BAUDRATE = 115200
+DEFAULT_CAN_SEND_ID = 0x000
+DEFAULT_CAN_RECV_ID = 0x001
+
+
+class Transport(Protocol):
+    """What :class:`~drivers.wsg.client.WsgClient` needs from a line."""
+
+    name: str
+    #: True where the WSG knows about connections (TCP): the client then announces its disconnect with 07h.
+    connection_oriented: bool
+
+    def send(self, data: bytes) -> None: ...
+
+    def recv(self, timeout: float) -> bytes: ...
+
+    def close(self) -> None: ...
+
+
+class TcpTransport:
+    connection_oriented = True
+
+    def __init__(
+        self, host: str, port: int = DEFAULT_TCP_PORT, *, connect_timeout: float | None = 5.0
+    ) -> None:
+        self.name = f"tcp://{host}:{port}"
+        try:
+            self._sock = socket.create_connection((host, port), timeout=connect_timeout)
+        except TimeoutError:
+            raise GripperTimeout(f"no TCP connection within {connect_timeout} s", device=self.name) from None
+        except OSError as exc:
+            raise ConnectionLost(f"cannot connect: {exc}", device=self.name) from None
+        self._sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        self._timeout: float | None = None
+        self._send_lock = threading.Lock()
+
+    def send(self, data: bytes) -> None:
+        try:
+            with self._send_lock:
+                self._sock.sendall(data)
+        except OSError as exc:
+            raise ConnectionLost(f"send failed: {exc}", device=self.name) from None
+
+    def recv(self, timeout: float) -> bytes:
+        # Only the reader thread calls recv, so the socket timeout is the reader's (sendall is not affected
+        # in practice: a full send buffer on a LAN gripper link does not happen at these rates).
+        if timeout != self._timeout:
+            self._sock.settimeout(timeout)
+            self._timeout = timeout
+        try:
+            data = self._sock.recv(65536)
+        except TimeoutError:
+            return b""
+        except OSError as exc:
+            raise ConnectionLost(f"receive failed: {exc}", device=self.name) from None
+        if not data:
+            raise ConnectionLost("connection closed by the gripper", device=self.name)
+        return data
+
+    def close(self) -> None:
+        try:
+            self._sock.shutdown(socket.SHUT_RDWR)
+        except OSError:
+            pass
+        self._sock.close()
+
+
+class UdpTransport:
+    """One datagram per packet; replies are accepted from the gripper's address only (any source port)."""
+
+    connection_oriented = False
+
+    def __init__(
+        self,
+        host: str,
+        port: int = DEFAULT_UDP_PORT,
+        *,
+        local_port: int = DEFAULT_UDP_LOCAL_PORT,
+        local_host: str = "",
+    ) -> None:
+        try:
+            infos = socket.getaddrinfo(host, port, socket.AF_INET, socket.SOCK_DGRAM)
+            self._peer = infos[0][4]
+            self._sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+            self._sock.bind((local_host, local_port))
+        except OSError as exc:
+            raise ConnectionLost(f"cannot open UDP {host}:{port} (local port {local_port}): {exc}",
+                                 device=f"udp://{host}:{port}") from None
+        self.local_port = self._sock.getsockname()[1]
+        self.name = f"udp://{host}:{port}"
+        self._timeout: float | None = None
+
+    def send(self, data: bytes) -> None:
+        try:
+            self._sock.sendto(data, self._peer)
+        except OSError as exc:
+            raise ConnectionLost(f"send failed: {exc}", device=self.name) from None
+
+    def recv(self, timeout: float) -> bytes:
+        if timeout != self._timeout:
+            self._sock.settimeout(timeout)
+            self._timeout = timeout
+        try:
+            data, source = self._sock.recvfrom(65536)
+        except TimeoutError:
+            return b""
+        except ConnectionRefusedError:
+            return b""  # ICMP port unreachable from an earlier send: not a broken link for a datagram socket
+        except OSError as exc:
+            raise ConnectionLost(f"receive failed: {exc}", device=self.name) from None
+        return data if source[0] == self._peer[0] else b""
+
+    def close(self) -> None:
+        self._sock.close()
+
+
+class SerialTransport:
+    """RS-232 through pyserial; ``port`` may be any pyserial URL (``/dev/ttyUSB0``, ``socket://``, ``loop://``)."""
+
+    connection_oriented = False
+
+    def __init__(
+        self,
+        port: str,
+        *,
+        baudrate: int = DEFAULT_BAUDRATE,
+        bytesize: int = 8,
+        parity: str = "N",
+        stopbits: float = 1,
+        write_timeout: float | None = 2.0,
+    ) -> None:
+        self.name = f"serial:{port}"
+        try:
+            # PROTOCOL-NOTES §1: 115200 baud, 8N1 by default; one public driver uses 2 stop bits.
+            self._port = serial.serial_for_url(
+                port, baudrate=baudrate, bytesize=bytesize, parity=parity, stopbits=stopbits,
+                timeout=0.05, write_timeout=write_timeout,
+            )
+        except (serial.SerialException, ValueError, OSError) as exc:
+            raise ConnectionLost(f"cannot open serial port: {exc}", device=self.name) from None
+        self._timeout = 0.05
+
+    def send(self, data: bytes) -> None:
+        try:
+            self._port.write(data)
+            self._port.flush()
+        except (serial.SerialException, OSError) as exc:
+            raise ConnectionLost(f"send failed: {exc}", device=self.name) from None
+
+    def recv(self, timeout: float) -> bytes:
+        try:
+            if timeout != self._timeout:
+                self._port.timeout = timeout
+                self._timeout = timeout
+            return self._port.read(max(1, self._port.in_waiting))
+        except (serial.SerialException, OSError, TypeError) as exc:
+            # TypeError: pyserial's posix read after the fd was closed underneath it.
+            raise ConnectionLost(f"receive failed: {exc}", device=self.name) from None
+
+    def close(self) -> None:
+        try:
+            self._port.close()
+        except (serial.SerialException, OSError):
+            pass
+
+
+class CanTransport:
+    """WSG packets over CAN: cut into 8-byte frames on ``send_id``, reassembled from ``recv_id`` frames.
+
+    PROTOCOL-NOTES §1 (CAN): the whole packet, preamble to checksum, travels in consecutive frames; the end of
+    a packet is found by its size field, which the client's parser does, so ``recv`` just returns frame data.
+    """
+
+    connection_oriented = False
+
+    def __init__(
+        self,
+        bus: can.BusABC | None = None,
+        *,
+        interface: str | None = None,
+        channel: str | int | None = None,
+        bitrate: int | None = None,
+        send_id: int = DEFAULT_CAN_SEND_ID,
+        recv_id: int = DEFAULT_CAN_RECV_ID,
+        extended_id: bool | None = None,
+        send_timeout: float = 1.0,
+    ) -> None:
+        self.send_id = send_id
+        self.recv_id = recv_id
+        self._extended = extended_id if extended_id is not None else max(send_id, recv_id) > 0x7FF
+        self._send_timeout = send_timeout
+        self._own_bus = bus is None
+        if bus is None:
+            kwargs: dict[str, object] = {}
+            if bitrate is not None:
+                kwargs["bitrate"] = bitrate
+            try:
+                bus = can.Bus(interface=interface, channel=channel, **kwargs)
+            except (can.CanError, OSError, ValueError, ImportError) as exc:
+                raise ConnectionLost(
+                    f"cannot open CAN bus: {exc}", device=f"can://{interface}/{channel}"
+                ) from None
+        self._bus = bus
+        where = f"{interface or ''}/{channel if channel is not None else ''}"
+        self.name = f"can://{where}#{send_id:X}/{recv_id:X}"
+        mask = 0x1FFFFFFF if self._extended else 0x7FF
+        try:
+            bus.set_filters([{"can_id": recv_id, "can_mask": mask, "extended": self._extended}])
+        except (can.CanError, NotImplementedError):
+            pass  # software filtering in recv covers it
+
+    def send(self, data: bytes) -> None:
+        try:
+            for chunk in can_frames(data):
+                msg = can.Message(arbitration_id=self.send_id, data=chunk, is_extended_id=self._extended)
+                self._bus.send(msg, timeout=self._send_timeout)
+        except (can.CanError, OSError) as exc:
+            raise ConnectionLost(f"send failed: {exc}", device=self.name) from None
+
+    def recv(self, timeout: float) -> bytes:
+        try:
+            msg = self._bus.recv(timeout)
+        except (can.CanError, OSError) as exc:
+            raise ConnectionLost(f"receive failed: {exc}", device=self.name) from None
+        if (
+            msg is None
+            or msg.arbitration_id != self.recv_id
+            or msg.is_error_frame
+            or msg.is_remote_frame
+            or bool(msg.is_extended_id) != self._extended
+        ):
+            return b""
+        return bytes(msg.data)
+
+    def close(self) -> None:
+        if self._own_bus:
+            try:
+                self._bus.shutdown()
+            except (can.CanError, OSError):
+                pass

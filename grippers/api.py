@@ -1,0 +1,79 @@
+"""``grippers.open``: a URL, a profile name or a profile file in, a ready :class:`Gripper` out."""
+
+from __future__ import annotations
+
+import os
+from typing import Any
+
+from .backends import get_backend
+from .errors import ProfileError
+from .gripper import Gripper
+from .profiles import ProfileBase, load_profile
+from .settings import Settings
+from .urls import ConnectionURL, is_url, parse_url
+
+DEFAULT_SIM_PROFILE = "wsg50"
+
+
+def open(target: str | os.PathLike[str], **overrides: Any) -> Gripper:  # noqa: A001 - the public name
+    """Open a gripper; use it as a context manager so it is closed (and a TCP WSG is not left in FAST STOP).
+
+    ``target`` is a connection URL (``wsg+tcp://192.168.1.20``, ``stepfoc+can://socketcan/can0?node=0``,
+    ``sim://msg-150?part_width_mm=40``), a profile name (``wsg50``; connects to the profile's ``url``) or a
+    profile file. Keyword overrides win over URL query parameters, which win over profile fields;
+    ``profile=`` names the profile when the device cannot report its model (the MSG's rail length).
+    """
+    text = os.fspath(target)
+    profile_name = overrides.pop("profile", None)
+    profile: ProfileBase | None = None
+    if is_url(text):
+        url = parse_url(text)
+    else:
+        profile = load_profile(text)
+        url = parse_url(overrides.pop("url", None) or profile.url)
+    settings = Settings(url.url, url.params, overrides)
+    profile_name = settings.str("profile", profile_name)
+    if profile_name is not None:
+        profile = load_profile(profile_name)
+    if url.family == "sim":
+        return _open_sim(url, profile, settings)
+    backend = get_backend(url.family)
+    if profile is not None and profile.family != url.family:
+        raise ProfileError(
+            f"{url.url}: profile {profile.name!r} is for family {profile.family!r}, not {url.family!r}"
+        )
+    gripper = backend.open(url, profile, settings)
+    _finish(gripper, settings)
+    return gripper
+
+
+def _finish(gripper: Gripper, settings: Settings) -> None:
+    try:
+        settings.finish()
+    except Exception:
+        gripper.close()
+        raise
+
+
+def _open_sim(url: ConnectionURL, profile: ProfileBase | None, settings: Settings) -> Gripper:
+    """An in-process simulator served over a real transport (loopback TCP, a pty, a virtual CAN bus), and
+    the ordinary backend connected to it: ``sim://`` exercises the same code as hardware."""
+    if url.profile:
+        profile = load_profile(url.profile)
+    elif profile is None:
+        profile = load_profile(DEFAULT_SIM_PROFILE)
+    backend = get_backend(profile.family)
+    if not hasattr(backend, "simulate"):
+        raise ProfileError(f"{url.url}: the {profile.family!r} backend has no simulator")
+    server = backend.simulate(profile, settings)
+    sim_url = parse_url(server.url)
+    settings.add_defaults(sim_url.params)  # e.g. the UDP simulator's reply port
+    try:
+        gripper = backend.open(sim_url, profile, settings)
+    except BaseException:
+        server.close()
+        raise
+    gripper.simulator = server  # tests and demos reach the model and its fault hooks here
+    gripper._on_close.append(server.close)
+    _finish(gripper, settings)
+    return gripper

@@ -1,0 +1,463 @@
+"""The MSG-on-STEPFOC backend: raw position/speed bytes and milliamps behind the SI :class:`Gripper`.
+
+The driver knows no millimetres: position 0 is fully open and 255 fully closed between the calibrated end
+stops, speed is a byte, and force is only a current limit. The profile's maps turn widths, speeds and
+newtons into those numbers here, once. Two links (CAN and UART) offer the same few operations through
+:class:`_Link`, so the grasp logic is written once for both.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+import uuid
+from dataclasses import dataclass
+from typing import Any
+
+from drivers.stepfoc.can_protocol import Detection, GripperStatus
+
+from ..errors import GripperTimeout, URLError
+from ..gripper import Capability, DeviceInfo, GraspResult, GraspState, Gripper, GripperState, MotionResult
+from ..profiles import MsgProfile, ProfileBase, load_profile
+from ..settings import Settings
+from ..urls import ConnectionURL
+
+DEFAULT_PROFILE = "msg-150"  # the MSG cannot report its rail length: profile= chooses another
+POLL_PERIOD = 0.01  # s between status polls while waiting for a motion; a CAN round trip is ~0.2 ms
+
+
+@dataclass(frozen=True, slots=True)
+class _Status:
+    """What both links report, in device units."""
+
+    position: int
+    current_ma: int | None
+    detection: Detection
+    calibrated: bool
+    activated: bool
+    action: bool
+    estop: bool
+    faults: tuple[str, ...]
+
+
+class _Link:
+    """The operations the gripper needs from a driver, in device units."""
+
+    driver: Any
+
+    def status(self) -> _Status:
+        raise NotImplementedError
+
+    def go(self, position: int, speed: int, current_ma: int, *, action: bool = True) -> None:
+        raise NotImplementedError
+
+    def calibrate(self) -> None:
+        raise NotImplementedError
+
+    def estop(self) -> None:
+        raise NotImplementedError
+
+    def clear(self) -> None:
+        raise NotImplementedError
+
+    def identity(self) -> dict[str, Any]:
+        raise NotImplementedError
+
+    def close(self) -> None:
+        raise NotImplementedError
+
+
+def _from_can(st: GripperStatus) -> _Status:
+    faults = []
+    if st.estop_error:
+        faults.append("fast_stop")
+    if st.temperature_error:
+        faults.append("temperature")
+    if st.timeout_error:
+        faults.append("timeout")
+    if getattr(st, "error_bit", False) and not faults:
+        faults.append("error")
+    return _Status(
+        st.position,
+        st.current_ma,
+        Detection(st.detection),
+        st.calibrated,
+        st.activated,
+        st.action,
+        st.estop_error,
+        tuple(faults),
+    )
+
+
+class _CanLink(_Link):
+    # One StepfocBus per (interface, channel) in this process, shared by every node opened on it: a single
+    # reader dispatches replies by node id (issue 3), and two readers on one SocketCAN socket would race.
+    _buses: dict[tuple[str, str], tuple[Any, int]] = {}
+    _buses_lock = threading.Lock()
+
+    def __init__(
+        self, interface: str, channel: str, bitrate: int, node: int, current_limit: int, timeout: float
+    ):
+        from drivers.stepfoc.can_client import StepfocBus
+
+        self._key = (interface, channel)
+        with self._buses_lock:
+            bus, count = self._buses.get(self._key, (None, 0))
+            if bus is None:
+                bus = StepfocBus(interface=interface, channel=channel, bitrate=bitrate)
+            self._buses[self._key] = (bus, count + 1)
+        self.node_id = node
+        try:
+            self.driver = bus.node(node, current_limit_ma=current_limit, timeout=timeout)
+        except BaseException:
+            self._release_bus()
+            raise
+
+    def status(self) -> _Status:
+        return _from_can(self.driver.poll())
+
+    def go(self, position: int, speed: int, current_ma: int, *, action: bool = True) -> None:
+        self.driver.command(position, speed, current_ma, activate=True, action=action, estop=False)
+
+    def calibrate(self) -> None:
+        self.driver.calibrate(wait=False)
+
+    def estop(self) -> None:
+        self.driver.estop()
+
+    def clear(self) -> None:
+        self.driver.clear_error()
+
+    def identity(self) -> dict[str, Any]:
+        info = self.driver.device_info()
+        return {
+            "serial": str(info.serial),
+            "firmware": str(info.software_version),
+            "hardware": str(info.hardware_version),
+            "extra": {"node": self.node_id, "batch_date": info.batch_date},
+        }
+
+    def _release_bus(self) -> None:
+        with self._buses_lock:
+            bus, count = self._buses[self._key]
+            if count <= 1:
+                del self._buses[self._key]
+                bus.close()
+            else:
+                self._buses[self._key] = (bus, count - 1)
+
+    def close(self) -> None:
+        self._release_bus()
+
+
+class _UartLink(_Link):
+    def __init__(self, port: str, baudrate: int, current_limit: int, timeout: float) -> None:
+        from drivers.stepfoc.uart_client import StepfocUart
+
+        self.port = port
+        self.driver = StepfocUart(port, baudrate=baudrate, timeout=timeout, current_limit_ma=current_limit)
+        self._last: tuple[int, int, int] | None = None
+
+    def status(self) -> _Status:
+        info = self.driver.gripinfo()
+        position = self.driver.position()
+        faults = ("fast_stop",) if info.estop else ()
+        return _Status(
+            position,
+            None,  # the UART reports setpoints, not the measured current
+            Detection(int(info.detection)),
+            bool(info.calibrated),
+            bool(info.activated),
+            bool(info.action),
+            bool(info.estop),
+            faults,
+        )
+
+    def go(self, position: int, speed: int, current_ma: int, *, action: bool = True) -> None:
+        d = self.driver
+        d.velocity(speed)
+        d.current(current_ma)
+        if action:
+            d.position(position)  # a set also activates the gripper and starts the motion (PROTOCOL-NOTES §2)
+        else:
+            d.activate(0)
+
+    def calibrate(self) -> None:
+        self.driver.calibrate()
+
+    def estop(self) -> None:
+        self.driver.estop(1)
+
+    def clear(self) -> None:
+        # Gripstop 0 only clears the estop bit; the error itself stays until #Clear (STEPFOC firmware, as
+        # the CAN side's command 1), and Gripinfo shows the bit, not the error.
+        self.driver.estop(0)
+        self.driver.clear_error()
+
+    def identity(self) -> dict[str, Any]:
+        info = self.driver.info()
+        return {
+            "serial": None,
+            "firmware": str(info.software_version),
+            "hardware": str(info.hardware_version),
+            "extra": {"node": info.can_id, "batch_date": info.batch_date, "port": self.port},
+        }
+
+    def close(self) -> None:
+        self.driver.close()
+
+
+class MsgGripper(Gripper):
+    capabilities = frozenset({Capability.CURRENT_CONTROL, Capability.CALIBRATION})
+
+    def __init__(self, link: _Link, profile: MsgProfile, url: str, *, timeout: float) -> None:
+        super().__init__(profile, url, timeout=timeout)
+        self._link = link
+        self._maps = profile.maps
+        self._mode = "idle"  # what the last motion was, to name what the detection bits mean
+        self._held = False  # a grasp found its part; detection 3 afterwards means the part was lost
+
+    @property
+    def driver(self) -> Any:
+        return self._link.driver
+
+    # -- unit maps (profile maps; PROTOCOL-NOTES §2 for the byte meanings) ---------------------------------
+
+    def _position_byte(self, width: float) -> int:
+        m = self._maps
+        span = m.open_width_mm - m.closed_width_mm
+        return max(0, min(255, round((m.open_width_mm - width * 1000) / span * 255)))
+
+    def _width_of(self, position: int) -> float:
+        m = self._maps
+        return (m.open_width_mm - position / 255 * (m.open_width_mm - m.closed_width_mm)) / 1000
+
+    def _speed_byte(self, speed: float) -> int:
+        m = self._maps
+        return max(
+            0,
+            min(
+                255,
+                round((speed * 1000 - m.speed_at_0_mm_s) / (m.speed_at_255_mm_s - m.speed_at_0_mm_s) * 255),
+            ),
+        )
+
+    def _current_ma(self, force: float | None) -> int:
+        m = self._maps
+        if force is None:
+            return m.default_current_ma
+        assert isinstance(self.profile, MsgProfile)
+        limit = self.profile.effective_max_current_ma
+        return max(m.min_current_ma, min(limit, round(force / m.newton_per_amp * 1000)))
+
+    # -- motion ----------------------------------------------------------------------------------------
+
+    def _wait(self, command: str, timeout: float, done: Any) -> _Status:
+        deadline = time.monotonic() + timeout
+        while True:
+            st = self._link.status()
+            if st.estop:
+                from ..gripper import FastStopActive
+
+                self._fast_stopped = True
+                raise FastStopActive("e-stop raised during the motion", device=self.name, command=command)
+            if done(st):
+                return st
+            if time.monotonic() >= deadline:
+                raise GripperTimeout(f"not done after {timeout:g} s", device=self.name, command=command)
+            time.sleep(POLL_PERIOD)
+
+    def _go_and_wait(
+        self, command: str, position: int, speed: float, current_ma: int, timeout: float
+    ) -> _Status:
+        self._link.go(position, self._speed_byte(speed), current_ma)
+        # The immediate reply to a new command still carries the previous detection value (PROTOCOL-NOTES
+        # §2), so a fresh poll decides; detection 0 means moving.
+        return self._wait(command, timeout, lambda st: st.detection != Detection.MOVING)
+
+    def _home(self, timeout: float) -> None:
+        self._link.calibrate()
+        self._mode, self._held = "home", False
+        self._wait("home", timeout, lambda st: st.calibrated)
+        self._mode = "idle"
+
+    def _motion_timeout(self, distance: float, speed: float) -> float:
+        # Calibration drives both ways at low current and pauses; give it room.
+        return max(super()._motion_timeout(distance, speed), 30.0)
+
+    def _move(self, width: float, speed: float, timeout: float) -> MotionResult:
+        self._mode, self._held = "move", False
+        st = self._go_and_wait(
+            "move", self._position_byte(width), speed, self._maps.default_current_ma, timeout
+        )
+        return MotionResult(self._width_of(st.position), self._grasp_state(st))
+
+    def _grasp(self, width: float, speed: float, force: float, timeout: float) -> GraspResult:
+        m = self._maps
+        travel = m.grasp_travel_mm / 1000
+        target = width + travel if m.inside_grip else width - travel
+        target = min(max(target, self.limits.min_width), self.limits.max_width)
+        self._mode, self._held = "grasp", False
+        current = self._current_ma(force)
+        st = self._go_and_wait("grasp", self._position_byte(target), speed, current, timeout)
+        expected = Detection.OPENING_OBJECT if m.inside_grip else Detection.CLOSING_OBJECT
+        held = st.detection == expected
+        self._held = held
+        est_force = current / 1000 * m.newton_per_amp
+        return GraspResult(
+            held,
+            self._width_of(st.position),
+            est_force if held else None,
+            GraspState.HOLDING if held else GraspState.NO_PART,
+            reason=None
+            if held
+            else f"reached {self._width_of(st.position) * 1000:.1f} mm without meeting a part",
+        )
+
+    def _release(self, width: float, speed: float, timeout: float) -> MotionResult:
+        self._mode, self._held = "release", False
+        st = self._go_and_wait(
+            "release", self._position_byte(width), speed, self._maps.default_current_ma, timeout
+        )
+        self._mode = "idle"
+        return MotionResult(self._width_of(st.position), GraspState.IDLE)
+
+    def _stop(self) -> None:
+        # The firmware has no stop command: clearing the action flag halts the motion where it is.
+        st = self._link.status()
+        self._link.go(st.position, 0, self._maps.default_current_ma, action=False)
+        self._mode = "idle"
+
+    def _fast_stop(self) -> None:
+        self._link.estop()
+
+    def _acknowledge(self) -> None:
+        self._link.clear()
+
+    # -- state -----------------------------------------------------------------------------------------
+
+    def _grasp_state(self, st: _Status) -> GraspState:
+        if st.estop or st.faults:
+            return GraspState.ERROR
+        if st.detection == Detection.MOVING and st.activated and st.action:
+            return {"grasp": GraspState.GRASPING, "release": GraspState.RELEASING}.get(
+                self._mode, GraspState.POSITIONING
+            )
+        if st.detection in (Detection.CLOSING_OBJECT, Detection.OPENING_OBJECT):
+            return GraspState.HOLDING
+        if self._mode == "grasp" and st.detection == Detection.AT_POSITION:
+            return GraspState.PART_LOST if self._held else GraspState.NO_PART
+        return GraspState.IDLE
+
+    def _state(self) -> GripperState:
+        st = self._link.status()
+        return GripperState(
+            width=self._width_of(st.position),
+            speed=None,
+            force=None,
+            current=None if st.current_ma is None else abs(st.current_ma) / 1000,
+            grasp=self._grasp_state(st),
+            moving=st.detection == Detection.MOVING and st.activated and st.action and st.calibrated,
+            referenced=st.calibrated,
+            faults=st.faults,
+            timestamp=time.time(),
+        )
+
+    def _info(self) -> DeviceInfo:
+        ident = self._link.identity()
+        return DeviceInfo(
+            family="stepfoc",
+            vendor=self.profile.vendor,
+            model=self.profile.model,
+            serial=ident["serial"],
+            firmware=ident["firmware"],
+            hardware=ident["hardware"],
+            limits=self.limits,
+            url=self.url,
+            profile=self.profile.name,
+            extra=ident["extra"],
+        )
+
+    def _close(self) -> None:
+        self._link.close()
+
+
+class StepfocBackend:
+    family = "stepfoc"
+    profile_model = MsgProfile
+
+    def open(self, url: ConnectionURL, profile: ProfileBase | None, settings: Settings) -> MsgGripper:
+        if not isinstance(profile, MsgProfile):
+            profile = load_profile(DEFAULT_PROFILE)
+        assert isinstance(profile, MsgProfile)
+        t = profile.transport
+        timeout = settings.float("timeout", t.timeout_s)
+        current_limit = profile.effective_max_current_ma
+        link: _Link
+        if url.transport == "can":
+            link = _CanLink(
+                settings.str("interface", url.interface),
+                settings.str("channel", url.channel),
+                settings.int("bitrate", t.can_bitrate),
+                settings.int("node", t.node),
+                current_limit,
+                timeout,
+            )
+        elif url.transport == "serial":
+            link = _UartLink(
+                url.serial_port or "", settings.int("baudrate", t.baudrate), current_limit, timeout
+            )
+        else:
+            raise URLError(f"{url.url}: the STEPFOC family runs on can or serial, not {url.transport}")
+        try:
+            link.status()  # is anything there? a silent node raises GripperTimeout naming it
+            return MsgGripper(link, profile, url.url, timeout=timeout)
+        except BaseException:
+            link.close()
+            raise
+
+    def sim_model(self, profile: ProfileBase, node: int, part_width_mm: float | None) -> Any:
+        """A simulated MSG on ``node`` with the profile's travel and a part of ``part_width_mm``."""
+        from drivers.stepfoc.sim import MsgModel
+
+        assert isinstance(profile, MsgProfile)
+        sim = profile.simulator
+        return MsgModel(
+            node=node,
+            travel_mm=profile.maps.open_width_mm - profile.maps.closed_width_mm,
+            part_width_mm=part_width_mm,
+            hardware_version=sim.hardware_version,
+            software_version=sim.software_version,
+            serial=sim.serial,
+        )
+
+    def serve(self, models: list[Any], listen: str, settings: Settings) -> Any:
+        from drivers.stepfoc.sim import serve_can, serve_uart
+
+        assert models
+        time_scale = settings.float("time_scale", 1.0)
+        if listen == "pty":
+            if len(models) != 1:
+                raise URLError("a UART simulator serves one gripper")
+            return serve_uart(models[0], "pty", time_scale=time_scale)
+        return serve_can(models, listen, time_scale=time_scale)
+
+    def simulator(self, profile: ProfileBase, settings: Settings, listen: str | None = None) -> Any:
+        assert isinstance(profile, MsgProfile)
+        node = settings.int("node", profile.transport.node)
+        settings.add_defaults({"node": str(node)})
+        settings.add_defaults({"time_scale": str(profile.simulator.time_scale)})
+        part = settings.float("part_width_mm", profile.simulator.part_width_mm)
+        model = self.sim_model(profile, node, part)
+        if listen is None:
+            transport = settings.str("transport", "can")
+            if transport == "can":
+                listen = f"can://virtual/grippers-sim-{uuid.uuid4().hex[:12]}"
+            elif transport in ("pty", "serial"):
+                listen = "pty"
+            else:
+                raise URLError(f"{settings.url}: transport must be can or pty, not {transport!r}")
+        return self.serve([model], listen, settings)
+
+    def simulate(self, profile: ProfileBase, settings: Settings) -> Any:
+        return self.simulator(profile, settings)

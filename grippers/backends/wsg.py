@@ -1,0 +1,262 @@
+"""The WSG backend: :class:`drivers.wsg.client.WsgClient` behind the SI :class:`grippers.Gripper`.
+
+The driver speaks mm, mm/s and N; the conversion happens here and nowhere else. The device's own Get System
+Limits (53h) answer narrows the profile's limits at connect time, so a profile with optimistic datasheet
+numbers cannot send a value the gripper would turn into a FAST STOP.
+"""
+
+from __future__ import annotations
+
+import time
+import uuid
+from typing import Any
+
+from drivers.errors import CommandFailed
+from drivers.wsg.client import WsgClient
+from drivers.wsg.commands import GraspingState, SystemFlags
+from drivers.wsg.protocol import Status
+
+from ..gripper import Capability, DeviceInfo, GraspResult, GraspState, Gripper, GripperState, MotionResult
+from ..profiles import (
+    Limits,
+    ProfileBase,
+    WsgProfile,
+    WsgTransport,
+    load_profile,
+    wsg_profile_for_device_type,
+)
+from ..settings import Settings
+from ..urls import ConnectionURL
+
+# WSG grasping states (manual 4.0.x §3.4.2) onto the common enum: the names match one to one.
+_GRASP = {
+    GraspingState.IDLE: GraspState.IDLE,
+    GraspingState.GRIPPING: GraspState.GRASPING,
+    GraspingState.NO_PART: GraspState.NO_PART,
+    GraspingState.PART_LOST: GraspState.PART_LOST,
+    GraspingState.HOLDING: GraspState.HOLDING,
+    GraspingState.RELEASING: GraspState.RELEASING,
+    GraspingState.POSITIONING: GraspState.POSITIONING,
+    GraspingState.ERROR: GraspState.ERROR,
+}
+
+# System-state flags that are faults (manual Appendix B), reported by name without the SF_ prefix.
+_FAULT_FLAGS = tuple(
+    flag
+    for flag in SystemFlags
+    if flag.name
+    and any(word in flag.name for word in ("FAST_STOP", "FAULT", "FAILURE", "WARNING"))
+)
+
+FALLBACK_PROFILE = "wsg50"
+
+
+def _fault_names(flags: int) -> tuple[str, ...]:
+    return tuple(f.name.removeprefix("SF_").lower() for f in _FAULT_FLAGS if flags & f and f.name)
+
+
+class WsgGripper(Gripper):
+    def __init__(
+        self, client: WsgClient, profile: WsgProfile, url: str, *, timeout: float, device_limits: Any
+    ) -> None:
+        super().__init__(profile, url, timeout=timeout)
+        self._client = client
+        self._system_info = client.system_info()
+        if device_limits is not None:
+            self.limits = _narrow(self.limits, device_limits)
+        caps = {
+            Capability.FORCE_CONTROL,
+            Capability.FORCE_MEASUREMENT,
+            Capability.HOMING,
+            Capability.SOFT_LIMITS,
+            Capability.DEVICE_TAG,
+            Capability.PUSH_UPDATES,
+        }
+        if self._system_info.firmware.major >= 4:  # 46h and the finger commands are 4.x only
+            caps |= {Capability.TEMPERATURE, Capability.FINGER_DATA}
+        self.capabilities = frozenset(caps)
+
+    @property
+    def driver(self) -> WsgClient:
+        return self._client
+
+    def _home(self, timeout: float) -> None:
+        self._client.home(timeout=timeout)
+
+    def _move(self, width: float, speed: float, timeout: float) -> MotionResult:
+        self._client.preposition(width * 1000, speed * 1000, timeout=timeout)
+        return MotionResult(
+            self._client.width() / 1000, _GRASP.get(self._client.grasping_state(), GraspState.IDLE)
+        )
+
+    def _grasp(self, width: float, speed: float, force: float, timeout: float) -> GraspResult:
+        try:
+            self._client.grip(width * 1000, speed * 1000, force=force, timeout=timeout)
+        except CommandFailed as exc:
+            if exc.status != Status.E_CMD_FAILED:
+                raise
+            # E_CMD_FAILED is the manual's "no part found": an outcome, not an error (§3.2.6).
+            return GraspResult(
+                False,
+                self._client.width() / 1000,
+                None,
+                GraspState.NO_PART,
+                reason=f"no part found within the clamping travel ({exc.status_name})",
+            )
+        state = _GRASP.get(self._client.grasping_state(), GraspState.ERROR)
+        held = state is GraspState.HOLDING
+        return GraspResult(
+            held,
+            self._client.width() / 1000,
+            self._client.force() if held else None,
+            state,
+            reason=None if held else f"grasping state is {state.value}",
+        )
+
+    def _release(self, width: float, speed: float, timeout: float) -> MotionResult:
+        self._client.release(width * 1000, speed * 1000, timeout=timeout)
+        return MotionResult(
+            self._client.width() / 1000, _GRASP.get(self._client.grasping_state(), GraspState.IDLE)
+        )
+
+    def _stop(self) -> None:
+        self._client.stop()
+
+    def _fast_stop(self) -> None:
+        self._client.fast_stop()
+
+    def _acknowledge(self) -> None:
+        self._client.acknowledge_fast_stop()
+
+    def _state(self) -> GripperState:
+        c = self._client
+        flags = int(c.system_state())
+        grasp = _GRASP.get(c.grasping_state(), GraspState.ERROR)
+        return GripperState(
+            width=c.width() / 1000,
+            speed=c.speed() / 1000,
+            force=c.force(),
+            current=None,
+            grasp=grasp,
+            moving=bool(flags & SystemFlags.SF_MOVING),
+            referenced=bool(flags & SystemFlags.SF_REFERENCED),
+            faults=_fault_names(flags),
+            timestamp=time.time(),
+        )
+
+    def _info(self) -> DeviceInfo:
+        si = self._system_info
+        return DeviceInfo(
+            family="wsg",
+            vendor=self.profile.vendor,
+            model=self.profile.model,
+            serial=str(si.serial),
+            firmware=str(si.firmware),
+            hardware=str(si.hw_revision),
+            limits=self.limits,
+            url=self.url,
+            profile=self.profile.name,
+            extra={"device_type": int(si.device_type)},
+        )
+
+    def _close(self) -> None:
+        self._client.close()
+
+
+def _narrow(limits: Limits, device: Any) -> Limits:
+    """The profile's limits within the device's own 53h limits (mm, mm/s, N in; SI out)."""
+    return limits.model_copy(
+        update={
+            "max_width": min(limits.max_width, float(device.stroke) / 1000),
+            "min_speed": max(limits.min_speed, float(device.min_speed) / 1000),
+            "max_speed": min(limits.max_speed, float(device.max_speed) / 1000),
+            "min_force": max(limits.min_force, float(device.min_force)),
+            "max_force": min(limits.max_force, float(device.nominal_force)),
+        }
+    )
+
+
+class WsgBackend:
+    family = "wsg"
+    profile_model = WsgProfile
+
+    def open(self, url: ConnectionURL, profile: ProfileBase | None, settings: Settings) -> WsgGripper:
+        t = profile.transport if isinstance(profile, WsgProfile) else WsgTransport()
+        timeout = settings.float("timeout", t.timeout_s)
+        common = {
+            "device": url.url,
+            "timeout": timeout,
+            "verify_checksum": settings.bool("verify_checksum", t.verify_checksum),
+        }
+        if url.transport == "tcp":
+            client = WsgClient.tcp(url.host, url.port or t.tcp_port, **common)
+        elif url.transport == "udp":
+            local_port = settings.int("local_port", t.udp_local_port)
+            client = WsgClient.udp(url.host, url.port or t.udp_port, local_port=local_port, **common)
+        elif url.transport == "serial":
+            client = WsgClient.serial(
+                url.serial_port,
+                baudrate=settings.int("baudrate", t.baudrate),
+                bytesize=settings.int("bytesize", t.bytesize),
+                parity=settings.str("parity", t.parity),
+                stopbits=settings.float("stopbits", t.stopbits),
+                **common,
+            )
+        else:
+            client = WsgClient.can(
+                interface=settings.str("interface", url.interface),
+                channel=settings.str("channel", url.channel),
+                bitrate=settings.int("bitrate", t.can_bitrate),
+                send_id=settings.int("send_id", t.can_send_id),
+                recv_id=settings.int("recv_id", t.can_recv_id),
+                **common,
+            )
+        try:
+            info = client.system_info()
+            if not isinstance(profile, WsgProfile):
+                profile = wsg_profile_for_device_type(int(info.device_type)) or load_profile(FALLBACK_PROFILE)
+            device_limits = client.system_limits()
+            assert isinstance(profile, WsgProfile)
+            return WsgGripper(client, profile, url.url, timeout=timeout, device_limits=device_limits)
+        except BaseException:
+            client.close()
+            raise
+
+    def simulator(self, profile: ProfileBase, settings: Settings, listen: str | None = None) -> Any:
+        """A WSG simulator for ``profile`` serving on ``listen`` (default: loopback TCP, a free port)."""
+        from drivers.wsg.sim import WsgModel, serve
+
+        assert isinstance(profile, WsgProfile)
+        m, sim = profile.mechanics, profile.simulator
+        model = WsgModel(
+            device_type=profile.wsg.device_type,
+            stroke_mm=m.stroke_mm,
+            min_speed=m.min_speed_mm_s,
+            max_speed=m.max_speed_mm_s,
+            min_accel=m.min_accel_mm_s2 or 100.0,
+            max_accel=m.max_accel_mm_s2 or 5000.0,
+            min_force=m.min_force_n,
+            max_force=m.max_force_n,
+            firmware=settings.str("firmware", sim.firmware),
+            serial=settings.int("serial", sim.serial),
+            part_width_mm=settings.float("part_width_mm", sim.part_width_mm),
+            clamping_travel_mm=settings.float("clamping_travel_mm", profile.wsg.clamping_travel_mm),
+            force_fingers=settings.bool("force_fingers", sim.force_fingers),
+        )
+        transport = settings.str("transport", "tcp")
+        if listen is None:
+            listen = {
+                "tcp": "tcp://127.0.0.1:0",
+                "udp": "udp://127.0.0.1:0",
+                "pty": "pty",
+                "serial": "pty",
+                "can": f"can://virtual/grippers-sim-{uuid.uuid4().hex[:12]}",
+            }.get(transport)
+            if listen is None:
+                from ..errors import URLError
+
+                raise URLError(f"{settings.url}: transport must be tcp, udp, pty or can, not {transport!r}")
+        return serve(model, listen, time_scale=settings.float("time_scale", sim.time_scale))
+
+    def simulate(self, profile: ProfileBase, settings: Settings) -> Any:
+        return self.simulator(profile, settings)

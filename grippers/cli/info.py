@@ -1,0 +1,50 @@
+"""``grippers info URL``: what the gripper is (vendor, model, firmware, serial) and its limits."""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any
+
+from .common import add_common, add_target, info_dict, open_gripper
+from .output import EXIT_OK, INFO_SCHEMA_ID, fmt_num, key_values, write_json
+
+HELP = "show vendor, model, firmware, serial number and limits of a gripper"
+EXAMPLE = "grippers info wsg+tcp://127.0.0.1:1000 --json"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    add_target(parser)
+    add_common(parser)
+
+
+def render(info: dict[str, Any]) -> str:
+    lim = info["limits"]
+    pairs: list[tuple[str, Any]] = [
+        ("vendor", info["vendor"]),
+        ("model", info["model"]),
+        ("family", info["family"]),
+        ("firmware", info["firmware"]),
+        ("hardware", info["hardware"]),
+        ("serial", info["serial"]),
+        ("profile", info["profile"]),
+        ("width", f"{fmt_num(lim['min_width_mm'], '')} .. {fmt_num(lim['max_width_mm'], 'mm')}"),
+        ("speed", f"{fmt_num(lim['min_speed_mm_s'], '')} .. {fmt_num(lim['max_speed_mm_s'], 'mm/s')}"),
+        ("force", f"{fmt_num(lim['min_force_n'], '')} .. {fmt_num(lim['max_force_n'], 'N')}"),
+    ]
+    if lim["max_current_a"] is not None:
+        pairs.append(("max current", fmt_num(lim["max_current_a"], "A", 3)))
+    pairs += [(str(k), v) for k, v in (info.get("extra") or {}).items()]
+    return key_values(pairs)
+
+
+def run(args: argparse.Namespace) -> int:
+    gripper = open_gripper(args)
+    try:
+        info = info_dict(gripper.info())
+    finally:
+        gripper.close()
+    if args.json:
+        write_json({"schema": INFO_SCHEMA_ID, "target": args.target, "info": info})
+    else:
+        print(render(info))
+    return EXIT_OK

@@ -1,0 +1,501 @@
+"""``grippers monitor``: decode live traffic or a capture into one readable line per frame or packet.
+
+Sources: a capture file (candump log for CAN; hex dump or raw bytes for the WSG byte protocol; ``-`` reads
+stdin, so ``candump -L can0 | grippers monitor -`` works), a live CAN bus (``-i``/``-c``), or a live WSG TCP
+connection through ``--proxy``. The decoding is the drivers' own (the WSG packet parser and command table, the
+STEPFOC frame table and their one-line descriptions), so the monitor shows exactly what the clients and
+simulators understand, and there is no second copy of any byte layout here.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import enum
+import selectors
+import socket
+import sys
+import time
+from collections.abc import Iterator
+from typing import Any
+
+from .common import add_can_flags, positive_float
+from .output import EXIT_FAILED, EXIT_OK, MONITOR_SCHEMA_ID, UsageError, write_json
+
+HELP = "decode live CAN traffic, a WSG TCP connection (--proxy) or a capture, one line per frame or packet"
+EXAMPLE = (
+    "grippers monitor capture.log            (candump -L format)\n"
+    "         grippers monitor wsg.hex --protocol wsg\n"
+    "         grippers monitor -i socketcan -c can0 --protocol stepfoc\n"
+    "         grippers monitor --proxy 127.0.0.1:1000 --to 192.168.1.20:1000\n"
+    "         candump -L can0 | grippers monitor -"
+)
+
+PROTOCOLS = ("auto", "wsg", "stepfoc")
+FORMATS = ("auto", "candump", "hex", "raw")
+TO_GRIPPER = "host->gripper"
+FROM_GRIPPER = "gripper->host"
+
+
+def _can_id(text: str) -> int:
+    try:
+        value = int(text, 0)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+    if not 0 <= value < 0x7FF:
+        raise argparse.ArgumentTypeError(f"not a standard CAN id below 0x7FF: {text!r}")
+    return value
+
+
+def _host_port(text: str) -> tuple[str, int]:
+    host, sep, port = text.rpartition(":")
+    try:
+        number = int(port)
+    except ValueError:
+        number = -1
+    if not sep or not host or not 0 <= number <= 65535:
+        raise argparse.ArgumentTypeError(f"expected HOST:PORT, not {text!r}")
+    return host.strip("[]"), number
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "capture", nargs="?", metavar="FILE", help="capture file, or - for stdin; omit with -i/-c or --proxy"
+    )
+    parser.add_argument("--format", choices=FORMATS, default="auto", help="capture format (default: detect)")
+    parser.add_argument(
+        "--protocol",
+        choices=PROTOCOLS,
+        default="auto",
+        help="decode CAN frames as WSG or STEPFOC (default: frames on the WSG ids that carry a WSG packet "
+        "as WSG, the rest as STEPFOC); byte captures are always WSG",
+    )
+    parser.add_argument(
+        "--wsg-id",
+        type=_can_id,
+        default=0x000,
+        metavar="ID",
+        help="WSG over CAN: the command id; replies come on ID+1 (default 0x000, PROTOCOL-NOTES §1)",
+    )
+    parser.add_argument(
+        "--direction",
+        choices=("to", "from", "unknown"),
+        default="unknown",
+        help="for byte captures without direction marks: bytes sent to (to) or from (from) the gripper",
+    )
+    parser.add_argument(
+        "--json", action="store_true", help="JSON Lines, one object per frame or packet (see docs/cli.md)"
+    )
+    parser.add_argument("-n", "--count", type=int, default=0, metavar="N", help="stop after N decoded lines")
+    parser.add_argument(
+        "--duration",
+        type=positive_float,
+        metavar="SECONDS",
+        help="live: stop after this long (default: Ctrl-C)",
+    )
+    parser.add_argument(
+        "--proxy",
+        type=_host_port,
+        metavar="HOST:PORT",
+        help="live WSG over TCP: listen here (port 0: a free port, printed on stderr), forward to --to",
+    )
+    parser.add_argument(
+        "--to", type=_host_port, metavar="HOST:PORT", help="with --proxy: the gripper to forward to"
+    )
+    add_can_flags(parser)
+
+
+# --- values to JSON ----------------------------------------------------------------------------------------
+
+
+def field_value(value: Any) -> Any:
+    """A decoded field as plain JSON: flags as lists of names, enums by name, records as objects."""
+    if isinstance(value, enum.IntFlag):
+        return [m.name for m in type(value) if m.name and m in value]
+    if isinstance(value, enum.Enum):
+        return value.name
+    if isinstance(value, float):
+        return round(value, 6)
+    if isinstance(value, bytes | bytearray):
+        return bytes(value).hex()
+    if type(value).__name__ == "FirmwareVersion":  # has its own major.minor1.minor2 form
+        return str(value)
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return {f.name: field_value(getattr(value, f.name)) for f in dataclasses.fields(value)}
+    if isinstance(value, dict):
+        return {str(k): field_value(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [field_value(v) for v in value]
+    return value
+
+
+def _record(**fields: Any) -> dict[str, Any]:
+    base: dict[str, Any] = {
+        "time": None,
+        "protocol": "wsg",
+        "direction": "?",
+        "id": None,
+        "node": None,
+        "command": None,
+        "fields": {},
+        "status": None,
+        "text": "",
+        "raw": None,
+    }
+    base.update(fields)
+    return base
+
+
+# --- WSG ---------------------------------------------------------------------------------------------------
+
+
+class WsgStream:
+    """Reassembles WSG packets from a byte stream per direction and decodes each with the command table."""
+
+    def __init__(self) -> None:
+        from drivers.wsg import commands, protocol
+
+        self._c = commands
+        self._p = protocol
+        self._parsers: dict[str, Any] = {}
+
+    def feed(self, direction: str, data: bytes, stamp: float | None) -> Iterator[dict[str, Any]]:
+        parser = self._parsers.get(direction)
+        if parser is None:
+            parser = self._parsers[direction] = self._p.PacketParser()
+        for item in parser.feed(data):
+            yield self.record(direction, item, stamp)
+
+    def busy(self, direction: str) -> bool:
+        parser = self._parsers.get(direction)
+        return parser is not None and parser.buffered > 0
+
+    def flush(self, stamp: float | None = None) -> Iterator[dict[str, Any]]:
+        """At the end of a capture: report a packet cut short, then decode what was held behind it."""
+        for direction, parser in self._parsers.items():
+            for _ in range(64):  # each round drops at least one byte; bounded anyway
+                if not parser.buffered:
+                    break
+                dropped = parser.reset()
+                if dropped:
+                    yield self._noise(direction, dropped, "incomplete packet at the end", stamp)
+                for item in parser.feed(b""):
+                    yield self.record(direction, item, stamp)
+
+    def _noise(self, direction: str, raw: bytes, reason: str, stamp: float | None) -> dict[str, Any]:
+        return _record(
+            time=stamp,
+            direction=direction,
+            status="noise",
+            fields={"bytes": len(raw), "reason": reason},
+            text=f"{len(raw)} byte(s) skipped: {reason}",
+            raw=raw.hex(),
+        )
+
+    def record(self, direction: str, item: Any, stamp: float | None) -> dict[str, Any]:
+        p, c = self._p, self._c
+        if isinstance(item, p.Discarded):
+            return self._noise(direction, item.raw, item.reason, stamp)
+        if isinstance(item, p.ChecksumError | p.BadLength):
+            problem = (
+                f"bad checksum (received {item.received:04X}h, expected {item.expected:04X}h)"
+                if isinstance(item, p.ChecksumError)
+                else f"bad length ({item.size} bytes, at most {item.max_payload})"
+            )
+            return _record(
+                time=stamp,
+                direction=direction,
+                id=f"{item.command:02X}h",
+                command=c.command_name(item.command),
+                status=problem,
+                text=f"{c.command_name(item.command)} {problem}",
+                raw=item.raw.hex(),
+            )
+        packet = item
+        if direction == "?":
+            direction = self._guess_direction(packet)
+        fields: dict[str, Any] = {}
+        status: str | None = None
+        try:
+            if direction == FROM_GRIPPER:
+                reply = c.decode_reply(packet.command, packet.payload)
+                status, fields = reply.status_name, reply.fields
+            else:
+                fields = c.decode_request(packet.command, packet.payload)
+        except Exception as exc:  # the table could not read it: shown, with why, never fatal
+            fields = {"error": str(exc)}
+        describe_as = "reply" if direction == FROM_GRIPPER else "request"
+        return _record(
+            time=stamp,
+            direction=direction,
+            id=f"{packet.command:02X}h",
+            command=c.command_name(packet.command),
+            fields=field_value(fields),
+            status=status,
+            text=c.describe(packet, describe_as),
+            raw=packet.encode().hex(),
+        )
+
+    def _guess_direction(self, packet: Any) -> str:
+        """Without direction marks: the layout that decodes wins (requests and replies differ in length)."""
+        c = self._c
+        fits = []
+        for direction, decode in ((TO_GRIPPER, c.decode_request), (FROM_GRIPPER, c.decode_reply)):
+            try:
+                decode(packet.command, packet.payload)
+                fits.append(direction)
+            except Exception:
+                continue
+        return fits[0] if len(fits) == 1 else "?"
+
+
+# --- CAN ---------------------------------------------------------------------------------------------------
+
+
+class CanDecoder:
+    """Decodes CAN frames: STEPFOC frames by the drivers' table, WSG packets reassembled from their ids."""
+
+    def __init__(self, protocol: str, wsg_id: int) -> None:
+        self.protocol = protocol
+        self.wsg_id = wsg_id
+        self._wsg: WsgStream | None = None
+
+    def _wsg_stream(self) -> WsgStream:
+        if self._wsg is None:
+            self._wsg = WsgStream()
+        return self._wsg
+
+    def _is_wsg(self, arbitration_id: int, data: bytes, direction: str) -> bool:
+        if self.protocol != "auto":
+            return self.protocol == "wsg"
+        if arbitration_id not in (self.wsg_id, self.wsg_id + 1):
+            return False
+        # These ids are also a STEPFOC node's frames (0x000 is node 0's E-stop, which has no data): a frame is
+        # WSG when it starts a packet or continues one (PROTOCOL-NOTES §1 CAN: 8-byte chunks of a packet).
+        return data.startswith(b"\xaa") or (self._wsg is not None and self._wsg.busy(direction))
+
+    def decode(self, arbitration_id: int, data: bytes, is_remote: bool, stamp: float | None) -> list[dict]:
+        direction = FROM_GRIPPER if arbitration_id == self.wsg_id + 1 else TO_GRIPPER
+        if not is_remote and self._is_wsg(arbitration_id, data, direction):
+            return list(self._wsg_stream().feed(direction, data, stamp))
+        from drivers.stepfoc import can_protocol as cp
+
+        node, command, _error = cp.unpack_id(arbitration_id)
+        base = {
+            "time": stamp,
+            "protocol": "stepfoc",
+            "id": f"{arbitration_id:03X}",
+            "node": node,
+            "raw": "R" if is_remote else data.hex(),
+            "text": cp.describe(arbitration_id, data, is_remote),
+        }
+        try:
+            msg = cp.decode_frame(arbitration_id, data, is_remote)
+        except Exception as exc:  # wrong length or a remote frame where data belongs: shown with why
+            spec = cp.COMMANDS.get(command)
+            return [
+                _record(
+                    **base,
+                    direction="?",
+                    command=spec.name if spec else f"command_{command}",
+                    status="error",
+                    fields={"error": str(exc)},
+                )
+            ]
+        if msg.value is None:
+            fields: dict[str, Any] = {}
+        elif dataclasses.is_dataclass(msg.value):
+            fields = field_value(msg.value)
+        else:
+            fields = {msg.name: field_value(msg.value)}
+        return [
+            _record(
+                **base,
+                direction=FROM_GRIPPER if msg.from_node else TO_GRIPPER,
+                command=msg.name,
+                fields=fields,
+                status="error" if msg.error else None,
+            )
+        ]
+
+    def flush(self) -> Iterator[dict[str, Any]]:
+        if self._wsg is not None:
+            yield from self._wsg.flush()
+
+
+# --- rendering ---------------------------------------------------------------------------------------------
+
+
+def render_line(rec: dict[str, Any]) -> str:
+    """time, arrow, protocol, then the drivers' own one-line description (the CAN id for STEPFOC frames)."""
+    stamp = "-" if rec["time"] is None else f"{rec['time']:.6f}"
+    arrow = {TO_GRIPPER: "->", FROM_GRIPPER: "<-"}.get(rec["direction"], "??")
+    text = rec["text"]
+    if rec["protocol"] == "wsg":
+        text = text.removeprefix("-> ").removeprefix("<- ")  # the arrow column says it already
+    else:
+        text = f"{rec['id']}  {text}"
+    return f"{stamp:>17}  {arrow}  {rec['protocol']:<7}  {text}".rstrip()
+
+
+# --- sources -----------------------------------------------------------------------------------------------
+
+
+def _read_capture(name: str) -> bytes:
+    if name == "-":
+        return sys.stdin.buffer.read()
+    try:
+        with open(name, "rb") as fh:
+            return fh.read()
+    except OSError as exc:
+        raise UsageError(f"cannot read {name}: {exc.strerror or exc}") from None
+
+
+def _capture_records(args: argparse.Namespace) -> Iterator[dict[str, Any]]:
+    from .captures import (
+        FROM_DEVICE,
+        TO_DEVICE,
+        UNKNOWN_DIRECTION,
+        CaptureError,
+        parse_candump,
+        parse_hex_dump,
+        sniff_format,
+    )
+
+    blob = _read_capture(args.capture)
+    fmt = args.format if args.format != "auto" else sniff_format(blob)
+    try:
+        if fmt == "candump":
+            decoder = CanDecoder(args.protocol, args.wsg_id)
+            for frame in parse_candump(blob.decode("ascii", errors="replace").splitlines()):
+                yield from decoder.decode(frame.arbitration_id, frame.data, frame.is_remote, frame.timestamp)
+            yield from decoder.flush()
+            return
+        if args.protocol == "stepfoc":
+            raise UsageError("a byte capture holds WSG packets; STEPFOC captures are candump logs")
+        default = {"to": TO_DEVICE, "from": FROM_DEVICE}.get(args.direction, UNKNOWN_DIRECTION)
+        stream = WsgStream()
+        if fmt == "raw":
+            yield from stream.feed(default, blob, None)
+        else:
+            for chunk in parse_hex_dump(blob.decode("ascii", errors="replace").splitlines(), default):
+                yield from stream.feed(chunk.direction, chunk.data, chunk.timestamp)
+        yield from stream.flush()
+    except CaptureError as exc:
+        raise UsageError(f"{args.capture}: {exc}") from None
+
+
+def _live_can_records(args: argparse.Namespace) -> Iterator[dict[str, Any]]:
+    import can
+
+    if not (args.interface and args.channel):
+        raise UsageError(
+            "live monitoring needs both -i/--interface and -c/--channel (or give a capture FILE)"
+        )
+    kwargs: dict[str, Any] = {"interface": args.interface, "channel": args.channel}
+    if args.bitrate:
+        kwargs["bitrate"] = args.bitrate
+    decoder = CanDecoder(args.protocol, args.wsg_id)
+    end = None if args.duration is None else time.monotonic() + args.duration
+    with can.Bus(**kwargs) as bus:
+        while end is None or time.monotonic() < end:
+            wait = 0.25 if end is None else max(0.0, min(0.25, end - time.monotonic()))
+            msg = bus.recv(timeout=wait)
+            if msg is None or msg.is_error_frame:
+                continue
+            yield from decoder.decode(
+                msg.arbitration_id, bytes(msg.data), msg.is_remote_frame, msg.timestamp or time.time()
+            )
+
+
+def _proxy_records(args: argparse.Namespace) -> Iterator[dict[str, Any]]:
+    """A transparent TCP relay between clients and a WSG; both directions are decoded as they pass.
+
+    Each client connection gets its own connection to the gripper and its own parsers, so two programs
+    talking through the proxy do not garble each other's packets.
+    """
+    if args.to is None:
+        raise UsageError("--proxy needs --to HOST:PORT (the gripper)")
+    listener = socket.create_server(args.proxy)
+    host, port = listener.getsockname()[:2]
+    print(
+        f"grippers monitor: proxy listening on {host}:{port}, forwarding to {args.to[0]}:{args.to[1]}",
+        file=sys.stderr,
+        flush=True,
+    )
+    sel = selectors.DefaultSelector()
+    listener.setblocking(False)
+    sel.register(listener, selectors.EVENT_READ, None)
+    end = None if args.duration is None else time.monotonic() + args.duration
+    try:
+        while end is None or time.monotonic() < end:
+            wait = 0.25 if end is None else max(0.0, min(0.25, end - time.monotonic()))
+            for key, _ in sel.select(wait):
+                if key.data is None:
+                    client, _addr = listener.accept()
+                    try:
+                        gripper = socket.create_connection(args.to, timeout=5.0)
+                    except OSError as exc:
+                        print(f"grippers monitor: cannot reach {args.to}: {exc}", file=sys.stderr)
+                        client.close()
+                        continue
+                    stream = WsgStream()
+                    for sock, peer, direction in (
+                        (client, gripper, TO_GRIPPER),
+                        (gripper, client, FROM_GRIPPER),
+                    ):
+                        sock.setblocking(False)
+                        sel.register(sock, selectors.EVENT_READ, (peer, direction, stream))
+                    continue
+                sock = key.fileobj
+                peer, direction, stream = key.data
+                try:
+                    data = sock.recv(65536)  # type: ignore[union-attr]
+                    if data:
+                        peer.sendall(data)
+                except OSError:
+                    data = b""
+                if not data:  # one side closed: close the pair
+                    for s in (sock, peer):
+                        try:
+                            sel.unregister(s)
+                        except (KeyError, ValueError):
+                            pass
+                        s.close()  # type: ignore[union-attr]
+                    continue
+                yield from stream.feed(direction, data, time.time())
+    finally:
+        for key in list(sel.get_map().values()):
+            key.fileobj.close()  # type: ignore[union-attr]
+        sel.close()
+
+
+def run(args: argparse.Namespace) -> int:
+    live_can = bool(args.interface or args.channel)
+    sources = sum((args.capture is not None, live_can, args.proxy is not None))
+    if sources == 0:
+        raise UsageError(
+            "give a capture FILE (or - for stdin), -i/--interface and -c/--channel for a live CAN bus, "
+            "or --proxy HOST:PORT --to HOST:PORT for a WSG TCP connection"
+        )
+    if sources > 1:
+        raise UsageError("give one source: a capture FILE, -i/-c, or --proxy")
+    if args.capture is not None:
+        records = _capture_records(args)
+    elif live_can:
+        records = _live_can_records(args)
+    else:
+        records = _proxy_records(args)
+    decoded = 0
+    for shown, rec in enumerate(records, start=1):
+        if args.json:
+            write_json({"schema": MONITOR_SCHEMA_ID, **rec})
+        else:
+            print(render_line(rec), flush=args.capture is None)
+        decoded += rec["status"] != "noise"
+        if args.count and shown >= args.count:
+            break
+    if args.capture is not None and decoded == 0:
+        print("grippers monitor: error: no complete packet or frame in the capture", file=sys.stderr)
+        return EXIT_FAILED
+    return EXIT_OK

@@ -1,0 +1,242 @@
+"""``grippers home|move|grasp|release|stop|ack``: one motion command each, in millimetres and newtons.
+
+People type millimetres, mm/s and newtons; the Gripper API takes SI, so values are converted once, on the way
+in, by :func:`grippers.cli.output.mm_to_m`. Each command prints the state reached afterwards, with units.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
+
+from .common import add_common, add_target, non_negative_float, open_gripper, positive_float, state_dict
+from .output import (
+    EXIT_FAILED,
+    EXIT_OK,
+    RESULT_SCHEMA_ID,
+    error_line,
+    fmt_num,
+    key_values,
+    mm_to_m,
+    write_json,
+)
+
+if TYPE_CHECKING:
+    from grippers.gripper import GraspResult, Gripper, GripperState, MotionResult
+
+
+@dataclass(frozen=True)
+class MotionCommand:
+    """One subcommand: its help, its extra arguments and the call it makes on an open Gripper."""
+
+    name: str
+    HELP: str
+    EXAMPLE: str
+    extra_arguments: Callable[[argparse.ArgumentParser], None]
+    call: Callable[[Gripper, argparse.Namespace], Any]
+
+    def add_arguments(self, parser: argparse.ArgumentParser) -> None:
+        add_target(parser)
+        self.extra_arguments(parser)
+        if self.name not in ("stop", "ack"):
+            parser.add_argument(
+                "--motion-timeout",
+                type=positive_float,
+                metavar="SECONDS",
+                help="give up if the motion has not ended by then (default: from the stroke and speed)",
+            )
+        add_common(parser)
+
+    def run(self, args: argparse.Namespace) -> int:
+        from grippers.errors import GripperError
+        from grippers.gripper import GraspResult
+
+        gripper = open_gripper(args)
+        try:
+            result = self.call(gripper, args)
+            try:
+                state: GripperState | None = gripper.state()
+            except GripperError:  # the command's outcome matters more than a final read-back
+                state = None
+        finally:
+            gripper.close()
+        # A grasp that found no part did what it was told but did not grip: scripts need a non-zero code.
+        ok = not (isinstance(result, GraspResult) and not result.grasped)
+        document = {
+            "schema": RESULT_SCHEMA_ID,
+            "command": self.name,
+            "target": args.target,
+            "ok": ok,
+            "result": result_dict(result),
+            "state": None if state is None else state_dict(state),
+        }
+        if args.json:
+            write_json(document)
+        else:
+            print(_result_text(self.name, document))
+        if not ok:
+            reason = result.reason if isinstance(result, GraspResult) else None
+            print(error_line(self.name, f"no part gripped: {reason or 'unknown reason'}"), file=sys.stderr)
+            return EXIT_FAILED
+        return EXIT_OK
+
+
+def result_dict(result: MotionResult | GraspResult | None) -> dict[str, Any] | None:
+    """What a motion call returned, in the CLI's units (mm, N)."""
+    from grippers.gripper import GraspResult, MotionResult
+
+    if isinstance(result, GraspResult):
+        return {
+            "grasped": result.grasped,
+            "width_mm": round(result.width * 1000.0, 3),
+            "force_n": None if result.force is None else round(result.force, 3),
+            "grasp_state": result.state.value,
+            "reason": result.reason,
+        }
+    if isinstance(result, MotionResult):
+        return {"width_mm": round(result.width * 1000.0, 3), "grasp_state": result.state.value}
+    return None
+
+
+def _result_text(name: str, document: dict[str, Any]) -> str:
+    pairs: list[tuple[str, Any]] = [("command", f"{name}: {'done' if document['ok'] else 'failed'}")]
+    result = document["result"] or {}
+    if "grasped" in result:
+        pairs.append(("grasped", "yes" if result["grasped"] else f"no ({result['reason']})"))
+    if result.get("force_n") is not None:
+        pairs.append(("grip force", fmt_num(result["force_n"], "N", 1)))
+    state = document["state"]
+    if state:
+        pairs += [
+            ("width", fmt_num(state["width_mm"], "mm", 2)),
+            ("force", fmt_num(state["force_n"], "N", 1)),
+            ("current", fmt_num(state["current_a"], "A", 3)),
+            ("grasp state", state["grasp_state"]),
+            ("faults", ", ".join(state["faults"]) or "none"),
+        ]
+    elif "width_mm" in result:
+        pairs.append(("width", fmt_num(result["width_mm"], "mm", 2)))
+    return key_values(pairs)
+
+
+# --- the commands ------------------------------------------------------------------------------------------
+
+
+def _speed(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--speed", type=positive_float, metavar="MM/S", help="speed in mm/s (default: profile)"
+    )
+
+
+def _no_extra(parser: argparse.ArgumentParser) -> None:
+    return None
+
+
+def _home(g: Gripper, a: argparse.Namespace) -> None:
+    g.home(timeout=a.motion_timeout)
+
+
+def _move_args(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("width", type=non_negative_float, metavar="WIDTH_MM", help="opening width in mm")
+    _speed(parser)
+
+
+def _move(g: Gripper, a: argparse.Namespace) -> Any:
+    return g.move(mm_to_m(a.width), mm_to_m(a.speed), timeout=a.motion_timeout)
+
+
+def _grasp_args(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "width",
+        type=non_negative_float,
+        nargs="?",
+        metavar="WIDTH_MM",
+        help="nominal width of the part in mm (default: the smallest width, i.e. close fully)",
+    )
+    parser.add_argument("--force", type=positive_float, metavar="N", help="grip force in newtons")
+    _speed(parser)
+
+
+def _grasp(g: Gripper, a: argparse.Namespace) -> Any:
+    width = g.limits.min_width if a.width is None else mm_to_m(a.width)
+    return g.grasp(width, mm_to_m(a.speed), a.force, timeout=a.motion_timeout)
+
+
+def _release_args(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "width",
+        type=non_negative_float,
+        nargs="?",
+        metavar="WIDTH_MM",
+        help="open to this width in mm (default: fully open)",
+    )
+    _speed(parser)
+
+
+def _release(g: Gripper, a: argparse.Namespace) -> Any:
+    return g.release(mm_to_m(a.width), mm_to_m(a.speed), timeout=a.motion_timeout)
+
+
+def _stop_args(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--fast", action="store_true", help="FAST STOP: an emergency stop that must be acknowledged (ack)"
+    )
+
+
+def _stop(g: Gripper, a: argparse.Namespace) -> None:
+    if a.fast:
+        g.fast_stop()
+    else:
+        g.stop()
+
+
+def _ack(g: Gripper, a: argparse.Namespace) -> None:
+    g.acknowledge()
+
+
+home = MotionCommand(
+    "home",
+    "move the fingers to their reference position (WSG homing, MSG calibration)",
+    "grippers home wsg+tcp://127.0.0.1:1000",
+    _no_extra,
+    _home,
+)
+move = MotionCommand(
+    "move",
+    "move the fingers to an opening width in mm, without gripping",
+    "grippers move wsg+tcp://127.0.0.1:1000 40 --speed 50\n"
+    "         grippers move 'sim://msg-150?time_scale=20' 30",
+    _move_args,
+    _move,
+)
+grasp = MotionCommand(
+    "grasp",
+    "grip a part of a nominal width in mm with a force in N (exit 1 if no part was gripped)",
+    "grippers grasp wsg+tcp://127.0.0.1:1000 20 --force 30 --speed 50",
+    _grasp_args,
+    _grasp,
+)
+release = MotionCommand(
+    "release",
+    "release a gripped part: open to a width in mm (default fully open)",
+    "grippers release wsg+tcp://127.0.0.1:1000 60",
+    _release_args,
+    _release,
+)
+stop = MotionCommand(
+    "stop",
+    "stop the current motion (--fast: FAST STOP, acknowledge with `grippers ack`)",
+    "grippers stop wsg+tcp://127.0.0.1:1000",
+    _stop_args,
+    _stop,
+)
+ack = MotionCommand(
+    "ack",
+    "acknowledge a FAST STOP or fault so the gripper accepts commands again",
+    "grippers ack wsg+tcp://127.0.0.1:1000",
+    _no_extra,
+    _ack,
+)

@@ -1,0 +1,175 @@
+"""Formatting for the command line: tables, units, JSON documents, progress and one-line errors.
+
+Kept free of heavy imports (no python-can, pydantic or drivers) because every subcommand imports it and
+``grippers --help`` has a start-up budget. The JSON documents written here are the CLI's stable contract
+with programs; their schemas are in ``docs/cli.md`` and :data:`SCHEMAS`.
+"""
+
+from __future__ import annotations
+
+import enum
+import json
+import math
+import re
+import sys
+from collections.abc import Iterable, Mapping, Sequence
+from typing import Any, TextIO
+
+# Exit codes (docs/cli.md): 0 success / a gripper found, 1 nothing answered, not a gripper or the device
+# failed the command, 2 usage errors (argparse uses 2 as well), 130 interrupted.
+EXIT_OK = 0
+EXIT_FAILED = 1
+EXIT_USAGE = 2
+EXIT_INTERRUPTED = 130
+
+PROBE_SCHEMA_ID = "grippers.probe/1"
+STATE_SCHEMA_ID = "grippers.state/1"
+INFO_SCHEMA_ID = "grippers.info/1"
+RESULT_SCHEMA_ID = "grippers.result/1"
+MONITOR_SCHEMA_ID = "grippers.monitor/1"
+PROFILES_SCHEMA_ID = "grippers.profiles/1"
+
+
+class UsageError(Exception):
+    """A command line that cannot be carried out as written (malformed URL, bad number): exit code 2."""
+
+
+# --- units -------------------------------------------------------------------------------------------------
+
+
+def m_to_mm(value: float | None) -> float | None:
+    """The API speaks SI (metres); people and the CLI speak millimetres."""
+    return None if value is None else value * 1000.0
+
+
+def mm_to_m(value: float | None) -> float | None:
+    return None if value is None else value / 1000.0
+
+
+def fmt_num(value: float | None, unit: str = "", digits: int = 1) -> str:
+    """A number with its unit, or '-' when the device did not say."""
+    if value is None or (isinstance(value, float) and math.isnan(value)):
+        return "-"
+    text = f"{value:.{digits}f}"
+    return f"{text} {unit}" if unit else text
+
+
+def fmt_firmware(version: Any) -> str | None:
+    """Firmware as ``major.minor1.minor2``, the WSG's 50h form (WSG manual 4.0.x §3.5.1), for every family.
+
+    A release-candidate suffix (``4.0.1-rc2``) is dropped here (``info`` keeps it in ``extra``); a device
+    that reports one number (the MSG's software version byte) shows as ``N.0.0``, so programs parse one form.
+    """
+    if version is None:
+        return None
+    if isinstance(version, int):
+        return f"{version}.0.0"
+    if isinstance(version, Sequence) and not isinstance(version, str):
+        parts = [int(p) for p in list(version)[:3]]
+        while len(parts) < 3:
+            parts.append(0)
+        return ".".join(str(p) for p in parts)
+    if not isinstance(version, str):
+        for names in (("major", "minor1", "minor2"), ("major", "minor", "patch")):
+            if all(hasattr(version, n) for n in names):
+                return ".".join(str(int(getattr(version, n))) for n in names)
+        version = str(version)
+    m = re.match(r"^\s*v?(\d+)(?:\.(\d+))?(?:\.(\d+))?", version)
+    if m is None:
+        return None
+    return ".".join(str(int(g or 0)) for g in m.groups())
+
+
+# --- plain data out of API objects --------------------------------------------------------------------------
+
+
+def to_plain(value: Any) -> Any:
+    """Turn dataclasses, pydantic models, enums and tuples into JSON-able values without importing them."""
+    if isinstance(value, enum.Enum):  # before int: IntEnum members are ints
+        return value.name.lower()
+    if value is None or isinstance(value, bool | int | str):
+        return value
+    if isinstance(value, float):
+        return None if math.isnan(value) or math.isinf(value) else value
+    if isinstance(value, Mapping):
+        return {str(k): to_plain(v) for k, v in value.items()}
+    if isinstance(value, bytes | bytearray):
+        return value.hex()
+    if isinstance(value, Iterable):
+        return [to_plain(v) for v in value]
+    if hasattr(value, "model_dump"):
+        return to_plain(value.model_dump())
+    if hasattr(value, "__dataclass_fields__"):
+        return {k: to_plain(getattr(value, k)) for k in value.__dataclass_fields__}
+    return str(value)
+
+
+def enum_text(value: Any) -> str | None:
+    """An enum's lower-case name ('holding'), a string as it is, None as None."""
+    if value is None:
+        return None
+    if isinstance(value, enum.Enum):
+        return value.name.lower()
+    return str(value)
+
+
+# --- writers -----------------------------------------------------------------------------------------------
+
+
+def write_json(document: Mapping[str, Any], stream: TextIO | None = None) -> None:
+    """One JSON document per line, so ``--watch --json`` output is JSON Lines."""
+    out = stream or sys.stdout
+    out.write(json.dumps(to_plain(document), sort_keys=False) + "\n")
+    out.flush()
+
+
+def table(rows: Sequence[Sequence[Any]], headers: Sequence[str]) -> str:
+    """A left-aligned text table with a header rule; cells are str()-ed, None shows as '-'."""
+    cells = [[("-" if c is None else str(c)) for c in row] for row in rows]
+    widths = [len(h) for h in headers]
+    for row in cells:
+        for i, cell in enumerate(row):
+            widths[i] = max(widths[i], len(cell))
+    lines = ["  ".join(h.ljust(w) for h, w in zip(headers, widths, strict=True)).rstrip()]
+    lines.append("  ".join("-" * w for w in widths))
+    for row in cells:
+        lines.append("  ".join(c.ljust(w) for c, w in zip(row, widths, strict=True)).rstrip())
+    return "\n".join(lines)
+
+
+def key_values(pairs: Sequence[tuple[str, Any]]) -> str:
+    """Aligned ``key: value`` lines for one device."""
+    width = max((len(k) for k, _ in pairs), default=0)
+    return "\n".join(f"{k + ':':<{width + 1}} {'-' if v is None else v}" for k, v in pairs)
+
+
+def error_line(command: str | None, exc: BaseException | str) -> str:
+    """The single stderr line every failure ends with (no traceback unless --debug)."""
+    text = str(exc) if str(exc) else type(exc).__name__
+    text = " ".join(text.split())  # a multi-line message still makes one line
+    prefix = f"grippers {command}" if command else "grippers"
+    return f"{prefix}: error: {text}"
+
+
+class Progress:
+    """Progress notes on stderr, only when stderr is a terminal: pipes and tests see clean output."""
+
+    def __init__(self, stream: TextIO | None = None, enabled: bool | None = None) -> None:
+        self._stream = stream or sys.stderr
+        self._enabled = self._stream.isatty() if enabled is None else enabled
+        self._width = 0
+
+    def update(self, text: str) -> None:
+        if not self._enabled:
+            return
+        text = text[:100]
+        pad = max(0, self._width - len(text))
+        self._stream.write("\r" + text + " " * pad)
+        self._stream.flush()
+        self._width = len(text)
+
+    def done(self) -> None:
+        if self._enabled and self._width:
+            self._stream.write("\r" + " " * self._width + "\r")
+            self._stream.flush()
+            self._width = 0

@@ -1,0 +1,390 @@
+"""``grippers probe [URL]``: find out what answers at a URL, a bare transport, the simulators or this machine.
+
+Every candidate is tried in its own daemon thread with a hard deadline, so a silent port, a device that
+sends garbage or a driver that blocks cannot stretch the probe beyond its bound: what has not answered by
+then is reported as silent and abandoned. Candidates that share a resource (one serial port) run one after
+another; the others run in parallel.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import threading
+import time
+from dataclasses import dataclass
+from typing import Any
+
+from .common import DEFAULT_TIMEOUT, add_can_flags, info_dict, positive_float, state_dict
+from .output import (
+    EXIT_FAILED,
+    EXIT_OK,
+    PROBE_SCHEMA_ID,
+    Progress,
+    UsageError,
+    fmt_num,
+    table,
+    write_json,
+)
+
+HELP = "identify the grippers at a URL, a bare transport (tcp://, serial://, can://), sim:// or this machine"
+EXAMPLE = (
+    "grippers probe sim://\n"
+    "         grippers probe tcp://127.0.0.1:1000 --json\n"
+    "         grippers probe can://socketcan/can0 --timeout 0.5\n"
+    "         grippers probe -i udp_multicast -c 239.74.163.2 --wsg-id 0x7E8\n"
+    "         grippers probe            (this machine: serial ports, SocketCAN, 192.168.1.20)"
+)
+
+# Per-candidate hard deadline, in multiples of --timeout: opening (one exchange) plus info and state reads.
+DEADLINE_FACTOR = 3.0
+DEADLINE_SLACK = 0.5  # seconds, for thread start-up and imports
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "target",
+        metavar="URL",
+        nargs="?",
+        help="tcp://HOST[:PORT], udp://HOST[:PORT], serial://PORT, can://INTERFACE/CHANNEL, a family URL "
+        "(wsg+tcp://..., stepfoc+can://...?node=N), sim:// (all simulators) or sim://PROFILE; "
+        "none: scan this machine",
+    )
+    parser.add_argument(
+        "-t",
+        "--timeout",
+        type=positive_float,
+        default=DEFAULT_TIMEOUT,
+        metavar="SECONDS",
+        help=f"time each device gets to answer (default {DEFAULT_TIMEOUT:g})",
+    )
+    parser.add_argument("--json", action="store_true", help="print one JSON document (schema in docs/cli.md)")
+    parser.add_argument(
+        "--no-network",
+        dest="network",
+        action="store_false",
+        help="with no URL, leave out the WSG's factory address 192.168.1.20 (no traffic on the LAN)",
+    )
+    parser.add_argument(
+        "--wsg-id",
+        type=_can_id,
+        action="append",
+        metavar="ID",
+        help="on a bare CAN bus, look for a WSG taking commands on ID and replying on ID+1 (repeatable; "
+        "default: the ids of the WSG profiles, 0x000)",
+    )
+    add_can_flags(parser)
+
+
+def _can_id(text: str) -> int:
+    try:
+        value = int(text, 0)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+    if not 0 <= value < 0x7FF:
+        raise argparse.ArgumentTypeError(f"not a standard CAN id below 0x7FF: {text!r}")
+    return value
+
+
+def _wsg_can_ids(given: list[int] | None) -> tuple[tuple[int, int], ...]:
+    if given:
+        return tuple((i, i + 1) for i in dict.fromkeys(given))
+    from grippers.profiles import WsgProfile, list_profiles
+
+    ids = {
+        (p.transport.can_send_id, p.transport.can_recv_id)
+        for p in list_profiles()
+        if isinstance(p, WsgProfile)
+    }
+    return tuple(sorted(ids)) or ((0x000, 0x001),)
+
+
+IDENTITY = ("family", "vendor", "model", "profile", "firmware", "hardware", "serial")
+
+
+@dataclass
+class Outcome:
+    kind: str  # "gripper", "other" (answered, not a gripper), "silent" (no answer, error)
+    url: str
+    location: dict[str, Any]
+    device: dict[str, Any] | None = None
+    reason: str | None = None
+
+
+def probe_one(url: str, location: dict[str, Any], timeout: float) -> Outcome:
+    """Open one family URL and read what it is and its state; classify any failure."""
+    import grippers
+
+    try:
+        gripper = grippers.open(url, timeout=timeout)
+    except Exception as exc:
+        return _failed(url, location, exc)
+    try:
+        info = info_dict(gripper.info())
+        try:
+            state: dict[str, Any] | None = state_dict(gripper.state())
+        except Exception as exc:  # identified, but the state read failed: still a gripper
+            state = {"error": _failed(url, location, exc).reason or ""}
+        device = {
+            "url": url,
+            **{k: info[k] for k in IDENTITY},
+            "location": location,
+            "state": state,
+            "limits": info["limits"],
+        }
+        return Outcome("gripper", url, location, device=device)
+    except Exception as exc:
+        return _failed(url, location, exc)
+    finally:
+        try:
+            gripper.close()
+        except Exception:
+            pass
+
+
+def _failed(url: str, location: dict[str, Any], exc: Exception) -> Outcome:
+    """Silence and transport failures are 'silent'; an answer that is not a gripper's is 'other'; a usage
+    error or a bug in our own code propagates (the probe must not hide it behind 'no answer')."""
+    from grippers.errors import GripperError, ProfileError, URLError
+
+    if isinstance(exc, URLError | ProfileError):
+        raise exc
+    if isinstance(exc, TimeoutError | OSError):  # GripperTimeout, ConnectionLost, refused, no such port
+        return Outcome("silent", url, location, reason=_reason(exc))
+    if isinstance(exc, GripperError):  # ProtocolError, CommandFailed, NotSupported: it answered, oddly
+        return Outcome("other", url, location, reason=_reason(exc))
+    raise exc
+
+
+def _reason(exc: BaseException) -> str:
+    text = " ".join(str(exc).split()) or type(exc).__name__
+    return f"{type(exc).__name__}: {text}"
+
+
+class _Runner:
+    """Runs candidate groups in parallel daemon threads, each candidate under a hard deadline."""
+
+    def __init__(self, timeout: float, progress: Progress) -> None:
+        self.timeout = timeout
+        self.progress = progress
+        self.outcomes: dict[str, Outcome] = {}
+        self._lock = threading.Lock()
+
+    def _attempt(self, candidate: Any) -> Outcome:
+        box: list[Outcome] = []
+        errors: list[BaseException] = []
+
+        def work() -> None:
+            try:
+                box.append(probe_one(candidate.url, candidate.location, self.timeout))
+            except BaseException as exc:  # re-raised in the caller's thread
+                errors.append(exc)
+
+        worker = threading.Thread(target=work, name=f"probe {candidate.url}", daemon=True)
+        worker.start()
+        worker.join(self.timeout * DEADLINE_FACTOR + DEADLINE_SLACK)
+        if errors:
+            raise errors[0]
+        if box:
+            return box[0]
+        return Outcome(
+            "silent",
+            candidate.url,
+            candidate.location,
+            reason=f"no complete answer within {self.timeout * DEADLINE_FACTOR:g} s; abandoned",
+        )
+
+    def run_groups(self, candidates: list[Any]) -> list[BaseException]:
+        groups: dict[str, list[Any]] = {}
+        for c in candidates:
+            groups.setdefault(c.group, []).append(c)
+        failures: list[BaseException] = []
+
+        def run_group(items: list[Any]) -> None:
+            for c in items:
+                self.progress.update(f"probing {c.url} ...")
+                try:
+                    outcome = self._attempt(c)
+                except BaseException as exc:
+                    failures.append(exc)
+                    return
+                with self._lock:
+                    self.outcomes[c.url] = outcome
+                if outcome.kind == "gripper":
+                    return  # one protocol answered on this resource: the others cannot share it
+
+        threads = [
+            threading.Thread(target=run_group, args=(items,), daemon=True) for items in groups.values()
+        ]
+        for t in threads:
+            t.start()
+        bound = max((len(items) for items in groups.values()), default=0)
+        deadline = time.monotonic() + bound * (self.timeout * DEADLINE_FACTOR + DEADLINE_SLACK) + 1.0
+        for t in threads:
+            t.join(max(0.0, deadline - time.monotonic()))
+        return failures
+
+
+def _sim_targets() -> list[str]:
+    """sim://PROFILE for every profile on the search path whose backend has a simulator."""
+    from grippers.backends import find_backend
+    from grippers.profiles import list_profiles
+
+    names = []
+    for profile in list_profiles():
+        backend = find_backend(profile.family)
+        if backend is not None and hasattr(backend, "simulate"):
+            names.append(profile.name)
+    return [f"sim://{name}" for name in sorted(names)]
+
+
+def collect(
+    target: str | None,
+    timeout: float,
+    network: bool,
+    bitrate: int | None,
+    progress: Progress,
+    wsg_ids: list[int] | None = None,
+) -> dict[str, Any]:
+    """Probe and build the JSON document (grippers.probe/1)."""
+    from . import probe_targets as pt
+
+    if target is None:
+        plan = pt.machine_targets(network=network, bitrate=bitrate, wsg_can_ids=_wsg_can_ids(wsg_ids))
+    else:
+        plan = pt.expand(target, bitrate=bitrate, wsg_can_ids=_wsg_can_ids(wsg_ids))
+        if plan.sim_all:
+            for url in _sim_targets():
+                plan.candidates.append(pt.Candidate(url, pt.location_of(url), group=url))
+    first = [c for c in plan.candidates if not c.unless_nodes]
+    later = [c for c in plan.candidates if c.unless_nodes]
+    runner = _Runner(timeout, progress)
+    failures = runner.run_groups(first)
+    skipped = list(plan.skipped)
+    if later:
+        runnable = []
+        for c in later:
+            busy = [
+                o
+                for o in runner.outcomes.values()
+                if o.kind != "silent"
+                and o.location.get("node") in c.unless_nodes
+                and o.location.get("interface") == c.location.get("interface")
+                and o.location.get("channel") == c.location.get("channel")
+            ]
+            if busy:
+                skipped.append(
+                    {
+                        "target": c.url,
+                        "reason": "a STEPFOC node answers on the CAN ids this WSG probe would "
+                        "use (its E-stop frame); not sent",
+                    }
+                )
+            else:
+                runnable.append(c)
+        failures += runner.run_groups(runnable)
+    progress.done()
+    if failures:
+        raise failures[0]
+    order = {c.url: i for i, c in enumerate(plan.candidates)}
+    outcomes = sorted(runner.outcomes.values(), key=lambda o: order.get(o.url, 0))
+    return {
+        "schema": PROBE_SCHEMA_ID,
+        "target": target,
+        "timeout_s": timeout,
+        "grippers": [o.device for o in outcomes if o.kind == "gripper"],
+        "others": [
+            {"url": o.url, "location": o.location, "reason": o.reason} for o in outcomes if o.kind == "other"
+        ],
+        "silent": [
+            {"url": o.url, "location": o.location, "reason": o.reason} for o in outcomes if o.kind == "silent"
+        ],
+        "skipped": skipped,
+    }
+
+
+def where(location: dict[str, Any]) -> str:
+    t = location.get("transport")
+    if t in ("tcp", "udp"):
+        return f"{t} {location.get('host')}:{location.get('port')}"
+    if t == "serial":
+        return f"serial {location.get('serial_port')}"
+    if t == "can":
+        node = location.get("node")
+        return f"can {location.get('interface')}/{location.get('channel')}" + (
+            f" node {node}" if node is not None else ""
+        )
+    if location.get("profile"):
+        return f"sim {location['profile']}"
+    return str(t or "-")
+
+
+def render(doc: dict[str, Any]) -> str:
+    lines: list[str] = []
+    rows = []
+    for d in doc["grippers"]:
+        s = d.get("state") or {}
+        lim = d.get("limits") or {}
+        faults = s.get("faults")
+        rows.append(
+            [
+                d.get("vendor"),
+                d.get("model"),
+                d.get("firmware"),
+                d.get("serial"),
+                where(d["location"]),
+                fmt_num(s.get("width_mm"), "mm", 1),
+                s.get("grasp_state") or s.get("error"),
+                ", ".join(faults) if faults else ("none" if faults is not None else None),
+                f"{fmt_num(lim.get('min_width_mm'), '', 0)}-{fmt_num(lim.get('max_width_mm'), 'mm', 0)}",
+                fmt_num(lim.get("max_force_n"), "N", 0),
+            ]
+        )
+    if rows:
+        headers = [
+            "VENDOR",
+            "MODEL",
+            "FIRMWARE",
+            "SERIAL",
+            "WHERE",
+            "WIDTH",
+            "GRASP",
+            "FAULTS",
+            "STROKE",
+            "FORCE",
+        ]
+        lines.append(table(rows, headers))
+        lines.append("")
+        lines.append(
+            f"{len(rows)} gripper(s) found; open one with the URL: "
+            + ", ".join(d["url"] for d in doc["grippers"])
+        )
+    else:
+        lines.append("no gripper found")
+    for o in doc["others"]:
+        lines.append(f"answered, not a gripper: {o['url']} ({o['reason']})")
+    if not rows or len(doc["silent"]) <= 4:
+        for o in doc["silent"]:
+            lines.append(f"no answer: {o['url']} ({o['reason']})")
+    else:
+        lines.append(f"no answer at {len(doc['silent'])} other address(es); --json lists them")
+    for s in doc["skipped"]:
+        lines.append(f"skipped: {s['target']} ({s['reason']})")
+    return "\n".join(lines)
+
+
+def run(args: argparse.Namespace) -> int:
+    if args.interface or args.channel:
+        if args.target is not None:
+            raise UsageError("give either a URL or -i/-c, not both")
+        if not (args.interface and args.channel):
+            raise UsageError("-i/--interface and -c/--channel go together")
+        args.target = f"can://{args.interface}/{args.channel}"
+    progress = Progress()
+    doc = collect(args.target, args.timeout, args.network, args.bitrate, progress, args.wsg_id)
+    if args.json:
+        write_json(doc)
+    else:
+        print(render(doc))
+        sys.stdout.flush()
+    return EXIT_OK if doc["grippers"] else EXIT_FAILED

@@ -1,0 +1,216 @@
+"""The ``--json`` documents of the CLI, as pydantic models: one definition gives the JSON Schema printed by
+``--print-schema`` and quoted in docs/cli.md, and the validator the tests run on real output.
+
+The CLI writes its documents from plain dicts (pydantic is not imported to print), so these models are the
+contract the output is checked against, not the code that produces it. Additive changes keep the ``/1``
+schema ids; renaming or removing a field bumps them.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", strict=True)
+
+
+class Location(_Strict):
+    """Where a device answered; fields that do not apply to its transport are null."""
+
+    transport: str | None = Field(description="tcp, udp, serial, can or sim")
+    host: str | None
+    port: int | None
+    serial_port: str | None
+    interface: str | None = Field(description="python-can interface")
+    channel: str | None = Field(description="python-can channel")
+    node: int | None = Field(description="STEPFOC CAN node id 0-15")
+    profile: str | None = Field(description="sim:// profile name")
+
+
+GRASP_STATES = ("idle", "positioning", "grasping", "holding", "no_part", "part_lost", "releasing", "error")
+
+
+class State(_Strict):
+    width_mm: float = Field(description="opening width in mm")
+    speed_mm_s: float | None = Field(description="finger speed in mm/s; null where the device does not say")
+    force_n: float | None = Field(description="grip force in N; null where only a current is reported")
+    current_a: float | None = Field(description="motor current in A (MSG over CAN); null elsewhere")
+    grasp_state: Literal[GRASP_STATES] = Field(description="grippers.GraspState, lower case")  # type: ignore[valid-type]
+    moving: bool
+    homed: bool = Field(description="WSG homed / MSG calibrated")
+    faults: list[str] = Field(description="active faults by name, e.g. fast_stop; empty when none")
+
+
+class StateError(_Strict):
+    error: str
+
+
+class Limits(_Strict):
+    """The limits the library enforces: the profile's, narrowed by what the device reports."""
+
+    min_width_mm: float
+    max_width_mm: float
+    min_speed_mm_s: float
+    max_speed_mm_s: float
+    min_force_n: float
+    max_force_n: float
+    max_current_a: float | None = Field(description="for devices controlled by a current limit (MSG)")
+
+
+class Device(_Strict):
+    url: str = Field(description="a URL that opens this gripper with grippers.open() and every command")
+    family: str = Field(description="wsg or stepfoc (or a plugin's family)")
+    vendor: str
+    model: str
+    profile: str = Field(description="the device profile used")
+    firmware: str | None = Field(description="major.minor1.minor2", pattern=r"^\d+\.\d+\.\d+$")
+    hardware: str | None
+    serial: str | None
+    location: Location
+    state: State | StateError | None
+    limits: Limits
+
+
+class Miss(_Strict):
+    url: str
+    location: Location
+    reason: str | None
+
+
+class Skip(_Strict):
+    target: str
+    reason: str
+
+
+class ProbeDocument(_Strict):
+    """``grippers probe --json``. Exit code 0 iff ``grippers`` is not empty."""
+
+    schema_: Literal["grippers.probe/1"] = Field(alias="schema")
+    target: str | None = Field(description="the URL given, null for a machine scan")
+    timeout_s: float = Field(description="the per-device timeout used")
+    grippers: list[Device]
+    others: list[Miss] = Field(description="something answered, but not as a gripper")
+    silent: list[Miss] = Field(description="nothing answered, or the transport failed")
+    skipped: list[Skip] = Field(description="not tried, and why (e.g. network addresses without --network)")
+
+
+class StateDocument(_Strict):
+    """``grippers state --json``; with ``--watch`` one such document per line."""
+
+    schema_: Literal["grippers.state/1"] = Field(alias="schema")
+    target: str
+    time: float = Field(description="Unix time of the reading")
+    state: State
+
+
+class Info(_Strict):
+    family: str
+    vendor: str
+    model: str
+    profile: str
+    firmware: str | None = Field(description="major.minor1.minor2", pattern=r"^\d+\.\d+\.\d+$")
+    hardware: str | None
+    serial: str | None
+    limits: Limits
+    extra: dict[str, object] = Field(description="vendor-specific facts")
+
+
+class InfoDocument(_Strict):
+    schema_: Literal["grippers.info/1"] = Field(alias="schema")
+    target: str
+    info: Info
+
+
+class MotionOutcome(_Strict):
+    width_mm: float
+    grasp_state: Literal[GRASP_STATES]  # type: ignore[valid-type]
+
+
+class GraspOutcome(_Strict):
+    grasped: bool
+    width_mm: float
+    force_n: float | None = Field(description="grip force reached (estimated from the current on the MSG)")
+    grasp_state: Literal[GRASP_STATES]  # type: ignore[valid-type]
+    reason: str | None = Field(description="why no part is held, when none is")
+
+
+class ResultDocument(_Strict):
+    """``grippers home|move|grasp|release|stop|ack --json``."""
+
+    schema_: Literal["grippers.result/1"] = Field(alias="schema")
+    command: Literal["home", "move", "grasp", "release", "stop", "ack"]
+    target: str
+    ok: bool = Field(description="false only for a grasp that gripped no part (exit code 1)")
+    result: MotionOutcome | GraspOutcome | None = Field(
+        description="move/release: MotionOutcome; grasp: GraspOutcome; home, stop, ack: null"
+    )
+    state: State | None = Field(description="the state read back after the command")
+
+
+class MonitorRecord(_Strict):
+    """``grippers monitor --json``: one per line, per decoded frame (STEPFOC) or packet (WSG)."""
+
+    schema_: Literal["grippers.monitor/1"] = Field(alias="schema")
+    time: float | None
+    protocol: Literal["wsg", "stepfoc"]
+    direction: str = Field(description="host->gripper, gripper->host or ?")
+    id: str | None = Field(description="WSG command id as '21h'; CAN arbitration id in hex for STEPFOC")
+    node: int | None = Field(description="STEPFOC node id; null for WSG")
+    command: str | None = Field(description="the command's name in the drivers' table; null for noise")
+    fields: dict[str, object] = Field(description="decoded fields in the device's units")
+    status: str | None = Field(
+        description="WSG replies: the status name; 'noise', 'error', or a checksum/length problem; else null"
+    )
+    text: str = Field(description="the drivers' one-line description, as the text output shows it")
+    raw: str | None = Field(description="the packet or frame data in hex; 'R' for a remote frame")
+
+
+class ProfileSummary(_Strict):
+    name: str
+    family: str
+    vendor: str
+    model: str
+    aliases: list[str]
+    stroke_mm: float
+    max_force_n: float
+    url: str = Field(description="the profile's default connection URL")
+    path: str | None = Field(description="the file it was read from")
+
+
+class Validation(_Strict):
+    file: str
+    valid: bool
+    problems: list[str] = Field(description="one line each: file, field and rule")
+
+
+class ProfilesDocument(_Strict):
+    """``grippers profiles list|show|validate|path --json``: exactly one of the optional members is set."""
+
+    schema_: Literal["grippers.profiles/1"] = Field(alias="schema")
+    profiles: list[ProfileSummary] | None = None
+    profile: dict[str, object] | None = Field(default=None, description="the whole profile, as in its file")
+    validation: list[Validation] | None = None
+    search_path: list[str] | None = None
+
+
+SCHEMAS: dict[str, type[BaseModel]] = {
+    "grippers.probe/1": ProbeDocument,
+    "grippers.state/1": StateDocument,
+    "grippers.info/1": InfoDocument,
+    "grippers.result/1": ResultDocument,
+    "grippers.monitor/1": MonitorRecord,
+    "grippers.profiles/1": ProfilesDocument,
+}
+
+
+def validate(document: dict) -> BaseModel:
+    """Check a document against the schema its ``schema`` field names; raises pydantic's ValidationError."""
+    model = SCHEMAS[document["schema"]]
+    return model.model_validate(document)
+
+
+def json_schema(schema_id: str) -> dict:
+    return SCHEMAS[schema_id].model_json_schema(by_alias=True)

@@ -1,0 +1,48 @@
+"""``grippers sim wsg``: a WSG simulator on TCP, UDP, a pseudo-terminal or a CAN bus."""
+
+from __future__ import annotations
+
+import argparse
+
+from .sim_common import add_sim_arguments, serve_forever, settings_for
+
+HELP = "simulate a WSG gripper (binary protocol) on tcp://, udp://, pty or can://"
+EXAMPLE = (
+    "grippers sim wsg --listen tcp://127.0.0.1:1000\n"
+    "         grippers sim wsg --listen pty --firmware 2.2.0 --part-width 40\n"
+    "         grippers sim wsg --listen 'can://udp_multicast/239.74.163.2?send_id=0x7E8&recv_id=0x7E9'"
+)
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    add_sim_arguments(
+        parser,
+        "wsg50",
+        "tcp://HOST:PORT, udp://HOST:PORT, pty or can://INTERFACE/CHANNEL[?send_id=ID&recv_id=ID] (default "
+        "tcp://127.0.0.1:1000; port 0 picks a free port; binds to loopback unless a host is named)",
+    )
+    parser.add_argument(
+        "--firmware",
+        metavar="X.Y.Z",
+        help="firmware to simulate, e.g. 4.0.1 or 2.2.0 (2.x lacks 46h and the finger commands; default: "
+        "the profile's)",
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    from grippers.backends import get_backend
+    from grippers.profiles import load_profile
+
+    from .output import UsageError
+
+    profile = load_profile(args.profile)
+    backend = get_backend("wsg")
+    if profile.family != "wsg":
+        raise UsageError(f"profile {profile.name} is a {profile.family} profile, not a WSG one")
+    settings = settings_for(profile, args, firmware=args.firmware)
+    try:
+        server = backend.simulator(profile, settings, listen=args.listen or "tcp://127.0.0.1:1000")
+    except ValueError as exc:  # a malformed --listen or --firmware: the command line's fault
+        raise UsageError(str(exc)) from None
+    settings.finish()
+    return serve_forever(server, f"simulated {profile.model} (firmware {server.model.firmware})")

@@ -1,0 +1,490 @@
+"""The vendor-neutral :class:`Gripper`: SI units in, checked against the profile, a backend does the rest.
+
+Modelled on python-can's ``BusABC``: a backend implements a handful of small primitives in its device's
+terms (``_move``, ``_grasp``, ``_state``, …) and this class gives every user-facing behaviour once: limit
+checks before anything is sent, defaults from the profile, fast-stop bookkeeping, non-blocking motion
+handles, state streams, and release of every resource on close.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+import queue
+import threading
+import time
+from abc import ABC, abstractmethod
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from typing import Any, Generic, TypeVar
+
+from .errors import GripperError, GripperTimeout, LimitError, NotSupported
+from .profiles import Limits, ProfileBase
+
+T = TypeVar("T")
+
+
+class GraspState(enum.Enum):
+    """One grasp state for every family (WSG grasping states; MSG object detection mapped onto them)."""
+
+    IDLE = "idle"
+    POSITIONING = "positioning"
+    GRASPING = "grasping"
+    HOLDING = "holding"
+    NO_PART = "no_part"
+    PART_LOST = "part_lost"
+    RELEASING = "releasing"
+    ERROR = "error"
+
+
+class Capability(enum.Enum):
+    FORCE_CONTROL = "force_control"  # grasp force set in newtons on the device
+    CURRENT_CONTROL = "current_control"  # force estimated from a motor current limit
+    SOFT_LIMITS = "soft_limits"
+    TEMPERATURE = "temperature"
+    DEVICE_TAG = "device_tag"
+    FINGER_DATA = "finger_data"
+    CALIBRATION = "calibration"  # home() calibrates the stroke (MSG)
+    HOMING = "homing"  # home() references the axis (WSG)
+    FORCE_MEASUREMENT = "force_measurement"  # state().force is measured
+    PUSH_UPDATES = "push_updates"  # the device streams state by itself
+
+
+@dataclass(frozen=True, slots=True)
+class GripperState:
+    """A snapshot in SI units. ``force`` is None where the device reports only ``current`` (A)."""
+
+    width: float
+    speed: float | None
+    force: float | None
+    current: float | None
+    grasp: GraspState
+    moving: bool
+    referenced: bool
+    faults: tuple[str, ...]
+    timestamp: float  # time.time() when the snapshot was taken
+
+    @property
+    def fast_stopped(self) -> bool:
+        return "fast_stop" in self.faults
+
+
+@dataclass(frozen=True, slots=True)
+class MotionResult:
+    width: float
+    state: GraspState
+
+
+@dataclass(frozen=True, slots=True)
+class GraspResult:
+    """``grasped`` tells whether a part is held; ``reason`` says why not when it is not."""
+
+    grasped: bool
+    width: float
+    force: float | None
+    state: GraspState
+    reason: str | None = None
+
+
+@dataclass(frozen=True)
+class DeviceInfo:
+    family: str
+    vendor: str
+    model: str
+    serial: str | None
+    firmware: str | None
+    hardware: str | None
+    limits: Limits
+    url: str
+    profile: str
+    extra: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def stroke(self) -> float:
+        return self.limits.stroke
+
+
+class MotionHandle(Generic[T]):
+    """A motion started with ``wait=False``: poll ``done()``, ``wait()`` for the result, or ``cancel()``."""
+
+    def __init__(self, name: str, run: Callable[[], T], cancel: Callable[[], None]) -> None:
+        self.name = name
+        self._cancel = cancel
+        self._done = threading.Event()
+        self._result: T | None = None
+        self._error: BaseException | None = None
+        self._thread = threading.Thread(target=self._run, args=(run,), name=f"grippers-{name}", daemon=True)
+        self._thread.start()
+
+    def _run(self, run: Callable[[], T]) -> None:
+        try:
+            self._result = run()
+        except BaseException as exc:  # handed to whoever waits
+            self._error = exc
+        finally:
+            self._done.set()
+
+    def done(self) -> bool:
+        return self._done.is_set()
+
+    def wait(self, timeout: float | None = None) -> T:
+        """The motion's result; re-raises its error; GripperTimeout if still running after ``timeout``."""
+        if not self._done.wait(timeout):
+            raise GripperTimeout(f"still running after {timeout:g} s", command=self.name)
+        if self._error is not None:
+            raise self._error
+        return self._result  # type: ignore[return-value]
+
+    def cancel(self) -> None:
+        """Stop the motion on the device; ``wait()`` then returns or raises what the device reported."""
+        if not self.done():
+            self._cancel()
+
+    def join(self, timeout: float) -> None:
+        self._thread.join(timeout)
+
+
+class StateStream:
+    """States at ``rate_hz``: iterate over it, or pass a callback. Bounded: a slow reader drops the oldest."""
+
+    def __init__(
+        self,
+        read: Callable[[], GripperState],
+        rate_hz: float,
+        callback: Callable[[GripperState], Any] | None = None,
+        maxsize: int = 64,
+        on_close: Callable[[StateStream], None] | None = None,
+    ) -> None:
+        if not (math.isfinite(rate_hz) and rate_hz > 0):
+            raise ValueError(f"rate_hz must be a positive number, not {rate_hz!r}")
+        self.period = 1.0 / rate_hz
+        self._read = read
+        self._callback = callback
+        self._on_close = on_close
+        self._queue: queue.Queue[GripperState | BaseException] = queue.Queue(maxsize)
+        self._stop = threading.Event()
+        self.dropped = 0
+        self._thread = threading.Thread(target=self._run, name="grippers-stream", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        next_at = time.monotonic()
+        while not self._stop.is_set():
+            try:
+                item: GripperState | BaseException = self._read()
+            except BaseException as exc:
+                item = exc
+            if self._callback is not None and isinstance(item, GripperState):
+                self._callback(item)
+            else:
+                self._put(item)
+            if isinstance(item, BaseException) and not isinstance(item, GripperTimeout):
+                return  # a lost connection ends the stream; the reader sees the error
+            next_at += self.period
+            delay = next_at - time.monotonic()
+            if delay < 0:  # fell behind: do not burst to catch up
+                next_at = time.monotonic()
+                delay = 0
+            self._stop.wait(delay)
+
+    def _put(self, item: GripperState | BaseException) -> None:
+        while True:
+            try:
+                self._queue.put_nowait(item)
+                return
+            except queue.Full:
+                try:
+                    self._queue.get_nowait()
+                    self.dropped += 1
+                except queue.Empty:
+                    pass
+
+    def __iter__(self) -> Iterator[GripperState]:
+        return self
+
+    def __next__(self) -> GripperState:
+        return self.get()
+
+    def get(self, timeout: float | None = None) -> GripperState:
+        """The next state; GripperTimeout when none comes within ``timeout`` (default: ten periods + 2 s)."""
+        if self._stop.is_set() and self._queue.empty():
+            raise StopIteration
+        wait = timeout if timeout is not None else 10 * self.period + 2.0
+        try:
+            item = self._queue.get(timeout=wait)
+        except queue.Empty:
+            raise GripperTimeout(f"no state within {wait:g} s", command="stream") from None
+        if isinstance(item, BaseException):
+            self.close()
+            raise item
+        return item
+
+    def close(self) -> None:
+        self._stop.set()
+        if threading.current_thread() is not self._thread:
+            self._thread.join(timeout=5)
+        if self._on_close is not None:
+            self._on_close(self)
+            self._on_close = None
+
+    def __enter__(self) -> StateStream:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+class FastStopActive(GripperError):
+    """A fast stop (WSG FAST STOP, MSG e-stop) is active: motion is refused until ``acknowledge()``."""
+
+
+def _finite(value: float, name: str, command: str, device: str) -> float:
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise LimitError(f"{name} must be a number, not {value!r}", device=device, command=command) from None
+    if not math.isfinite(number):
+        raise LimitError(f"{name} must be finite, not {value!r}", device=device, command=command)
+    return number
+
+
+class Gripper(ABC):
+    """A gripper in SI units (m, m/s, N, A). Open one with :func:`grippers.open`.
+
+    Every value is checked against the profile's limits before anything is sent (``LimitError``, also a
+    ``ValueError``); every wait has a timeout (``GripperTimeout``, also a ``TimeoutError``); ``state()`` may
+    be called from any thread at any time, also while a motion runs.
+    """
+
+    capabilities: frozenset[Capability] = frozenset()
+
+    def __init__(self, profile: ProfileBase, url: str, *, timeout: float) -> None:
+        self.profile = profile
+        self.url = url
+        self.timeout = timeout
+        self.limits = profile.limits()
+        self._fast_stopped = False
+        self._closed = False
+        self._lock = threading.Lock()
+        self._handles: list[MotionHandle[Any]] = []
+        self._streams: list[StateStream] = []
+        self._on_close: list[Callable[[], None]] = []
+        self.simulator: Any = None  # the in-process simulator server behind a sim:// gripper
+
+    # -- what a backend provides (device units are its business) -------------------------------------------
+
+    @property
+    @abstractmethod
+    def driver(self) -> Any:
+        """The vendor client underneath, for vendor extras the common interface does not cover."""
+
+    @abstractmethod
+    def _home(self, timeout: float) -> None: ...
+
+    @abstractmethod
+    def _move(self, width: float, speed: float, timeout: float) -> MotionResult: ...
+
+    @abstractmethod
+    def _grasp(self, width: float, speed: float, force: float, timeout: float) -> GraspResult: ...
+
+    @abstractmethod
+    def _release(self, width: float, speed: float, timeout: float) -> MotionResult: ...
+
+    @abstractmethod
+    def _stop(self) -> None: ...
+
+    @abstractmethod
+    def _fast_stop(self) -> None: ...
+
+    @abstractmethod
+    def _acknowledge(self) -> None: ...
+
+    @abstractmethod
+    def _state(self) -> GripperState: ...
+
+    @abstractmethod
+    def _info(self) -> DeviceInfo: ...
+
+    @abstractmethod
+    def _close(self) -> None: ...
+
+    def _motion_timeout(self, distance: float, speed: float) -> float:
+        """A bound on a motion's duration when the caller gives none: twice the travel time plus slack."""
+        return 2.0 * distance / max(speed, 1e-6) + 2.0 + self.timeout
+
+    # -- the interface -----------------------------------------------------------------------------------
+
+    @property
+    def name(self) -> str:
+        return f"{self.profile.name}@{self.url}"
+
+    def _check_open(self, command: str) -> None:
+        if self._closed:
+            raise GripperError("the gripper is closed", device=self.name, command=command)
+
+    def _check_motion(self, command: str) -> None:
+        self._check_open(command)
+        if self._fast_stopped:
+            raise FastStopActive(
+                "fast stop is active: call acknowledge() before moving", device=self.name, command=command
+            )
+
+    def _width(self, width: float, command: str) -> float:
+        w = _finite(width, "width", command, self.name)
+        lo, hi = self.limits.min_width, self.limits.max_width
+        if not lo - 1e-9 <= w <= hi + 1e-9:
+            raise LimitError(
+                f"width {w * 1000:g} mm is outside {lo * 1000:g}..{hi * 1000:g} mm",
+                device=self.name,
+                command=command,
+            )
+        return min(max(w, lo), hi)
+
+    def _speed(self, speed: float | None, command: str) -> float:
+        if speed is None:
+            return self.profile.mechanics.default_speed_mm_s / 1000
+        s = _finite(speed, "speed", command, self.name)
+        lo, hi = self.limits.min_speed, self.limits.max_speed
+        if not lo - 1e-9 <= s <= hi + 1e-9 or s <= 0:
+            raise LimitError(
+                f"speed {s * 1000:g} mm/s is outside {lo * 1000:g}..{hi * 1000:g} mm/s",
+                device=self.name,
+                command=command,
+            )
+        return min(max(s, lo), hi)
+
+    def _force(self, force: float | None, command: str) -> float:
+        if force is None:
+            return self.profile.mechanics.default_force_n
+        f = _finite(force, "force", command, self.name)
+        lo, hi = self.limits.min_force, self.limits.max_force
+        if not lo - 1e-9 <= f <= hi + 1e-9:
+            raise LimitError(f"force {f:g} N is outside {lo:g}..{hi:g} N", device=self.name, command=command)
+        return min(max(f, lo), hi)
+
+    def _run_motion(self, name: str, call: Callable[[], T], wait: bool) -> T | MotionHandle[T]:
+        if wait:
+            return call()
+        handle = MotionHandle(name, call, self.stop)
+        with self._lock:
+            self._handles = [h for h in self._handles if not h.done()]
+            self._handles.append(handle)
+        return handle
+
+    def home(self, timeout: float | None = None) -> None:
+        """Reference the axis (WSG homing) or calibrate the stroke (MSG); blocks until done."""
+        self._check_motion("home")
+        self._home(timeout if timeout is not None else self._motion_timeout(2 * self.limits.stroke, 0.02))
+
+    def move(
+        self, width: float, speed: float | None = None, *, wait: bool = True, timeout: float | None = None
+    ) -> MotionResult | MotionHandle[MotionResult]:
+        """Move the fingers to ``width`` (m) at ``speed`` (m/s; default from the profile)."""
+        w, s = self._width(width, "move"), self._speed(speed, "move")
+        self._check_motion("move")
+        t = timeout if timeout is not None else self._motion_timeout(self.limits.stroke, s)
+        return self._run_motion("move", lambda: self._move(w, s, t), wait)
+
+    def grasp(
+        self,
+        width: float,
+        speed: float | None = None,
+        force: float | None = None,
+        *,
+        wait: bool = True,
+        timeout: float | None = None,
+    ) -> GraspResult | MotionHandle[GraspResult]:
+        """Close on a part of nominal ``width`` (m) with ``force`` (N); ``.grasped`` says if it is held."""
+        w, s, f = self._width(width, "grasp"), self._speed(speed, "grasp"), self._force(force, "grasp")
+        self._check_motion("grasp")
+        t = timeout if timeout is not None else self._motion_timeout(self.limits.stroke, s)
+        return self._run_motion("grasp", lambda: self._grasp(w, s, f, t), wait)
+
+    def release(
+        self,
+        width: float | None = None,
+        speed: float | None = None,
+        *,
+        wait: bool = True,
+        timeout: float | None = None,
+    ) -> MotionResult | MotionHandle[MotionResult]:
+        """Open to ``width`` (m; default fully open) and end a grasp."""
+        w = self.limits.max_width if width is None else self._width(width, "release")
+        s = self._speed(speed, "release")
+        self._check_motion("release")
+        t = timeout if timeout is not None else self._motion_timeout(self.limits.stroke, s)
+        return self._run_motion("release", lambda: self._release(w, s, t), wait)
+
+    def stop(self) -> None:
+        """Stop the fingers where they are; the motor stays on."""
+        self._check_open("stop")
+        self._stop()
+
+    def fast_stop(self) -> None:
+        """Stop at once; further motion is refused until :meth:`acknowledge`."""
+        self._check_open("fast_stop")
+        self._fast_stop()
+        self._fast_stopped = True
+
+    def acknowledge(self) -> None:
+        """Clear a fast stop (WSG 24h; MSG: estop bit cleared, then the error)."""
+        self._check_open("acknowledge")
+        self._acknowledge()
+        self._fast_stopped = False
+
+    def state(self) -> GripperState:
+        self._check_open("state")
+        st = self._state()
+        if st.fast_stopped:
+            self._fast_stopped = True
+        return st
+
+    def info(self) -> DeviceInfo:
+        self._check_open("info")
+        return self._info()
+
+    def stream(
+        self, rate_hz: float = 50.0, callback: Callable[[GripperState], Any] | None = None
+    ) -> StateStream:
+        """States at ``rate_hz``; an iterator, or calls ``callback`` from a background thread. Close it."""
+        self._check_open("stream")
+        s = StateStream(self._state, rate_hz, callback, on_close=self._forget_stream)
+        with self._lock:
+            self._streams.append(s)
+        return s
+
+    def _forget_stream(self, s: StateStream) -> None:
+        with self._lock:
+            if s in self._streams:
+                self._streams.remove(s)
+
+    def require(self, capability: Capability, command: str) -> None:
+        if capability not in self.capabilities:
+            raise NotSupported(f"this device has no {capability.value}", device=self.name, command=command)
+
+    def close(self) -> None:
+        """Stop streams, let running motions end (bounded), release the transport. Idempotent."""
+        if self._closed:
+            return
+        with self._lock:
+            streams, self._streams = list(self._streams), []
+            handles, self._handles = list(self._handles), []
+        for s in streams:
+            s.close()
+        try:
+            self._close()
+        finally:
+            self._closed = True
+            for h in handles:
+                h.join(5.0)
+            for fn in reversed(self._on_close):
+                fn()
+
+    def __enter__(self) -> Gripper:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def __repr__(self) -> str:
+        return f"<{type(self).__name__} {self.name}{' closed' if self._closed else ''}>"

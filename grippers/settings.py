@@ -1,0 +1,59 @@
+"""Connection settings from three layers, so the precedence rule lives in one place.
+
+Profile fields are the defaults; query parameters of the URL win over them; keyword overrides to
+open() win over both. A backend *takes* each setting it understands; whatever is left when it is
+done was misspelt or meant for another family, and is refused with the list of what is understood.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any, TypeVar
+
+from .errors import URLError
+from .urls import to_bool, to_float, to_int
+
+T = TypeVar("T")
+
+
+class Settings:
+    def __init__(self, url: str, query: dict[str, str], overrides: dict[str, Any]) -> None:
+        self.url = url
+        self._values: dict[str, Any] = {**query, **overrides}
+        self._known: set[str] = set()
+
+    def _take(self, name: str, default: T, convert: Callable[[Any, str, str], T]) -> T:
+        self._known.add(name)
+        if name not in self._values:
+            return default
+        value = self._values.pop(name)
+        if value is None:
+            return default
+        return convert(value, name, self.url)
+
+    def int(self, name: str, default: Any) -> Any:
+        return self._take(name, default, to_int)
+
+    def float(self, name: str, default: Any) -> Any:
+        return self._take(name, default, to_float)
+
+    def bool(self, name: str, default: Any) -> Any:
+        return self._take(name, default, to_bool)
+
+    def str(self, name: str, default: Any) -> Any:
+        return self._take(name, default, lambda v, _n, _u: str(v))
+
+    def add_defaults(self, values: dict[str, Any]) -> None:
+        """Settings that apply unless the user gave their own (a simulator's URL parameters)."""
+        for key, value in values.items():
+            self._values.setdefault(key, value)
+
+    def has(self, name: str) -> bool:
+        return name in self._values
+
+    def finish(self) -> None:
+        """Refuse what no one took: a typo must not silently fall back to a default."""
+        if self._values:
+            unknown = ", ".join(sorted(self._values))
+            known = ", ".join(sorted(self._known)) or "none"
+            raise URLError(f"{self.url}: unknown setting(s) {unknown} (this backend takes: {known})")

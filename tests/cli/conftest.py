@@ -1,0 +1,269 @@
+"""Fixtures for the CLI tests: the CLI and the simulators run as subprocesses over real transports.
+
+Simulators print the URL they serve on their first line; tests parse it. Every wait has a timeout; every
+process, socket and pty is closed by its fixture. Helpers are fixtures (pytest runs with
+``--import-mode=importlib``, so test modules cannot import each other).
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import os
+import random
+import re
+import select
+import socket
+import subprocess
+import sys
+import threading
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from grippers.cli.schemas import validate
+
+ROOT = Path(__file__).resolve().parents[2]
+PYTHON = sys.executable
+START_TIMEOUT = 20.0  # seconds for a simulator subprocess to print its URL
+TIME_SCALE = "50"  # simulated seconds per wall-clock second
+
+
+@dataclass
+class Result:
+    argv: tuple[str, ...]
+    returncode: int
+    stdout: str
+    stderr: str
+
+    def json(self) -> dict[str, Any]:
+        doc = json.loads(self.stdout)
+        validate(doc)  # every --json document is checked against its schema
+        return doc
+
+    def json_lines(self) -> list[dict[str, Any]]:
+        docs = [json.loads(line) for line in self.stdout.splitlines() if line.strip()]
+        for doc in docs:
+            validate(doc)
+        return docs
+
+    def one_error_line(self) -> str:
+        lines = [line for line in self.stderr.splitlines() if line.strip()]
+        assert len(lines) == 1, self.stderr
+        assert "Traceback" not in self.stderr
+        return lines[0]
+
+
+def _env() -> dict[str, str]:
+    return {**os.environ, "PYTHONUNBUFFERED": "1"}
+
+
+def _run(*args: str, timeout: float = 30.0, stdin: str | None = None) -> Result:
+    proc = subprocess.run(
+        [PYTHON, "-m", "grippers", *args],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        input=stdin,
+        env=_env(),
+    )
+    return Result(args, proc.returncode, proc.stdout, proc.stderr)
+
+
+@pytest.fixture
+def cli() -> Callable[..., Result]:
+    """``cli("probe", "sim://", timeout=30)``: run ``python -m grippers`` in a subprocess, bounded."""
+    return _run
+
+
+@pytest.fixture
+def cli_json(cli: Callable[..., Result]) -> Callable[..., dict[str, Any]]:
+    """Run a command with ``--json``, require exit 0 and a document valid against its schema."""
+
+    def run(*args: str, timeout: float = 30.0) -> dict[str, Any]:
+        r = cli(*args, "--json", timeout=timeout)
+        assert r.returncode == 0, (args, r.stdout, r.stderr)
+        return r.json()
+
+    return run
+
+
+class Simulator:
+    """A ``grippers sim ...`` subprocess and the URL it printed."""
+
+    def __init__(self, *args: str) -> None:
+        self.args = args
+        self.proc = subprocess.Popen(
+            [PYTHON, "-m", "grippers", "sim", *args],
+            cwd=ROOT,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            env=_env(),
+        )
+        self.url = self._read_url()
+
+    def _read_url(self) -> str:
+        assert self.proc.stdout is not None
+        fd = self.proc.stdout.fileno()
+        seen = ""
+        waited = 0.0
+        while waited < START_TIMEOUT:
+            ready, _, _ = select.select([fd], [], [], 0.2)
+            waited += 0.2
+            if not ready:
+                if self.proc.poll() is not None:
+                    break
+                continue
+            line = self.proc.stdout.readline()
+            if not line:
+                break
+            seen += line
+            m = re.search(r"serving at (\S+)", line)
+            if m:
+                return m.group(1)
+        self.close()
+        err = self.proc.stderr.read() if self.proc.stderr else ""
+        raise RuntimeError(f"simulator {self.args} printed no URL: {seen!r} {err[-2000:]!r}")
+
+    def close(self) -> None:
+        if self.proc.poll() is None:
+            self.proc.terminate()
+            try:
+                self.proc.wait(timeout=5)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait(timeout=5)
+        for stream in (self.proc.stdout, self.proc.stderr):
+            if stream:
+                stream.close()
+
+
+@pytest.fixture
+def start_sim() -> Iterator[Callable[..., Simulator]]:
+    """``start_sim("wsg", "--listen", "tcp://127.0.0.1:0")``; ``--time-scale`` is added for speed."""
+    sims: list[Simulator] = []
+
+    def start(*args: str) -> Simulator:
+        sim = Simulator(*args, "--time-scale", TIME_SCALE)
+        sims.append(sim)
+        return sim
+
+    yield start
+    for sim in sims:
+        sim.close()
+
+
+class _TcpServer:
+    """A loopback TCP server that accepts and either stays silent or sends random bytes."""
+
+    def __init__(self, garbage: bool) -> None:
+        self.garbage = garbage
+        self.sock = socket.create_server(("127.0.0.1", 0))
+        self.sock.settimeout(0.05)
+        self.port = self.sock.getsockname()[1]
+        self._stop = threading.Event()
+        self._conns: list[socket.socket] = []
+        self._thread = threading.Thread(target=self._serve, daemon=True)
+        self._thread.start()
+
+    def _serve(self) -> None:
+        rng = random.Random(7)
+        while not self._stop.is_set():
+            try:
+                conn, _ = self.sock.accept()
+                conn.setblocking(False)
+                self._conns.append(conn)
+            except TimeoutError:
+                pass
+            except OSError:
+                return
+            for conn in list(self._conns):
+                try:
+                    conn.recv(4096)
+                except OSError:
+                    pass
+                if self.garbage:
+                    try:
+                        conn.send(bytes(rng.randrange(256) for _ in range(64)))
+                    except OSError:
+                        pass
+
+    def close(self) -> None:
+        self._stop.set()
+        self._thread.join(timeout=5)
+        for conn in self._conns:
+            conn.close()
+        self.sock.close()
+
+
+@pytest.fixture
+def silent_tcp() -> Iterator[_TcpServer]:
+    server = _TcpServer(garbage=False)
+    yield server
+    server.close()
+
+
+@pytest.fixture
+def garbage_tcp() -> Iterator[_TcpServer]:
+    server = _TcpServer(garbage=True)
+    yield server
+    server.close()
+
+
+class _Pty:
+    """A pseudo-terminal whose far end is silent or sends random bytes; ``path`` is the port to probe."""
+
+    def __init__(self, garbage: bool) -> None:
+        self.master, self.slave = os.openpty()
+        self.path = os.ttyname(self.slave)
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._serve, args=(garbage,), daemon=True)
+        self._thread.start()
+
+    def _serve(self, garbage: bool) -> None:
+        rng = random.Random(11)
+        while not self._stop.is_set():
+            ready, _, _ = select.select([self.master], [], [], 0.02)
+            try:
+                if ready:
+                    os.read(self.master, 4096)
+                if garbage:
+                    os.write(self.master, bytes(rng.randrange(256) for _ in range(32)))
+            except OSError:
+                self._stop.wait(0.02)
+
+    def close(self) -> None:
+        self._stop.set()
+        self._thread.join(timeout=5)
+        os.close(self.master)
+        os.close(self.slave)
+
+
+@pytest.fixture
+def silent_pty() -> Iterator[_Pty]:
+    pty = _Pty(garbage=False)
+    yield pty
+    pty.close()
+
+
+@pytest.fixture
+def garbage_pty() -> Iterator[_Pty]:
+    pty = _Pty(garbage=True)
+    yield pty
+    pty.close()
+
+
+_groups = itertools.count(1)
+
+
+@pytest.fixture
+def mcast_channel() -> str:
+    """A multicast group for this test. Groups do not isolate on Linux (PROTOCOL-NOTES §2, last section), so
+    the tests also use node ids and WSG CAN ids no other test uses."""
+    pytest.importorskip("msgpack", reason="python-can's udp_multicast interface needs msgpack")
+    return f"239.74.{150 + os.getpid() % 50}.{next(_groups)}"

@@ -1,0 +1,67 @@
+"""A silent port and a device that sends garbage both end with exit 1 within the --timeout bound.
+
+The subprocess timeout IS the bound: a probe that overran it would fail the test with TimeoutExpired.
+"""
+
+from __future__ import annotations
+
+import socket
+
+import pytest
+
+from grippers.cli.probe import DEADLINE_FACTOR, DEADLINE_SLACK
+
+TIMEOUT = 0.5
+STARTUP = 5.0  # interpreter start-up and imports, generous for a loaded 2-core machine
+
+
+def bound(candidates: int) -> float:
+    """The most a probe may take: candidates on one port run one after another, each under its deadline."""
+    return candidates * (TIMEOUT * DEADLINE_FACTOR + DEADLINE_SLACK) + 1.0 + STARTUP
+
+
+@pytest.fixture
+def probe_nothing(cli):
+    def run(target: str, candidates: int) -> dict:
+        r = cli("probe", target, "--timeout", str(TIMEOUT), "--json", timeout=bound(candidates))
+        assert r.returncode == 1, (r.stdout, r.stderr)
+        assert "Traceback" not in r.stderr
+        doc = r.json()
+        assert doc["grippers"] == [] and doc["timeout_s"] == TIMEOUT
+        assert len(doc["silent"] + doc["others"]) == candidates
+        return doc
+
+    return run
+
+
+def test_silent_tcp_port(silent_tcp, probe_nothing) -> None:
+    doc = probe_nothing(f"tcp://127.0.0.1:{silent_tcp.port}", 1)
+    (miss,) = doc["silent"]
+    assert miss["url"] == f"wsg+tcp://127.0.0.1:{silent_tcp.port}" and "Timeout" in miss["reason"]
+
+
+def test_garbage_tcp_device(garbage_tcp, probe_nothing) -> None:
+    probe_nothing(f"tcp://127.0.0.1:{garbage_tcp.port}", 1)
+
+
+def test_silent_serial_port_tries_both_protocols(silent_pty, probe_nothing) -> None:
+    doc = probe_nothing(f"serial://{silent_pty.path}", 2)
+    assert sorted(m["url"].split("+")[0] for m in doc["silent"] + doc["others"]) == ["stepfoc", "wsg"]
+
+
+def test_garbage_serial_device(garbage_pty, probe_nothing) -> None:
+    probe_nothing(garbage_pty.path, 2)  # a bare device path is a serial port
+
+
+@pytest.mark.udp_multicast
+def test_silent_can_node(mcast_channel: str, probe_nothing) -> None:
+    probe_nothing(f"stepfoc+can://udp_multicast/{mcast_channel}?node=14", 1)
+
+
+def test_refused_tcp_port_prints_a_readable_table(cli) -> None:
+    s = socket.socket()
+    s.bind(("127.0.0.1", 0))
+    port = s.getsockname()[1]
+    s.close()  # nobody listens there now
+    r = cli("probe", f"tcp://127.0.0.1:{port}", "--timeout", str(TIMEOUT), timeout=bound(1))
+    assert r.returncode == 1 and "no gripper found" in r.stdout and f"127.0.0.1:{port}" in r.stdout

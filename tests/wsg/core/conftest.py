@@ -1,0 +1,85 @@
+"""Fixtures for the WSG core tests: the manuals' example packets and simulators over real transports."""
+
+from __future__ import annotations
+
+import itertools
+import json
+import os
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+import pytest
+
+# Every example packet printed in the WSG manuals (a copy of /work/shared/spec/wsg-vectors.json, so the tests
+# also run where that folder is absent; test_wsg_protocol checks the copy against the file when it is there).
+WSG_VECTORS: list[dict[str, str]] = [
+    {"hex": "AAAAAA010000E810", "direction": "host->gripper", "id": "01h"},
+    {"hex": "AAAAAA01020012346D66", "direction": "host->gripper", "id": "01h"},
+    {"hex": "AAAAAA2002000000B3FD", "direction": "gripper->host", "id": "20h"},
+    {"hex": "AAAAAA9002000E00FD02", "direction": "gripper->host", "id": "90h"},
+    {"hex": "AAAAAA300600000000001643DCCB", "direction": "gripper->host", "id": "30h"},
+    {"hex": "AAAAAA2102001A0067CB", "direction": "gripper->host", "id": "21h"},
+    {"hex": "AAAAAA21020000002804", "direction": "gripper->host", "id": "21h"},
+]
+VECTORS_FILE = Path(os.environ.get("WSG_VECTORS", "/work/shared/spec/wsg-vectors.json"))
+SEEDS = Path(os.environ.get("WSG_SEEDS", "/work/shared/seeds"))
+
+_channels = itertools.count()
+
+
+@pytest.fixture
+def wsg_vectors() -> list[dict[str, str]]:
+    return WSG_VECTORS
+
+
+@pytest.fixture
+def vectors_file() -> dict:
+    if not VECTORS_FILE.exists():
+        pytest.skip(f"{VECTORS_FILE} not present")
+    return json.loads(VECTORS_FILE.read_text())
+
+
+@pytest.fixture
+def seeds_dir() -> Path:
+    if not SEEDS.exists():
+        pytest.skip(f"{SEEDS} not present")
+    return SEEDS
+
+
+@pytest.fixture
+def can_channel() -> str:
+    """A python-can ``virtual`` channel no other test uses."""
+    return f"wsg-core-{os.getpid()}-{next(_channels)}"
+
+
+@pytest.fixture
+def wsg_sim() -> Iterator[Callable[..., object]]:
+    """Start WSG simulators (wsg-sim helper's ``serve``) at time scale 50; all are closed at teardown."""
+    sim = pytest.importorskip("drivers.wsg.sim")
+    servers = []
+
+    def start(listen: str, *, time_scale: float = 50.0, **model_kw: object) -> object:
+        server = sim.serve(sim.WsgModel(**model_kw), listen, time_scale=time_scale)
+        servers.append(server)
+        return server
+
+    yield start
+    for server in servers:
+        server.close()
+
+
+@pytest.fixture
+def wsg_client_factory() -> Iterator[Callable[..., object]]:
+    """Open WsgClients from URLs; every client is closed at teardown."""
+    from drivers.wsg.client import WsgClient
+
+    clients: list[WsgClient] = []
+
+    def open_client(url: str, **kw: object) -> WsgClient:
+        client = WsgClient.from_url(url, **kw)
+        clients.append(client)
+        return client
+
+    yield open_client
+    for client in clients:
+        client.close()
