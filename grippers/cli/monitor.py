@@ -171,16 +171,23 @@ class WsgStream:
         return parser is not None and parser.buffered > 0
 
     def flush(self, stamp: float | None = None) -> Iterator[dict[str, Any]]:
-        """At the end of a capture: report a packet cut short, then decode what was held behind it."""
+        """At the end of a capture: report a packet cut short as one record, then what was held behind it."""
         for direction, parser in self._parsers.items():
-            for _ in range(64):  # each round drops at least one byte; bounded anyway
+            cut = bytearray()
+            for _ in range(64):  # each round drops at least the three preamble bytes; bounded anyway
                 if not parser.buffered:
                     break
-                dropped = parser.reset()
-                if dropped:
-                    yield self._noise(direction, dropped, "incomplete packet at the end", stamp)
+                parser.reset()
                 for item in parser.feed(b""):
+                    if isinstance(item, self._p.Discarded):
+                        cut += item.raw
+                        continue
+                    if cut:
+                        yield self._noise(direction, bytes(cut), "incomplete packet at the end", stamp)
+                        cut.clear()
                     yield self.record(direction, item, stamp)
+            if cut:
+                yield self._noise(direction, bytes(cut), "incomplete packet at the end", stamp)
 
     def _noise(self, direction: str, raw: bytes, reason: str, stamp: float | None) -> dict[str, Any]:
         return _record(

@@ -55,7 +55,10 @@ def test_hex_dump_with_directions(tmp_path: Path, cli) -> None:
 def test_direction_is_inferred_from_the_layout(tmp_path: Path, cli) -> None:
     from drivers.wsg import Cmd, encode_packet, encode_reply, encode_request
 
-    move = encode_packet(Cmd.PREPOSITION, encode_request(Cmd.PREPOSITION, flags=0, width=40.0, speed=50.0))
+    move = encode_packet(
+        Cmd.PREPOSITION,
+        encode_request(Cmd.PREPOSITION, relative=False, stop_on_block=True, width=40.0, speed=50.0),
+    )
     width = encode_packet(Cmd.GET_WIDTH, encode_reply(Cmd.GET_WIDTH, width=40.0))
     capture = tmp_path / "mixed.hex"
     capture.write_text(f"{move.hex()}\n{width.hex()}\n")
@@ -74,7 +77,7 @@ def test_raw_byte_file_split_anywhere(tmp_path: Path, cli) -> None:
     packets = [d for d in docs if d["status"] != "noise"]
     assert len(packets) == sum(v["direction"] == "gripper->host" for v in _vectors())
     assert all(d["direction"] == "gripper->host" for d in docs)
-    assert docs[0]["status"] == "noise" and docs[0]["fields"]["bytes"] == 1  # the stray 00 before the packets
+    assert docs[0]["status"] == "noise" and docs[0]["raw"] == "00aa"  # stray bytes before the first packet
 
 
 def test_garbage_capture_exits_1(tmp_path: Path, cli) -> None:
@@ -157,8 +160,9 @@ def test_proxy_decodes_a_live_wsg_tcp_session(start_sim, cli) -> None:
         line = proc.stderr.readline()  # "proxy listening on HOST:PORT, ..."
         port = re.search(r"listening on [^:]+:(\d+)", line)
         assert port, line
-        r = cli("move", f"wsg+tcp://127.0.0.1:{port.group(1)}", "50", "--timeout", "2")
-        assert r.returncode == 0, r.stderr
+        for command in (("home",), ("move", "50")):
+            r = cli(command[0], f"wsg+tcp://127.0.0.1:{port.group(1)}", *command[1:], "--timeout", "2")
+            assert r.returncode == 0, r.stderr
     finally:
         proc.send_signal(signal.SIGINT)
         out, _ = proc.communicate(timeout=10)
