@@ -44,6 +44,10 @@ class _Link:
     """The operations the gripper needs from a driver, in device units."""
 
     driver: Any
+    has_temperature = False
+
+    def temperature(self) -> float:
+        raise NotImplementedError
 
     def status(self) -> _Status:
         raise NotImplementedError
@@ -118,6 +122,11 @@ class _CanLink(_Link):
 
     def go(self, position: int, speed: int, current_ma: int, *, action: bool = True) -> None:
         self.driver.command(position, speed, current_ma, activate=True, action=action, estop=False)
+
+    has_temperature = True
+
+    def temperature(self) -> float:
+        return float(self.driver.temperature())
 
     def calibrate(self) -> None:
         self.driver.calibrate(wait=False)
@@ -213,6 +222,8 @@ class MsgGripper(Gripper):
     def __init__(self, link: _Link, profile: MsgProfile, url: str, *, timeout: float) -> None:
         super().__init__(profile, url, timeout=timeout)
         self._link = link
+        if link.has_temperature:
+            self.capabilities = self.capabilities | {Capability.TEMPERATURE}
         self._maps = profile.maps
         self._mode = "idle"  # what the last motion was, to name what the detection bits mean
         self._held = False  # a grasp found its part; detection 3 afterwards means the part was lost
@@ -378,6 +389,9 @@ class MsgGripper(Gripper):
             extra=ident["extra"],
         )
 
+    def _temperature(self) -> float:
+        return self._link.temperature()
+
     def _close(self) -> None:
         self._link.close()
 
@@ -445,7 +459,6 @@ class StepfocBackend:
     def simulator(self, profile: ProfileBase, settings: Settings, listen: str | None = None) -> Any:
         assert isinstance(profile, MsgProfile)
         node = settings.int("node", profile.transport.node)
-        settings.add_defaults({"node": str(node)})
         settings.add_defaults({"time_scale": str(profile.simulator.time_scale)})
         part = settings.float("part_width_mm", profile.simulator.part_width_mm)
         model = self.sim_model(profile, node, part)
@@ -453,6 +466,7 @@ class StepfocBackend:
             transport = settings.str("transport", "can")
             if transport == "can":
                 listen = f"can://virtual/grippers-sim-{uuid.uuid4().hex[:12]}"
+                settings.add_defaults({"node": str(node)})  # the client talks to the node it simulates
             elif transport in ("pty", "serial"):
                 listen = "pty"
             else:

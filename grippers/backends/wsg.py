@@ -159,6 +159,21 @@ class WsgGripper(Gripper):
             extra={"device_type": int(si.device_type)},
         )
 
+    def _temperature(self) -> float:
+        return self._client.temperature()
+
+    def _set_soft_limits(self, min_width: float | None, max_width: float | None) -> None:
+        if min_width is None or max_width is None:
+            self._client.clear_soft_limits()
+        else:
+            self._client.set_soft_limits(min_width * 1000, max_width * 1000)
+
+    def _device_tag(self, tag: str | None) -> str:
+        if tag is None:
+            return self._client.device_tag()
+        self._client.set_device_tag(tag)
+        return tag
+
     def _close(self) -> None:
         self._client.close()
 

@@ -56,6 +56,8 @@ class MotionCommand:
 
         gripper = open_gripper(args)
         try:
+            if self.name in MOTIONS:
+                _refuse_if_fast_stopped(gripper, self.name, args.target)
             result = self.call(gripper, args)
             try:
                 state: GripperState | None = gripper.state()
@@ -82,6 +84,22 @@ class MotionCommand:
             print(error_line(self.name, f"no part gripped: {reason or 'unknown reason'}"), file=sys.stderr)
             return EXIT_FAILED
         return EXIT_OK
+
+
+MOTIONS = ("home", "move", "grasp", "release")
+
+
+def _refuse_if_fast_stopped(gripper: Gripper, command: str, target: str) -> None:
+    """Each CLI call is a new connection that cannot know an earlier call left a FAST STOP active; a
+    device would answer with a bare E_ACCESS_DENIED, so ask first and say what to do."""
+    from grippers.gripper import FastStopActive
+
+    if gripper.state().fast_stopped:
+        raise FastStopActive(
+            f"fast stop is active: acknowledge it first with: grippers ack {target}",
+            device=gripper.name,
+            command=command,
+        )
 
 
 def result_dict(result: MotionResult | GraspResult | None) -> dict[str, Any] | None:

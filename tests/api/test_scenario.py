@@ -101,3 +101,29 @@ def test_scenario(profile: str, kind: str, sim_process) -> None:
         assert "fast_stop" not in g.state().faults
         g.move(top * 0.6)
         assert g.state().width == pytest.approx(top * 0.6, abs=0.002)
+
+
+@pytest.mark.parametrize("profile", ["wsg50", "msg-150"])
+def test_capabilities_decide_what_is_supported(profile: str) -> None:
+    with grippers.open(f"sim://{profile}?time_scale={TIME_SCALE}") as g:
+        assert -20 < g.temperature() < 80  # both families' simulators report a plausible temperature
+        if grippers.Capability.DEVICE_TAG in g.capabilities:
+            g.set_device_tag("bench-1")
+            assert g.device_tag() == "bench-1"
+        else:
+            with pytest.raises(grippers.NotSupported, match="device_tag"):
+                g.device_tag()
+        assert g.driver is not None  # vendor extras stay reachable
+
+
+def test_wsg_2x_firmware_has_no_temperature() -> None:
+    with grippers.open(f"sim://wsg50?time_scale={TIME_SCALE}&firmware=2.2.0") as g:
+        assert g.info().firmware == "2.2.0"
+        with pytest.raises(grippers.NotSupported, match="temperature"):
+            g.temperature()
+
+
+def test_msg_over_uart_has_no_temperature() -> None:
+    with grippers.open(f"sim://msg-150?time_scale={TIME_SCALE}&transport=pty") as g:
+        with pytest.raises(grippers.NotSupported):
+            g.temperature()
