@@ -244,15 +244,23 @@ class WsgStream:
         )
 
     def _guess_direction(self, packet: Any) -> str:
-        """Without direction marks: the layout that decodes wins (requests and replies differ in length)."""
+        """Without direction marks: the layout that decodes wins (requests and replies differ in length).
+
+        A reply with an error status carries no data (WSG manual 4.0.x §1.2.2), so a longer payload whose
+        first two bytes are not E_SUCCESS is not a reply, even though the status alone would decode."""
         c = self._c
         fits = []
-        for direction, decode in ((TO_GRIPPER, c.decode_request), (FROM_GRIPPER, c.decode_reply)):
-            try:
-                decode(packet.command, packet.payload)
-                fits.append(direction)
-            except Exception:
-                continue
+        try:
+            c.decode_request(packet.command, packet.payload)
+            fits.append(TO_GRIPPER)
+        except Exception:
+            pass
+        try:
+            reply = c.decode_reply(packet.command, packet.payload)
+            if reply.ok or len(packet.payload) == 2:
+                fits.append(FROM_GRIPPER)
+        except Exception:
+            pass
         return fits[0] if len(fits) == 1 else "?"
 
 

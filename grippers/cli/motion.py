@@ -41,7 +41,14 @@ class MotionCommand:
     def add_arguments(self, parser: argparse.ArgumentParser) -> None:
         add_target(parser)
         self.extra_arguments(parser)
-        if self.name not in ("stop", "ack"):
+        if self.name in ("move", "grasp", "release"):
+            parser.add_argument(
+                "--home",
+                action="store_true",
+                help="home (WSG) or calibrate (MSG) first if the gripper is not referenced yet "
+                "(needed on sim://, which starts a new simulator each time)",
+            )
+        if self.name in MOTIONS:
             parser.add_argument(
                 "--motion-timeout",
                 type=positive_float,
@@ -57,7 +64,7 @@ class MotionCommand:
         gripper = open_gripper(args)
         try:
             if self.name in MOTIONS:
-                _refuse_if_fast_stopped(gripper, self.name, args.target)
+                _preflight(gripper, self.name, args)
             result = self.call(gripper, args)
             try:
                 state: GripperState | None = gripper.state()
@@ -89,17 +96,28 @@ class MotionCommand:
 MOTIONS = ("home", "move", "grasp", "release")
 
 
-def _refuse_if_fast_stopped(gripper: Gripper, command: str, target: str) -> None:
-    """Each CLI call is a new connection that cannot know an earlier call left a FAST STOP active; a
-    device would answer with a bare E_ACCESS_DENIED, so ask first and say what to do."""
+def _preflight(gripper: Gripper, command: str, args: argparse.Namespace) -> None:
+    """Each CLI call is a new connection that cannot know what earlier calls left behind; a device would
+    answer a motion with a bare E_ACCESS_DENIED (FAST STOP) or E_NOT_INITIALIZED (not homed), so the state is
+    read first and the error says what to do."""
+    from grippers.errors import GripperError
     from grippers.gripper import FastStopActive
 
-    if gripper.state().fast_stopped:
+    state = gripper.state()
+    if state.fast_stopped:
         raise FastStopActive(
-            f"fast stop is active: acknowledge it first with: grippers ack {target}",
+            f"fast stop is active: acknowledge it first with: grippers ack {args.target}",
             device=gripper.name,
             command=command,
         )
+    if command != "home" and not state.referenced:
+        if not args.home:
+            raise GripperError(
+                f"not homed: run `grippers home {args.target}` first, or add --home",
+                device=gripper.name,
+                command=command,
+            )
+        gripper.home(timeout=args.motion_timeout)
 
 
 def result_dict(result: MotionResult | GraspResult | None) -> dict[str, Any] | None:
@@ -128,13 +146,12 @@ def _result_text(name: str, document: dict[str, Any]) -> str:
         pairs.append(("grip force", fmt_num(result["force_n"], "N", 1)))
     state = document["state"]
     if state:
-        pairs += [
-            ("width", fmt_num(state["width_mm"], "mm", 2)),
-            ("force", fmt_num(state["force_n"], "N", 1)),
-            ("current", fmt_num(state["current_a"], "A", 3)),
-            ("grasp state", state["grasp_state"]),
-            ("faults", ", ".join(state["faults"]) or "none"),
-        ]
+        pairs.append(("width", fmt_num(state["width_mm"], "mm", 2)))
+        if state["force_n"] is not None:
+            pairs.append(("force", fmt_num(state["force_n"], "N", 1)))
+        if state["current_a"] is not None:
+            pairs.append(("current", fmt_num(state["current_a"], "A", 3)))
+        pairs += [("grasp state", state["grasp_state"]), ("faults", ", ".join(state["faults"]) or "none")]
     elif "width_mm" in result:
         pairs.append(("width", fmt_num(result["width_mm"], "mm", 2)))
     return key_values(pairs)
@@ -226,7 +243,7 @@ move = MotionCommand(
     "move",
     "move the fingers to an opening width in mm, without gripping",
     "grippers move wsg+tcp://127.0.0.1:1000 40 --speed 50\n"
-    "         grippers move 'sim://msg-150?time_scale=20' 30",
+    "         grippers move 'sim://msg-150?time_scale=20' 30 --home",
     _move_args,
     _move,
 )

@@ -335,6 +335,7 @@ def render(doc: dict[str, Any]) -> str:
                 where(d["location"]),
                 fmt_num(s.get("width_mm"), "mm", 1),
                 s.get("grasp_state") or s.get("error"),
+                None if s.get("homed") is None else ("yes" if s["homed"] else "no"),
                 ", ".join(faults) if faults else ("none" if faults is not None else None),
                 f"{fmt_num(lim.get('min_width_mm'), '', 0)}-{fmt_num(lim.get('max_width_mm'), 'mm', 0)}",
                 fmt_num(lim.get("max_force_n"), "N", 0),
@@ -349,16 +350,15 @@ def render(doc: dict[str, Any]) -> str:
             "WHERE",
             "WIDTH",
             "GRASP",
+            "HOMED",
             "FAULTS",
             "STROKE",
             "FORCE",
         ]
         lines.append(table(rows, headers))
         lines.append("")
-        lines.append(
-            f"{len(rows)} gripper(s) found; open one with the URL: "
-            + ", ".join(d["url"] for d in doc["grippers"])
-        )
+        lines.append(f"{len(rows)} gripper(s) found; the other commands open them with these URLs:")
+        lines += [f"  {d['url']}" for d in doc["grippers"]]
     else:
         lines.append("no gripper found")
     for o in doc["others"]:

@@ -1,5 +1,6 @@
-"""The ``--json`` documents of the CLI, as pydantic models: one definition gives the JSON Schema printed by
-``--print-schema`` and quoted in docs/cli.md, and the validator the tests run on real output.
+"""The ``--json`` documents of the CLI, as pydantic models: one definition gives the JSON Schema (printed by
+``python -m grippers.cli.schemas [SCHEMA_ID]``, described in docs/cli.md) and the validator the tests run on
+real output.
 
 The CLI writes its documents from plain dicts (pydantic is not imported to print), so these models are the
 contract the output is checked against, not the code that produces it. Additive changes keep the ``/1``
@@ -94,7 +95,7 @@ class ProbeDocument(_Strict):
     grippers: list[Device]
     others: list[Miss] = Field(description="something answered, but not as a gripper")
     silent: list[Miss] = Field(description="nothing answered, or the transport failed")
-    skipped: list[Skip] = Field(description="not tried, and why (e.g. network addresses without --network)")
+    skipped: list[Skip] = Field(description="not tried, and why (e.g. the factory address with --no-network)")
 
 
 class StateDocument(_Strict):
@@ -214,3 +215,11 @@ def validate(document: dict) -> BaseModel:
 
 def json_schema(schema_id: str) -> dict:
     return SCHEMAS[schema_id].model_json_schema(by_alias=True)
+
+
+if __name__ == "__main__":  # python -m grippers.cli.schemas [grippers.probe/1 ...]
+    import json
+    import sys
+
+    for schema_id in sys.argv[1:] or list(SCHEMAS):
+        print(json.dumps(json_schema(schema_id), indent=2))

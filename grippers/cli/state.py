@@ -46,19 +46,23 @@ def document(target: str, state: GripperState) -> dict[str, Any]:
 
 
 def render(doc: dict[str, Any]) -> str:
+    """Aligned lines with units; a quantity the device does not report (speed and force on the MSG,
+    current on the WSG) is left out rather than shown empty."""
     s = doc["state"]
-    return key_values(
-        [
-            ("width", fmt_num(s["width_mm"], "mm", 2)),
-            ("speed", fmt_num(s["speed_mm_s"], "mm/s", 1)),
-            ("force", fmt_num(s["force_n"], "N", 1)),
-            ("current", fmt_num(s["current_a"], "A", 3)),
-            ("grasp state", s["grasp_state"]),
-            ("moving", s["moving"]),
-            ("homed", s["homed"]),
-            ("faults", ", ".join(s["faults"]) or "none"),
-        ]
-    )
+    pairs: list[tuple[str, Any]] = [("width", fmt_num(s["width_mm"], "mm", 2))]
+    if s["speed_mm_s"] is not None:
+        pairs.append(("speed", fmt_num(s["speed_mm_s"], "mm/s", 1)))
+    if s["force_n"] is not None:
+        pairs.append(("force", fmt_num(s["force_n"], "N", 1)))
+    if s["current_a"] is not None:
+        pairs.append(("current", fmt_num(s["current_a"], "A", 3)))
+    pairs += [
+        ("grasp state", s["grasp_state"]),
+        ("moving", "yes" if s["moving"] else "no"),
+        ("homed", "yes" if s["homed"] else "no"),
+        ("faults", ", ".join(s["faults"]) or "none"),
+    ]
+    return key_values(pairs)
 
 
 def render_line(doc: dict[str, Any]) -> str:

@@ -84,7 +84,7 @@ def test_a_grasp_without_a_part_exits_1_with_the_reason(start_sim, cli) -> None:
 
 
 def test_values_beyond_the_limits_are_usage_errors(wsg_tcp: str, cli) -> None:
-    r = cli("move", wsg_tcp, "500", "--timeout", T)
+    r = cli("move", wsg_tcp, "500", "--home", "--timeout", T)
     assert r.returncode == 2 and "500 mm is outside" in r.one_error_line()
     r = cli("grasp", wsg_tcp, "20", "--force", "500", "--timeout", T)
     assert r.returncode == 2 and "force" in r.one_error_line()
@@ -112,7 +112,7 @@ def test_bare_can_bus_lists_the_wsg_and_the_msg(start_sim, cli, cli_json, mcast_
     assert len(msg) == 1 and msg[0]["family"] == "stepfoc" and msg[0]["model"] == "MSG 150"
     assert found["wsg"]["location"]["transport"] == "can" and found["wsg"]["model"] == "WSG 50"
     # The WSG's own URL (as probe and the simulator print it) drives it over CAN.
-    moved = cli_json("move", found["wsg"]["url"], "30", "--timeout", T)
+    moved = cli_json("move", found["wsg"]["url"], "30", "--home", "--timeout", T)
     assert moved["state"]["width_mm"] == pytest.approx(30.0, abs=0.5)
     assert cli_json("state", wsg, "--timeout", T)["state"]["width_mm"] == pytest.approx(30.0, abs=0.5)
 
@@ -163,8 +163,12 @@ def test_probe_sim_lists_every_shipped_profile(cli, cli_json) -> None:
     assert r.returncode == 0 and "WSG 70" in r.stdout and "MSG 200" in r.stdout
 
 
-def test_commands_on_an_in_process_simulator(cli_json) -> None:
-    doc = cli_json("move", "sim://wsg25?time_scale=50", "20")
+def test_commands_on_an_in_process_simulator(cli, cli_json) -> None:
+    r = cli("move", "sim://wsg25?time_scale=50", "20")
+    assert r.returncode == 1 and "not homed" in r.one_error_line() and "--home" in r.stderr
+    doc = cli_json("move", "sim://wsg25?time_scale=50", "20", "--home")
     assert doc["result"]["width_mm"] == pytest.approx(20.0, abs=0.5)
-    doc = cli_json("grasp", "sim://msg-100?time_scale=50&part_width_mm=30", "30")
-    assert doc["result"]["grasped"] is True
+    doc = cli_json("grasp", "sim://wsg70?time_scale=50&part_width_mm=30", "30", "--home", "--force", "100")
+    assert doc["result"]["grasped"] is True and doc["result"]["force_n"] == pytest.approx(100, rel=0.1)
+    doc = cli_json("move", "sim://msg-100?time_scale=50", "40", "--home")
+    assert doc["state"]["width_mm"] == pytest.approx(40.0, abs=1.0) and doc["state"]["homed"] is True

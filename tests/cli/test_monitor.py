@@ -198,9 +198,9 @@ def test_live_can_bus(start_sim, cli, mcast_channel: str) -> None:
         text=True,
     )
     try:
-        # The monitor needs a moment to start and join the group: ask a few times, a second apart.
-        for _ in range(3):
-            time.sleep(1.0)
+        # The monitor needs a moment to start and join the group: ask twice, a while apart.
+        for _ in range(2):
+            time.sleep(0.8)
             assert cli("state", url, "--timeout", "2").returncode == 0
     finally:
         proc.send_signal(signal.SIGINT)
