@@ -362,6 +362,17 @@ class Gripper(ABC):
             raise LimitError(f"force {f:g} N is outside {lo:g}..{hi:g} N", device=self.name, command=command)
         return min(max(f, lo), hi)
 
+    def check(
+        self, width: float | None = None, speed: float | None = None, force: float | None = None
+    ) -> tuple[float | None, float | None, float | None]:
+        """Validate values against the limits without sending anything (LimitError); returns them as used
+        (speed and force default from the profile when None)."""
+        return (
+            None if width is None else self._width(width, "check"),
+            self._speed(speed, "check"),
+            self._force(force, "check"),
+        )
+
     def _run_motion(self, name: str, call: Callable[[], T], wait: bool) -> T | MotionHandle[T]:
         if wait:
             return call()

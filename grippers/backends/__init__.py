@@ -19,7 +19,7 @@ import importlib
 from importlib.metadata import entry_points
 from typing import TYPE_CHECKING, Any, Protocol
 
-from ..errors import NotSupported
+from ..errors import URLError
 
 if TYPE_CHECKING:
     from ..gripper import Gripper
@@ -89,7 +89,8 @@ def find_backend(family: str) -> Any | None:
 def get_backend(family: str) -> Any:
     backend = find_backend(family)
     if backend is None:
-        raise NotSupported(
+        # An unknown family is almost always a typo in the URL, so it is a URL error (and a ValueError).
+        raise URLError(
             f"no backend for family {family!r} (available: {', '.join(available_backends())}; "
             f"plugins register in the entry-point group {ENTRY_POINT_GROUP!r})"
         )

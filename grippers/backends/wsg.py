@@ -13,7 +13,7 @@ from typing import Any
 
 from drivers.errors import CommandFailed
 from drivers.wsg.client import WsgClient
-from drivers.wsg.commands import GraspingState, SystemFlags
+from drivers.wsg.commands import GraspingState, SystemFlags, SystemInfo, SystemLimits
 from drivers.wsg.protocol import Status
 
 from ..gripper import Capability, DeviceInfo, GraspResult, GraspState, Gripper, GripperState, MotionResult
@@ -44,8 +44,7 @@ _GRASP = {
 _FAULT_FLAGS = tuple(
     flag
     for flag in SystemFlags
-    if flag.name
-    and any(word in flag.name for word in ("FAST_STOP", "FAULT", "FAILURE", "WARNING"))
+    if flag.name and any(word in flag.name for word in ("FAST_STOP", "FAULT", "FAILURE", "WARNING"))
 )
 
 FALLBACK_PROFILE = "wsg50"
@@ -57,11 +56,21 @@ def _fault_names(flags: int) -> tuple[str, ...]:
 
 class WsgGripper(Gripper):
     def __init__(
-        self, client: WsgClient, profile: WsgProfile, url: str, *, timeout: float, device_limits: Any
+        self,
+        client: WsgClient,
+        profile: WsgProfile,
+        url: str,
+        *,
+        timeout: float,
+        system_info: SystemInfo,
+        device_limits: SystemLimits | None,
     ) -> None:
         super().__init__(profile, url, timeout=timeout)
         self._client = client
-        self._system_info = client.system_info()
+        self._system_info = system_info
+        # A gripper left in FAST STOP (a dropped TCP connection, another program) refuses motion until it
+        # is acknowledged: know it from the start, so motion calls say so instead of E_ACCESS_DENIED.
+        self._fast_stopped = bool(client.system_state() & SystemFlags.SF_FAST_STOP)
         if device_limits is not None:
             self.limits = _narrow(self.limits, device_limits)
         caps = {
@@ -178,7 +187,7 @@ class WsgGripper(Gripper):
         self._client.close()
 
 
-def _narrow(limits: Limits, device: Any) -> Limits:
+def _narrow(limits: Limits, device: SystemLimits) -> Limits:
     """The profile's limits within the device's own 53h limits (mm, mm/s, N in; SI out)."""
     return limits.model_copy(
         update={
@@ -232,7 +241,9 @@ class WsgBackend:
                 profile = wsg_profile_for_device_type(int(info.device_type)) or load_profile(FALLBACK_PROFILE)
             device_limits = client.system_limits()
             assert isinstance(profile, WsgProfile)
-            return WsgGripper(client, profile, url.url, timeout=timeout, device_limits=device_limits)
+            return WsgGripper(
+                client, profile, url.url, timeout=timeout, system_info=info, device_limits=device_limits
+            )
         except BaseException:
             client.close()
             raise

@@ -13,7 +13,7 @@ import argparse
 import math
 from typing import TYPE_CHECKING, Any
 
-from .output import UsageError, fmt_firmware, m_to_mm, to_plain
+from .output import fmt_firmware, m_to_mm, to_plain
 
 if TYPE_CHECKING:
     from grippers.gripper import DeviceInfo, Gripper, GripperState
@@ -88,25 +88,10 @@ def overrides_from(args: argparse.Namespace) -> dict[str, Any]:
     return out
 
 
-def check_family(target: str) -> None:
-    """A URL whose family no backend serves is a typo on the command line (exit 2), not a device failure."""
-    from grippers.backends import available_backends, find_backend
-    from grippers.urls import is_url, parse_url
-
-    if not is_url(target):
-        return
-    family = parse_url(target).family
-    if family != "sim" and find_backend(family) is None:
-        raise UsageError(
-            f"{target}: no backend for family {family!r} (available: {', '.join(available_backends())})"
-        )
-
-
 def open_gripper(args: argparse.Namespace) -> Gripper:
     """Open the gripper named on the command line; a malformed URL or unknown profile is a usage error."""
     import grippers
 
-    check_family(args.target)
     kwargs = overrides_from(args)
     timeout = getattr(args, "timeout", None)
     if timeout is not None:

@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 import grippers
-from grippers import NotSupported
+from grippers import URLError
 from grippers.backends import _cache, available_backends, get_backend
 
 
@@ -17,8 +17,8 @@ def test_builtins_are_listed() -> None:
     assert {"wsg", "stepfoc"} <= set(available_backends())
 
 
-def test_unknown_family_is_not_supported() -> None:
-    with pytest.raises(NotSupported, match="acme"):
+def test_unknown_family_is_a_url_error() -> None:
+    with pytest.raises(URLError, match="acme"):
         grippers.open("acme+tcp://127.0.0.1:9")
 
 

@@ -124,6 +124,8 @@ def test_wsg_2x_firmware_has_no_temperature() -> None:
 
 
 def test_msg_over_uart_has_no_temperature() -> None:
-    with grippers.open(f"sim://msg-150?time_scale={TIME_SCALE}&transport=pty") as g:
-        with pytest.raises(grippers.NotSupported):
-            g.temperature()
+    with (
+        grippers.open(f"sim://msg-150?time_scale={TIME_SCALE}&transport=pty") as g,
+        pytest.raises(grippers.NotSupported),
+    ):
+        g.temperature()
