@@ -3,8 +3,8 @@
 The stream is what a client reads while a motion runs with auto updates on: status/width/speed/force updates,
 E_CMD_PENDING acknowledgements, final replies and an occasional long reply (system information, loop data).
 It is cut into chunks of random sizes (seeded), the way TCP hands data to ``recv``, so packets straddle chunk
-borders. The baseline is the smallest correct loop one could write: ``struct`` for the header, the CRC table in
-a per-byte loop, no resynchronisation, no events.
+borders. The baseline is the smallest correct loop one could write: ``struct`` for the header, the CRC
+table in a per-byte loop, no resynchronisation, no events.
 """
 
 from __future__ import annotations
@@ -86,7 +86,7 @@ def reference_parse(chunks: list[bytes]) -> int:
                 break
             crc = 0xFFFF
             for byte in buf[:end]:
-                crc = table[(crc ^ byte) & 0xFF] ^ (crc >> 8)
+                crc = table[(crc & 0xFF) ^ byte] ^ (crc >> 8)  # the same update as crc16()
             if crc == 0:
                 Packet(command, bytes(buf[6:end - 2]))
                 count += 1

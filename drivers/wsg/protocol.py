@@ -69,7 +69,7 @@ def crc16(data: bytes | bytearray | memoryview, crc: int = CRC_INIT) -> int:
     """The WSG checksum of ``data`` continuing from ``crc``; over a whole packet with its checksum: 0."""
     table = CRC_TABLE
     for byte in data:
-        crc = table[(crc ^ byte) & 0xFF] ^ (crc >> 8)
+        crc = table[(crc & 0xFF) ^ byte] ^ (crc >> 8)  # = table[(crc ^ byte) & 0xFF]: byte < 256, one op less
     return crc
 
 
@@ -257,9 +257,11 @@ class PacketParser:
             if end > n:
                 break  # wait for the rest
             if verify:
+                # crc16() inlined (a call per packet costs ~10 % here); iterating a bytearray slice copy is
+                # faster than iterating a memoryview of the buffer
                 crc = CRC_AFTER_PREAMBLE
-                for byte in memoryview(buf)[start + 3:end]:
-                    crc = table[(crc ^ byte) & 0xFF] ^ (crc >> 8)
+                for byte in buf[start + 3:end]:
+                    crc = table[(crc & 0xFF) ^ byte] ^ (crc >> 8)
                 if crc:
                     raw = bytes(buf[start:end])
                     received = raw[-2] | (raw[-1] << 8)

@@ -1,0 +1,65 @@
+"""The benchmarks still run and report in their format. No timing is asserted: speed is for benchmarks."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[2]
+if str(REPO) not in sys.path:
+    sys.path.insert(0, str(REPO))
+
+from benchmarks import run, stepfoc_bus, stepfoc_codec, wsg_parser  # noqa: E402
+from benchmarks.common import Result, format_table, markdown_table  # noqa: E402
+
+
+def test_parser_and_reference_loop_see_every_packet() -> None:
+    stream, count = wsg_parser.reply_stream(300)
+    chunks = wsg_parser.random_chunks(stream)
+    assert b"".join(chunks) == stream
+    assert wsg_parser.parser_parse(chunks) == count
+    assert wsg_parser.reference_parse(chunks) == count
+
+
+def test_codec_race_compares_the_same_frames() -> None:
+    commands, statuses = stepfoc_codec.motion_frames(200)
+    stepfoc_codec.check_same_frames(commands, statuses)  # raises when ours and the vendor's differ
+    assert len({bytes(m.data) for m in statuses}) > 100  # a varying stream, not one repeated frame
+    assert stepfoc_codec.ours(commands, statuses) == 200
+    assert stepfoc_codec.ours_generic(commands, statuses) == 200
+    assert stepfoc_codec.vendor(stepfoc_codec._vendor_args(commands), statuses) == 200
+
+
+def test_can_frame_bits_worst_case() -> None:
+    # 34 + 8n stuffable bits, one stuff bit per 4 after the first, 13 bits of delimiters, EOF and IFS
+    assert stepfoc_bus.frame_bits(0) == 34 + 8 + 13
+    assert stepfoc_bus.frame_bits(4) == 66 + 16 + 13
+    assert stepfoc_bus.frame_bits(8) == 98 + 24 + 13
+
+
+def test_table_has_one_line_per_target_with_a_verdict() -> None:
+    results = [Result("1 a", "10 x/s", "5 x/s", "2.00x", ">= 1x", True, ["note"]),
+               Result("2 b", "1 us", "2 us", "0.50x", "<= 0.4x", False)]
+    lines = format_table(results).splitlines()
+    assert lines[0].split()[:3] == ["target", "figure", "baseline"]
+    assert lines[1].startswith("1 a") and lines[1].endswith("PASS")
+    assert lines[2].strip() == "note"
+    assert lines[3].startswith("2 b") and lines[3].endswith("FAIL")
+    assert markdown_table(results).count("\n") == 3
+
+
+def test_run_prints_the_table_and_exits_by_the_verdict(capsys: pytest.CaptureFixture[str]) -> None:
+    code = run.main(["--quick", "--only", "1"])
+    out = capsys.readouterr().out
+    line = next(ln for ln in out.splitlines() if ln.startswith("1 wsg parser"))
+    verdict = line.split()[-1]
+    assert verdict in ("PASS", "FAIL")
+    assert code == (0 if verdict == "PASS" else 1)
+    assert "targets met" in out
+
+
+def test_run_refuses_an_unknown_target() -> None:
+    with pytest.raises(SystemExit):
+        run.main(["--only", "99"])
