@@ -9,6 +9,7 @@ handles, state streams, and release of every resource on close.
 from __future__ import annotations
 
 import enum
+import logging
 import math
 import queue
 import threading
@@ -22,6 +23,8 @@ from .errors import GripperError, GripperTimeout, LimitError, NotSupported
 from .profiles import Limits, ProfileBase
 
 T = TypeVar("T")
+
+log = logging.getLogger(__name__)
 
 
 class GraspState(enum.Enum):
@@ -175,7 +178,10 @@ class StateStream:
             except BaseException as exc:
                 item = exc
             if self._callback is not None and isinstance(item, GripperState):
-                self._callback(item)
+                try:
+                    self._callback(item)
+                except Exception:  # a bug in the user's callback must not end the stream silently
+                    log.exception("state stream callback raised; the stream goes on")
             else:
                 self._put(item)
             if isinstance(item, BaseException) and not isinstance(item, GripperTimeout):

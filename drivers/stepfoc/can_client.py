@@ -13,6 +13,7 @@ fresh status of the node); for remote requests it returns the same kind of value
 
 from __future__ import annotations
 
+import logging
 import operator
 import threading
 import time
@@ -54,6 +55,8 @@ from drivers.stepfoc.can_protocol import (
 )
 
 __all__ = ["StepfocBus", "StepfocNode", "open_node", "parse_url"]
+
+log = logging.getLogger(__name__)
 
 _READ_POLL_S = 0.05  # the reader's longest block, so close() returns promptly
 
@@ -157,7 +160,10 @@ class StepfocBus:
                     self._fail(exc)
                 return
             if msg is not None:
-                self._dispatch(msg)
+                try:
+                    self._dispatch(msg)
+                except Exception:  # noqa: BLE001 - a frame we cannot handle must not kill the reader
+                    log.exception("%s: reader ignored a frame it could not handle: %r", self.device, msg)
 
     def _fail(self, exc: BaseException) -> None:
         self._error = exc
@@ -173,8 +179,10 @@ class StepfocBus:
                 listener(msg)
             except Exception:  # noqa: BLE001, S110 - a monitor callback must not kill the reader
                 pass
-        if msg.is_error_frame or msg.is_extended_id or msg.is_remote_frame:
-            return  # remote frames are requests from hosts, never answers
+        if msg.is_error_frame or msg.is_extended_id or msg.is_remote_frame or msg.arbitration_id > 0x7FF:
+            # remote frames are requests from hosts, never answers; an 11-bit id above 0x7FF is not a frame
+            # of this protocol (virtual and multicast buses carry whatever a program sends)
+            return
         node, command, error = unpack_id(msg.arbitration_id)
         spec = COMMANDS.get(command)
         if spec is None or spec.direction is Direction.HOST_TO_NODE:

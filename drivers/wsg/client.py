@@ -115,8 +115,19 @@ class Pending:
         client._check(self.command, packet)
 
     def cancel(self, timeout: float | None = None) -> None:
-        """Send STOP (22h); the final reply then reports E_CMD_ABORTED through :meth:`result`."""
-        self._client.stop(timeout=timeout)
+        """Send STOP (22h); the final reply then reports E_CMD_ABORTED through :meth:`result`.
+
+        If no final reply comes within ``timeout`` (the client's by default) it was lost, e.g. the motion had
+        ended and its reply was dropped: the exchange is then abandoned like a timed-out blocking motion, so
+        its command id is free again after ``stale_final_ttl`` instead of staying busy for good.
+        """
+        client = self._client
+        client.stop(timeout=timeout)
+        wait = client.timeout if timeout is None else timeout
+        try:
+            client._wait(self._exchange, time.monotonic() + wait, final=True, waited=wait)
+        except GripperError:
+            pass  # the outcome (aborted, failed, timed out) is what result() reports
 
     def __repr__(self) -> str:
         return f"<Pending {command_name(self.command)} {self._exchange.state.value}>"

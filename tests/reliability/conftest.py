@@ -1,0 +1,187 @@
+"""Fixtures for the reliability tests: simulators on real transports, leak snapshots and fuzz counters.
+
+Test files import nothing from here (pytest runs with --import-mode=importlib); they ask for fixtures.
+Hypothesis tests may only use session-scoped fixtures (``fuzz_count``), so the long mode
+(``GRIPPERS_FUZZ=long``) runs them unchanged; the case counts are printed at the end of the run.
+"""
+
+from __future__ import annotations
+
+import collections
+import json
+import os
+import threading
+import time
+import uuid
+from collections.abc import Callable, Iterator
+from typing import Any
+
+import pytest
+from hypothesis import settings
+
+from drivers.stepfoc.sim import MsgModel, serve_can, serve_uart
+from drivers.wsg.client import WsgClient
+from drivers.wsg.sim import WsgModel, serve
+
+WSG_TIME_SCALE = 50.0
+MSG_TIME_SCALE = 200.0  # an MSG calibration (~8 s simulated) then takes ~40 ms
+
+# The long mode runs 1,000,000 examples per property (tests/conftest.py); GRIPPERS_FUZZ_EXAMPLES=N changes
+# that number for a long run of chosen targets (a million of the slow ones takes half an hour on 2 cores).
+if os.environ.get("GRIPPERS_FUZZ") == "long" and os.environ.get("GRIPPERS_FUZZ_EXAMPLES"):
+    settings.register_profile(
+        "long-n", settings.get_profile("long"), max_examples=int(os.environ["GRIPPERS_FUZZ_EXAMPLES"])
+    )
+    settings.load_profile("long-n")
+
+_HERE = os.path.dirname(os.path.abspath(__file__))
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """Long mode: no pytest-timeout (120 s in pyproject.toml) here; a million examples take minutes."""
+    if os.environ.get("GRIPPERS_FUZZ") != "long":
+        return
+    for item in items:
+        if str(item.path).startswith(_HERE):
+            item.add_marker(pytest.mark.timeout(0))
+
+
+_COUNTS: collections.Counter[str] = collections.Counter()
+_STARTED = time.monotonic()
+
+
+@pytest.fixture(scope="session")
+def fuzz_count() -> collections.Counter[str]:
+    """Examples run per fuzz target (``fuzz_count[target] += 1`` in a property test)."""
+    return _COUNTS
+
+
+def pytest_terminal_summary(terminalreporter: Any) -> None:
+    if not _COUNTS:
+        return
+    total = sum(_COUNTS.values())
+    terminalreporter.section("fuzz case counts")
+    for name, n in sorted(_COUNTS.items()):
+        terminalreporter.write_line(f"{n:>12,}  {name}")
+    elapsed = time.monotonic() - _STARTED
+    terminalreporter.write_line(f"{total:>12,}  total ({elapsed:.0f} s since the conftest loaded)")
+    report = os.environ.get("GRIPPERS_FUZZ_REPORT")
+    if report:
+        with open(report, "w", encoding="utf-8") as fh:
+            json.dump({"counts": dict(_COUNTS), "total": total, "seconds": round(elapsed, 1)}, fh, indent=1)
+
+
+# ------------------------------------------------------------------------------------------------- leaks
+
+
+def _fds() -> dict[str, str]:
+    """Open descriptors and what they point to (the target tells a reused number from the same file)."""
+    out = {}
+    for fd in os.listdir("/proc/self/fd"):
+        try:
+            out[fd] = os.readlink(f"/proc/self/fd/{fd}")
+        except OSError:  # closed meanwhile (e.g. the listdir's own descriptor)
+            pass
+    return out
+
+
+class ResourceSnapshot:
+    """Threads and file descriptors now; :meth:`leaks` says what appeared since (after a bounded wait)."""
+
+    def __init__(self) -> None:
+        self.threads = set(threading.enumerate())
+        self.fds = _fds()
+
+    def leaks(self, wait: float = 3.0) -> tuple[list[threading.Thread], list[str]]:
+        deadline = time.monotonic() + wait
+        while True:
+            threads = [t for t in threading.enumerate() if t not in self.threads and t.is_alive()]
+            fds = [
+                f"{fd} -> {target}"
+                for fd, target in sorted(_fds().items())
+                if self.fds.get(fd) != target and not target.startswith("/proc/")
+            ]
+            if (not threads and not fds) or time.monotonic() >= deadline:
+                return threads, fds
+            time.sleep(0.02)
+
+
+@pytest.fixture
+def snapshot() -> Callable[[], ResourceSnapshot]:
+    return ResourceSnapshot
+
+
+# ------------------------------------------------------------------------------------------------- WSG
+
+
+@pytest.fixture
+def wsg_sim() -> Iterator[Callable[..., Any]]:
+    """Start ``serve(WsgModel(**model_kw), listen)``; every server is closed after the test."""
+    servers: list[Any] = []
+
+    def start(
+        listen: str = "tcp://127.0.0.1:0", *, time_scale: float = WSG_TIME_SCALE, **model_kw: Any
+    ) -> Any:
+        server = serve(WsgModel(**model_kw), listen, time_scale=time_scale)
+        servers.append(server)
+        return server
+
+    yield start
+    for s in servers:
+        s.close()
+        assert s.error is None, f"simulator thread died: {s.error!r}"
+
+
+@pytest.fixture
+def wsg_connect() -> Iterator[Callable[..., WsgClient]]:
+    """``WsgClient.from_url(url, **kw)``; every client is closed after the test."""
+    clients: list[WsgClient] = []
+
+    def connect(url: str, **kw: Any) -> WsgClient:
+        kw.setdefault("timeout", 1.0)
+        client = WsgClient.from_url(url, **kw)
+        clients.append(client)
+        return client
+
+    yield connect
+    for c in clients:
+        c.close()
+
+
+# ------------------------------------------------------------------------------------------------- MSG
+
+
+@pytest.fixture
+def can_channel() -> str:
+    return f"reliability-{uuid.uuid4().hex[:12]}"
+
+
+@pytest.fixture
+def msg_can_sim(can_channel: str) -> Iterator[Callable[..., Any]]:
+    """Serve MSG models on this test's virtual CAN channel; closed after the test."""
+    servers: list[Any] = []
+
+    def start(*models: MsgModel, time_scale: float = MSG_TIME_SCALE) -> Any:
+        listen = f"can://virtual/{can_channel}"
+        server = serve_can(list(models) or [MsgModel()], listen, time_scale=time_scale)
+        servers.append(server)
+        return server
+
+    yield start
+    for s in servers:
+        s.close()
+        assert s.error is None, f"simulator thread died: {s.error!r}"
+
+
+@pytest.fixture
+def msg_uart_sim() -> Iterator[Callable[..., Any]]:
+    servers: list[Any] = []
+
+    def start(model: MsgModel | None = None, *, time_scale: float = MSG_TIME_SCALE) -> Any:
+        server = serve_uart(model or MsgModel(), "pty", time_scale=time_scale)
+        servers.append(server)
+        return server
+
+    yield start
+    for s in servers:
+        s.close()
