@@ -285,6 +285,8 @@ def _format_errors(where: str, exc: ValidationError) -> str:
 
 def parse_profile(data: dict[str, Any], where: str = "<profile>") -> ProfileBase:
     """Validate a mapping as a profile of its family; errors name ``where``, the field and the rule."""
+    if not isinstance(data, dict):
+        raise ProfileError(f"{where}: a profile is a mapping of fields, not {type(data).__name__}")
     try:
         model = _profile_model(data.get("family"))
     except ValueError as exc:

@@ -17,7 +17,6 @@ from collections.abc import Callable, Iterator
 from typing import Any
 
 import pytest
-from hypothesis import settings
 
 from drivers.stepfoc.sim import MsgModel, serve_can, serve_uart
 from drivers.wsg.client import WsgClient
@@ -25,26 +24,6 @@ from drivers.wsg.sim import WsgModel, serve
 
 WSG_TIME_SCALE = 50.0
 MSG_TIME_SCALE = 200.0  # an MSG calibration (~8 s simulated) then takes ~40 ms
-
-# The long mode runs 1,000,000 examples per property (tests/conftest.py); GRIPPERS_FUZZ_EXAMPLES=N changes
-# that number for a long run of chosen targets (a million of the slow ones takes half an hour on 2 cores).
-if os.environ.get("GRIPPERS_FUZZ") == "long" and os.environ.get("GRIPPERS_FUZZ_EXAMPLES"):
-    settings.register_profile(
-        "long-n", settings.get_profile("long"), max_examples=int(os.environ["GRIPPERS_FUZZ_EXAMPLES"])
-    )
-    settings.load_profile("long-n")
-
-_HERE = os.path.dirname(os.path.abspath(__file__))
-
-
-def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    """Long mode: no pytest-timeout (120 s in pyproject.toml) here; a million examples take minutes."""
-    if os.environ.get("GRIPPERS_FUZZ") != "long":
-        return
-    for item in items:
-        if str(item.path).startswith(_HERE):
-            item.add_marker(pytest.mark.timeout(0))
-
 
 _COUNTS: collections.Counter[str] = collections.Counter()
 _STARTED = time.monotonic()
