@@ -1,9 +1,15 @@
-"""The threaded WSG client: one background reader per connection over any transport.
+"""The threaded WSG client: one connection over any transport, read by whichever thread needs the bytes.
 
-The matching rules live in :mod:`drivers.wsg.session` (sans-IO); this module adds the reader thread, the
-waiting with timeouts, the typed command methods and the auto-update subscriptions. Any number of threads may
-call the client at once: requests with different command ids run concurrently (state queries while a motion
-is pending), requests with the same id take turns (see the session's docstring for why).
+The matching rules live in :mod:`drivers.wsg.session` (sans-IO); this module adds the reading, the waiting
+with timeouts, the typed command methods and the auto-update subscriptions. Any number of threads may call
+the client at once: requests with different command ids run concurrently (state queries while a motion is
+pending), requests with the same id take turns (see the session's docstring for why).
+
+Who reads (leader/follower): at most one thread is inside ``transport.recv`` at a time. A caller waiting for
+its reply reads the line itself when nobody else does, so a plain request costs no thread hand-over (the
+round-trip benchmark, docs/performance.md); other waiters are woken when their reply goes by. A background
+thread reads only when nobody waits but bytes may still come: subscriptions (their callbacks always run on
+it), a pending motion's final reply, a half-received packet, or a late reply to swallow.
 """
 
 from __future__ import annotations
@@ -91,6 +97,10 @@ def _finite(name: str, value: float, command: str, device: str) -> float:
     return value
 
 
+# The payload of a plain state query (auto update off), encoded once.
+_PLAIN_QUERY: dict[int, bytes] = {cmd: encode_request(cmd) for cmd in AUTO_UPDATE_COMMANDS}
+
+
 class Pending:
     """A motion command that was accepted (E_CMD_PENDING) and whose final reply is still to come."""
 
@@ -137,7 +147,8 @@ class Subscription:
     """Auto updates of one state command, as callbacks and as an iterator of decoded values.
 
     Values go to a bounded queue (``maxsize``); when it is full the OLDEST value is dropped (a consumer that
-    falls behind wants the newest state) and ``dropped`` counts the losses. Callbacks run on the client's
+    falls behind wants the newest state) and ``dropped`` counts the losses (with a callback too: values are
+    queued for the iterator either way, so a callback-only user can ignore it). Callbacks run on the client's
     reader thread: keep them short, and do not call the client from them (that would wait for the very
     thread that delivers the reply; the client refuses it with GripperError).
     """
@@ -278,13 +289,23 @@ class WsgClient:
             verify_checksum=verify_checksum, stale_ttl=stale_ttl, stale_final_ttl=stale_final_ttl
         )
         self._silent_gap = silent_gap
-        self._cond = threading.Condition()
+        lock = threading.RLock()
+        self._cond = threading.Condition(lock)  # callers wait here for their replies
+        # The background reader waits on its own condition (same lock), so the notifications that wake
+        # callers on every reply do not also wake it: a thread wake-up per exchange is what the
+        # leader/follower reading is there to avoid.
+        self._bg = threading.Condition(lock)
         self._subs: dict[int, list[Subscription]] = {}
         self._sub_params: dict[int, tuple[int, bool]] = {}
         self._lost: ConnectionLost | None = None
         self._closing = False
         self._closed = False
         self._stop = threading.Event()
+        self._reading = False  # one thread at a time is inside transport.recv
+        self._callers = 0  # callers between sending a request and leaving _wait: they read for themselves
+        self._last_rx = time.monotonic()
+        # Updates a caller happened to read, handed to the reader thread that runs subscription callbacks.
+        self._deferred: list[tuple[Subscription, Any]] = []
         self._reader = threading.Thread(target=self._read_loop, name=f"{self.device} reader", daemon=True)
         self._reader.start()
 
@@ -373,6 +394,8 @@ class WsgClient:
                 except GripperError:
                     pass
         self._stop.set()
+        with self._cond:
+            self._bg.notify()
         if threading.current_thread() is not self._reader:
             self._reader.join(timeout=2.0)
         try:
@@ -409,37 +432,63 @@ class WsgClient:
 
     # ------------------------------------------------------------------------------------------- reader
 
+    def _background_needed(self) -> bool:
+        """Whether bytes may arrive that no waiting caller will read (called with ``_cond`` held)."""
+        if self._subs or self._deferred or self._session.parser.buffered:
+            return True
+        return not self._callers and self._session.expecting(time.monotonic())
+
     def _read_loop(self) -> None:
-        last_rx = time.monotonic()
-        transport = self._transport
-        while not self._stop.is_set():
-            try:
-                data = transport.recv(_POLL)
-            except ConnectionLost as exc:
-                if not self._stop.is_set():
-                    self._connection_lost(exc)
+        while True:
+            with self._cond:
+                while not self._stop.is_set() and (self._reading or not self._background_needed()):
+                    self._bg.wait(_POLL)
+                if self._stop.is_set():
+                    return
+                self._reading = True
+                deliveries, self._deferred = self._deferred, []
+            for sub, value in deliveries:
+                sub._deliver(value)
+            found = self._read_once(_POLL)
+            if found is None:
                 return
-            except Exception as exc:  # noqa: BLE001 - a transport bug must still release every waiter
-                if not self._stop.is_set():
-                    self._connection_lost(ConnectionLost(f"reader failed: {exc!r}", device=self.device))
-                return
-            now = time.monotonic()
+            for sub, value in found:
+                sub._deliver(value)
+
+    def _read_once(self, timeout: float) -> list[tuple[Subscription, Any]] | None:
+        """One receive by the thread holding the reading role, which it hands back.
+
+        Returns the subscription values found (the caller decides on which thread they are delivered), or None
+        when the line is gone (every waiter has then been failed with ConnectionLost).
+        """
+        try:
+            data = self._transport.recv(timeout)
+        except Exception as exc:  # noqa: BLE001 - a transport bug must still release every waiter
+            with self._cond:
+                self._reading = False
+                self._cond.notify_all()
+            if not self._stop.is_set():
+                lost = exc if isinstance(exc, ConnectionLost) else ConnectionLost(
+                    f"reader failed: {exc!r}", device=self.device)
+                self._connection_lost(lost)
+            return None
+        now = time.monotonic()
+        with self._cond:
+            self._reading = False
             try:
-                with self._cond:
-                    if data:
-                        last_rx = now
-                        events = self._session.receive(data, now)
-                    elif self._session.parser.buffered and now - last_rx >= self._silent_gap:
-                        events = self._session.reset_parser(now)
-                    else:
-                        continue
-                    deliveries = self._dispatch(events)
-                    if events:
-                        self._cond.notify_all()
-                for sub, value in deliveries:
-                    sub._deliver(value)
-            except Exception:  # noqa: BLE001 - garbage on the line never kills the reader
+                if data:
+                    self._last_rx = now
+                    events = self._session.receive(data, now)
+                elif self._session.parser.buffered and now - self._last_rx >= self._silent_gap:
+                    events = self._session.reset_parser(now)
+                else:
+                    events = []
+                return self._dispatch(events)
+            except Exception:  # noqa: BLE001 - garbage on the line never kills the reading
                 log.exception("%s: reader ignored an unexpected error", self.device)
+                return []
+            finally:
+                self._cond.notify_all()  # replies may have arrived, and the reading role is free
 
     def _dispatch(self, events: list[Any]) -> list[tuple[Subscription, Any]]:
         deliveries: list[tuple[Subscription, Any]] = []
@@ -515,6 +564,7 @@ class WsgClient:
                 now = time.monotonic()
                 if not self._session.is_busy(cmd, now):
                     exchange, raw = self._session.send(cmd, payload, now=now)
+                    self._callers += 1  # released by the _wait(begun=True) that follows
                     break
                 if deadline - now <= 0:
                     raise GripperTimeout(
@@ -525,37 +575,66 @@ class WsgClient:
         try:
             self._transport.send(raw)
         except ConnectionLost as exc:
+            with self._cond:
+                self._callers -= 1
             self._connection_lost(exc)
             raise ConnectionLost(exc.message, device=self.device, command=name) from None
         return exchange
 
     def _wait(self, exchange: Exchange, deadline: float, *, final: bool, abandon: bool = True,
-              waited: float | None = None) -> Packet:
-        name = command_name(exchange.command)
+              waited: float | None = None, begun: bool = False) -> Packet:
+        """Wait for ``exchange``'s reply (``final``: past E_CMD_PENDING), reading the line when nobody else
+        does. ``begun``: the caller was counted by :meth:`_begin`."""
         with self._cond:
-            while True:
-                state = exchange.state
-                if state is ExchangeState.DONE:
-                    assert exchange.reply is not None
-                    return exchange.reply
-                if state is ExchangeState.PENDING and not final:
-                    assert exchange.ack is not None
-                    return exchange.ack
-                if state is ExchangeState.FAILED:
-                    err = exchange.error
-                    cls = type(err) if isinstance(err, ConnectionLost | ProtocolError) else GripperError
-                    raise cls(err.message if err else "failed", device=self.device, command=name)
-                if state is ExchangeState.ABANDONED:
-                    raise GripperTimeout("abandoned after a timeout", device=self.device, command=name)
-                now = time.monotonic()
-                if now >= deadline:
-                    if abandon:
-                        self._session.abandon(exchange, now)
-                        self._cond.notify_all()
-                    what = "final reply" if state is ExchangeState.PENDING else "reply"
-                    after = f" within {waited:g} s" if waited is not None else ""
-                    raise GripperTimeout(f"no {what}{after}", device=self.device, command=name)
+            if not begun:
+                self._callers += 1
+            try:
+                return self._await(exchange, deadline, final, abandon, waited)
+            finally:
+                self._callers -= 1
+                if self._callers == 0 and self._background_needed():
+                    self._bg.notify()  # e.g. a pending motion's final reply: nobody waits to read it
+
+    def _await(self, exchange: Exchange, deadline: float, final: bool, abandon: bool,
+               waited: float | None) -> Packet:
+        name = command_name(exchange.command)
+        while True:
+            state = exchange.state
+            if state is ExchangeState.DONE:
+                assert exchange.reply is not None
+                return exchange.reply
+            if state is ExchangeState.PENDING and not final:
+                assert exchange.ack is not None
+                return exchange.ack
+            if state is ExchangeState.FAILED:
+                err = exchange.error
+                cls = type(err) if isinstance(err, ConnectionLost | ProtocolError) else GripperError
+                raise cls(err.message if err else "failed", device=self.device, command=name)
+            if state is ExchangeState.ABANDONED:
+                raise GripperTimeout("abandoned after a timeout", device=self.device, command=name)
+            now = time.monotonic()
+            if now >= deadline:
+                if abandon:
+                    self._session.abandon(exchange, now)
+                    self._cond.notify_all()
+                what = "final reply" if state is ExchangeState.PENDING else "reply"
+                after = f" within {waited:g} s" if waited is not None else ""
+                raise GripperTimeout(f"no {what}{after}", device=self.device, command=name)
+            if self._reading or self._subs or self._stop.is_set() or self._lost is not None:
+                if not self._reading:
+                    self._bg.notify()  # subscriptions: the reader thread reads (and runs the callbacks)
                 self._cond.wait(deadline - now)
+                continue
+            # Nobody is reading and no subscription needs the reader thread: read for ourselves.
+            self._reading = True
+            self._cond.release()
+            try:
+                found = self._read_once(min(deadline - now, _POLL))
+            finally:
+                self._cond.acquire()
+            if found:  # an update that raced a new subscription: its callbacks belong to the reader thread
+                self._deferred.extend(found)
+                self._bg.notify()
 
     def _check(self, cmd: int, packet: Packet) -> Reply:
         name = command_name(cmd)
@@ -579,7 +658,7 @@ class WsgClient:
         wait = self.timeout if timeout is None else timeout
         deadline = time.monotonic() + wait
         exchange = self._begin(cmd, payload, deadline, internal=internal)
-        return self._check(cmd, self._wait(exchange, deadline, final=True, waited=wait))
+        return self._check(cmd, self._wait(exchange, deadline, final=True, waited=wait, begun=True))
 
     def _motion(self, cmd: int, wait: bool, timeout: float | None, **fields: Any) -> Pending | None:
         self._check_supported(cmd)
@@ -589,7 +668,7 @@ class WsgClient:
         deadline = start + total
         ack_wait = min(total, self.timeout)
         exchange = self._begin(cmd, payload, start + ack_wait)
-        first = self._wait(exchange, start + ack_wait, final=False, waited=ack_wait)
+        first = self._wait(exchange, start + ack_wait, final=False, waited=ack_wait, begun=True)
         if first.status != Status.E_CMD_PENDING:  # answered at once (an immediate error, or done)
             self._check(cmd, first)
             return None if wait else Pending(self, exchange)
@@ -609,7 +688,7 @@ class WsgClient:
         wait = self.timeout if timeout is None else timeout
         deadline = time.monotonic() + wait
         exchange = self._begin(cmd, bytes(payload), deadline)
-        packet = self._wait(exchange, deadline, final=True, waited=wait)
+        packet = self._wait(exchange, deadline, final=True, waited=wait, begun=True)
         if check:
             self._check(cmd, packet)
         return packet
@@ -726,10 +805,9 @@ class WsgClient:
     def _query(self, cmd: int, timeout: float | None) -> Reply:
         # A plain query (auto update off) would switch a running subscription off on the device, so while one
         # is active the query repeats its parameters.
-        with self._cond:
-            params = self._sub_params.get(cmd)
+        params = self._sub_params.get(cmd)  # one dict read: atomic, no lock needed
         if params is None:
-            payload = encode_request(cmd)
+            payload = _PLAIN_QUERY[cmd]
         else:
             payload = encode_request(cmd, auto_update=True, changes_only=params[1], period_ms=params[0])
         return self._call(cmd, timeout=timeout, payload=payload)

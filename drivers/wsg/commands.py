@@ -562,10 +562,13 @@ def spec(cmd: int) -> CommandSpec:
         raise ProtocolError(f"unknown command id {cmd:#04x}") from None
 
 
+_NAMES: dict[int, str] = {cmd: f"{s.name} ({cmd:02X}h)" for cmd, s in COMMANDS.items()}
+
+
 def command_name(cmd: int) -> str:
     """``"PREPOSITION (21h)"``; never raises."""
-    s = COMMANDS.get(cmd)
-    return f"{s.name} ({cmd:02X}h)" if s else f"command {cmd:02X}h"
+    name = _NAMES.get(cmd)
+    return name if name is not None else f"command {cmd:02X}h"
 
 
 # ------------------------------------------------------------------------------------------- codec functions

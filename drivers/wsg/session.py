@@ -152,6 +152,8 @@ class Session:
         self._active: dict[int, Exchange] = {}
         self._stale: dict[int, _Stale] = {}
         self._subscribed: set[int] = set()
+        # Most requests repeat byte for byte (state queries): their packets are encoded once.
+        self._packets: dict[tuple[int, bytes], bytes] = {}
 
     # ------------------------------------------------------------------------------------------- requests
 
@@ -171,8 +173,14 @@ class Session:
         """Register a request and return it with the bytes to write. The slot must be free (see is_busy)."""
         if self.is_busy(command, now):
             raise GripperError("another exchange of this id is outstanding", command=command_name(command))
-        raw = encode_packet(command, payload)
-        exchange = Exchange(command, bytes(payload), now, context=context)
+        payload = bytes(payload)
+        key = (command, payload)
+        raw = self._packets.get(key)
+        if raw is None:
+            raw = encode_packet(command, payload)
+            if len(payload) <= 8 and len(self._packets) < 256:  # bounded: motions carry varying floats
+                self._packets[key] = raw
+        exchange = Exchange(command, payload, now, context=context)
         self._active[command] = exchange
         return exchange, raw
 
@@ -198,6 +206,12 @@ class Session:
 
     def outstanding(self) -> list[Exchange]:
         return list(self._active.values())
+
+    def expecting(self, now: float) -> bool:
+        """Whether a packet may still arrive for an exchange or a stale marker (cheap: no lists built)."""
+        if self._active:
+            return True
+        return any(s.expires > now for s in self._stale.values())
 
     def stale_ids(self, now: float) -> list[int]:
         return [cmd for cmd, s in self._stale.items() if s.expires > now]
