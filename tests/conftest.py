@@ -7,6 +7,12 @@ on-demand long mode (see docs/reliability.md).
 from __future__ import annotations
 
 import os
+import re
+import select
+import subprocess
+import sys
+from collections.abc import Callable, Iterator
+from pathlib import Path
 
 import pytest
 from hypothesis import HealthCheck, settings
@@ -39,3 +45,73 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     if LONG:
         for item in items:
             item.add_marker(pytest.mark.timeout(0))
+
+
+ROOT = Path(__file__).resolve().parents[1]
+START_TIMEOUT = 20.0  # seconds for a simulator subprocess to print its URL
+
+
+class SimProcess:
+    """A ``grippers sim ...`` subprocess and the URL it printed on its first line (CLI and API tests)."""
+
+    def __init__(self, *args: str) -> None:
+        self.args = args
+        self.proc = subprocess.Popen(
+            [sys.executable, "-m", "grippers", "sim", *args],
+            cwd=ROOT,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            env={**os.environ, "PYTHONUNBUFFERED": "1"},
+        )
+        self.url = self._read_url()
+
+    def _read_url(self) -> str:
+        assert self.proc.stdout is not None
+        fd = self.proc.stdout.fileno()
+        seen = ""
+        waited = 0.0
+        while waited < START_TIMEOUT:
+            ready, _, _ = select.select([fd], [], [], 0.2)
+            waited += 0.2
+            if not ready:
+                if self.proc.poll() is not None:
+                    break
+                continue
+            line = self.proc.stdout.readline()
+            if not line:
+                break
+            seen += line
+            m = re.search(r"serving at (\S+)", line)
+            if m:
+                return m.group(1)
+        self.close()
+        err = self.proc.stderr.read() if self.proc.stderr else ""
+        raise RuntimeError(f"simulator {self.args} printed no URL: {seen!r} {err[-2000:]!r}")
+
+    def close(self) -> None:
+        if self.proc.poll() is None:
+            self.proc.terminate()
+            try:
+                self.proc.wait(timeout=5)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait(timeout=5)
+        for stream in (self.proc.stdout, self.proc.stderr):
+            if stream:
+                stream.close()
+
+
+@pytest.fixture
+def sim_process() -> Iterator[Callable[..., SimProcess]]:
+    """``sim_process("wsg", "--listen", "tcp://127.0.0.1:0")``: started now, stopped after the test."""
+    started: list[SimProcess] = []
+
+    def start(*args: str) -> SimProcess:
+        sim = SimProcess(*args)
+        started.append(sim)
+        return sim
+
+    yield start
+    for sim in started:
+        sim.close()

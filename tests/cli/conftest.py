@@ -11,7 +11,6 @@ import itertools
 import json
 import os
 import random
-import re
 import select
 import socket
 import subprocess
@@ -28,7 +27,6 @@ from grippers.cli.schemas import validate
 
 ROOT = Path(__file__).resolve().parents[2]
 PYTHON = sys.executable
-START_TIMEOUT = 20.0  # seconds for a simulator subprocess to print its URL
 TIME_SCALE = "50"  # simulated seconds per wall-clock second
 
 
@@ -92,70 +90,10 @@ def cli_json(cli: Callable[..., Result]) -> Callable[..., dict[str, Any]]:
     return run
 
 
-class Simulator:
-    """A ``grippers sim ...`` subprocess and the URL it printed."""
-
-    def __init__(self, *args: str) -> None:
-        self.args = args
-        self.proc = subprocess.Popen(
-            [PYTHON, "-m", "grippers", "sim", *args],
-            cwd=ROOT,
-            stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
-            text=True,
-            env=_env(),
-        )
-        self.url = self._read_url()
-
-    def _read_url(self) -> str:
-        assert self.proc.stdout is not None
-        fd = self.proc.stdout.fileno()
-        seen = ""
-        waited = 0.0
-        while waited < START_TIMEOUT:
-            ready, _, _ = select.select([fd], [], [], 0.2)
-            waited += 0.2
-            if not ready:
-                if self.proc.poll() is not None:
-                    break
-                continue
-            line = self.proc.stdout.readline()
-            if not line:
-                break
-            seen += line
-            m = re.search(r"serving at (\S+)", line)
-            if m:
-                return m.group(1)
-        self.close()
-        err = self.proc.stderr.read() if self.proc.stderr else ""
-        raise RuntimeError(f"simulator {self.args} printed no URL: {seen!r} {err[-2000:]!r}")
-
-    def close(self) -> None:
-        if self.proc.poll() is None:
-            self.proc.terminate()
-            try:
-                self.proc.wait(timeout=5)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait(timeout=5)
-        for stream in (self.proc.stdout, self.proc.stderr):
-            if stream:
-                stream.close()
-
-
 @pytest.fixture
-def start_sim() -> Iterator[Callable[..., Simulator]]:
+def start_sim(sim_process: Callable[..., Any]) -> Callable[..., Any]:
     """``start_sim("wsg", "--listen", "tcp://127.0.0.1:0")``; ``--time-scale`` is added for speed."""
-    sims: list[Simulator] = []
-
-    def start(*args: str) -> Simulator:
-        sim = Simulator(*args, "--time-scale", TIME_SCALE)
-        sims.append(sim)
-        return sim
-
-    yield start
-    for sim in sims:
-        sim.close()
+    return lambda *args: sim_process(*args, "--time-scale", TIME_SCALE)
 
 
 class _TcpServer:
