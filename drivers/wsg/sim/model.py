@@ -598,14 +598,19 @@ class WsgModel:
         target = self.stroke if direction == 1 else 0.0
         self._start_motion("home", target, self.homing_speed, conn=conn, command=cmd)
 
-    def _preposition(self, conn: int, f: dict, cmd: int) -> None:
-        width, speed = float(f["width"]), float(f["speed"])
+    def _motion_check(self, width: float, speed: float, target: float) -> Status | None:
+        """Why a motion to ``target`` must be refused, checked in the order the firmware reports it."""
         refusal = self._motion_refusal()
         if refusal is None and not self._finite(width, speed):
             refusal = Status.E_INVALID_PARAMETER
-        target = self.position + width if f.get("relative") else width
         if refusal is None and self._outside_soft_limits(target):
             refusal = Status.E_RANGE_ERROR
+        return refusal
+
+    def _preposition(self, conn: int, f: dict, cmd: int) -> None:
+        width, speed = float(f["width"]), float(f["speed"])
+        target = self.position + width if f.get("relative") else width
+        refusal = self._motion_check(width, speed, target)
         if refusal is not None:
             self._reply(conn, cmd, refusal)
             return
@@ -654,11 +659,7 @@ class WsgModel:
 
     def _grip(self, conn: int, f: dict, cmd: int) -> None:
         width, speed = float(f["width"]), float(f["speed"])
-        refusal = self._motion_refusal()
-        if refusal is None and not self._finite(width, speed):
-            refusal = Status.E_INVALID_PARAMETER
-        if refusal is None and self._outside_soft_limits(width):
-            refusal = Status.E_RANGE_ERROR
+        refusal = self._motion_check(width, speed, width)
         width = self._clamp(width, 0.0, self.stroke) if refusal is None else width
         start = self.position
         direction = -1.0 if width <= start else 1.0
@@ -684,11 +685,7 @@ class WsgModel:
 
     def _release(self, conn: int, f: dict, cmd: int) -> None:
         width, speed = float(f["width"]), float(f["speed"])
-        refusal = self._motion_refusal()
-        if refusal is None and not self._finite(width, speed):
-            refusal = Status.E_INVALID_PARAMETER
-        if refusal is None and self._outside_soft_limits(width):
-            refusal = Status.E_RANGE_ERROR
+        refusal = self._motion_check(width, speed, width)
         if refusal is not None:
             self._reply(conn, cmd, refusal)
             return
