@@ -20,7 +20,8 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable, Iterator
-from typing import Any
+from threading import get_ident
+from typing import Any, NoReturn
 from urllib.parse import parse_qs, urlsplit
 
 from can import BusABC
@@ -55,6 +56,7 @@ from drivers.wsg.commands import (
 from drivers.wsg.protocol import BadLength, ChecksumError, Discarded, Packet, Status
 from drivers.wsg.session import (
     AutoUpdate,
+    Completed,
     Exchange,
     ExchangeState,
     Session,
@@ -290,7 +292,9 @@ class WsgClient:
         )
         self._silent_gap = silent_gap
         lock = threading.RLock()
+        self._lock = lock  # the hot path enters the lock directly (Condition.__enter__ is Python code)
         self._cond = threading.Condition(lock)  # callers wait here for their replies
+        self._sleepers = 0  # threads inside self._cond.wait: a reply with nobody asleep notifies nobody
         # The background reader waits on its own condition (same lock), so the notifications that wake
         # callers on every reply do not also wake it: a thread wake-up per exchange is what the
         # leader/follower reading is there to avoid.
@@ -308,6 +312,7 @@ class WsgClient:
         self._deferred: list[tuple[Subscription, Any]] = []
         self._reader = threading.Thread(target=self._read_loop, name=f"{self.device} reader", daemon=True)
         self._reader.start()
+        self._reader_ident = self._reader.ident
 
     # ------------------------------------------------------------------------------------------ factories
 
@@ -440,7 +445,7 @@ class WsgClient:
 
     def _read_loop(self) -> None:
         while True:
-            with self._cond:
+            with self._lock:
                 while not self._stop.is_set() and (self._reading or not self._background_needed()):
                     self._bg.wait(_POLL)
                 if self._stop.is_set():
@@ -449,22 +454,25 @@ class WsgClient:
                 deliveries, self._deferred = self._deferred, []
             for sub, value in deliveries:
                 sub._deliver(value)
-            found = self._read_once(_POLL)
-            if found is None:
+            data = self._receive(_POLL)
+            if data is None:
                 return
+            with self._lock:
+                found = self._process(data)
             for sub, value in found:
                 sub._deliver(value)
 
-    def _read_once(self, timeout: float) -> list[tuple[Subscription, Any]] | None:
-        """One receive by the thread holding the reading role, which it hands back.
+    def _receive(self, timeout: float) -> bytes | None:
+        """One ``transport.recv`` by the thread holding the reading role, called WITHOUT the lock.
 
-        Returns the subscription values found (the caller decides on which thread they are delivered), or None
-        when the line is gone (every waiter has then been failed with ConnectionLost).
+        None when the line is gone: the role is then released and every waiter failed with ConnectionLost.
+        On success the role stays taken until :meth:`_process` hands it back under the lock, so no second
+        reader can slip in between the bytes and their matching.
         """
         try:
-            data = self._transport.recv(timeout)
+            return self._transport.recv(timeout)
         except Exception as exc:  # noqa: BLE001 - a transport bug must still release every waiter
-            with self._cond:
+            with self._lock:
                 self._reading = False
                 self._cond.notify_all()
             if not self._stop.is_set():
@@ -472,28 +480,37 @@ class WsgClient:
                     f"reader failed: {exc!r}", device=self.device)
                 self._connection_lost(lost)
             return None
+
+    def _process(self, data: bytes) -> list[tuple[Subscription, Any]]:
+        """Match received bytes and hand the reading role back (called with the lock held).
+
+        Returns the subscription values found; the caller decides on which thread they are delivered.
+        """
+        self._reading = False
         now = time.monotonic()
-        with self._cond:
-            self._reading = False
-            try:
-                if data:
-                    self._last_rx = now
-                    events = self._session.receive(data, now)
-                elif self._session.parser.buffered and now - self._last_rx >= self._silent_gap:
-                    events = self._session.reset_parser(now)
-                else:
-                    events = []
-                return self._dispatch(events)
-            except Exception:  # noqa: BLE001 - garbage on the line never kills the reading
-                log.exception("%s: reader ignored an unexpected error", self.device)
-                return []
-            finally:
+        try:
+            session = self._session
+            if data:
+                self._last_rx = now
+                events = session.receive(data, now)
+            elif session.parser.buffered and now - self._last_rx >= self._silent_gap:
+                events = session.reset_parser(now)
+            else:
+                events = []
+            return self._dispatch(events) if events else []
+        except Exception:  # noqa: BLE001 - garbage on the line never kills the reading
+            log.exception("%s: reader ignored an unexpected error", self.device)
+            return []
+        finally:
+            if self._sleepers:
                 self._cond.notify_all()  # replies may have arrived, and the reading role is free
 
     def _dispatch(self, events: list[Any]) -> list[tuple[Subscription, Any]]:
         deliveries: list[tuple[Subscription, Any]] = []
         stats = self.stats
         for ev in events:
+            if type(ev) is Completed:  # the common case: the waiter picks its reply from the exchange
+                continue
             if isinstance(ev, AutoUpdate):
                 stats["updates"] += 1
                 subs = self._subs.get(ev.packet.command)
@@ -553,112 +570,154 @@ class WsgClient:
         except (LimitError, ProtocolError) as exc:
             raise type(exc)(exc.message, device=self.device, command=command_name(cmd)) from None
 
-    def _begin(self, cmd: int, payload: bytes, deadline: float, *, internal: bool = False) -> Exchange:
-        name = command_name(cmd)
-        if threading.current_thread() is self._reader:
+    def _begin(self, cmd: int, payload: bytes, deadline: float, *,
+               internal: bool = False) -> tuple[Exchange, bool]:
+        """Register and send a request; the caller is counted in ``_callers`` until its ``_wait(begun=True)``.
+
+        Also returns whether the caller took the reading role here (``lead``): when nobody else reads and no
+        subscription needs the reader thread, taking it in the same critical section as the send saves the
+        lock round trip before the read, which is a good part of a round trip's cost (docs/performance.md).
+        """
+        if get_ident() == self._reader_ident:
             raise GripperError("commands cannot be issued from a subscription callback (reader thread)",
-                               device=self.device, command=name)
-        with self._cond:
+                               device=self.device, command=command_name(cmd))
+        session = self._session
+        with self._lock:
             while True:
-                self._usable(name, internal)
+                if self._lost is not None or self._closing or self._closed:
+                    self._usable(command_name(cmd), internal)
                 now = time.monotonic()
-                if not self._session.is_busy(cmd, now):
-                    exchange, raw = self._session.send(cmd, payload, now=now)
+                if not session.is_busy(cmd, now):
+                    exchange, raw = session.send(cmd, payload, now=now)
                     self._callers += 1  # released by the _wait(begun=True) that follows
+                    lead = not (self._reading or self._subs or self._stop.is_set())
+                    if lead:
+                        self._reading = True
                     break
                 if deadline - now <= 0:
                     raise GripperTimeout(
                         "a previous exchange of this command is still outstanding (one per command id)",
-                        device=self.device, command=name,
+                        device=self.device, command=command_name(cmd),
                     )
-                self._cond.wait(min(deadline - now, _POLL))
+                self._sleep(min(deadline - now, _POLL))
         try:
             self._transport.send(raw)
-        except ConnectionLost as exc:
-            with self._cond:
+        except BaseException as exc:
+            with self._lock:
                 self._callers -= 1
-            self._connection_lost(exc)
-            raise ConnectionLost(exc.message, device=self.device, command=name) from None
-        return exchange
+                if lead:  # never leave the reading role taken by a caller that is gone
+                    self._reading = False
+                    self._cond.notify_all()
+            if not isinstance(exc, ConnectionLost):
+                raise
+            self._connection_lost(exc)  # fails the exchange and wakes everybody
+            raise ConnectionLost(exc.message, device=self.device, command=command_name(cmd)) from None
+        return exchange, lead
+
+    def _sleep(self, timeout: float) -> None:
+        """Wait on ``_cond`` (lock held), counted so that a reply with nobody asleep skips the notify."""
+        self._sleepers += 1
+        try:
+            self._cond.wait(timeout)
+        finally:
+            self._sleepers -= 1
 
     def _wait(self, exchange: Exchange, deadline: float, *, final: bool, abandon: bool = True,
-              waited: float | None = None, begun: bool = False) -> Packet:
+              waited: float | None = None, begun: bool = False, lead: bool = False) -> Packet:
         """Wait for ``exchange``'s reply (``final``: past E_CMD_PENDING), reading the line when nobody else
-        does. ``begun``: the caller was counted by :meth:`_begin`."""
-        with self._cond:
+        does. ``begun``: the caller was counted by :meth:`_begin`; ``lead``: it holds the reading role."""
+        with self._lock:
             if not begun:
                 self._callers += 1
             try:
-                return self._await(exchange, deadline, final, abandon, waited)
+                return self._await(exchange, deadline, final, abandon, waited, lead)
             finally:
                 self._callers -= 1
-                if self._callers == 0 and self._background_needed():
+                if not self._callers and self._background_needed():
                     self._bg.notify()  # e.g. a pending motion's final reply: nobody waits to read it
 
     def _await(self, exchange: Exchange, deadline: float, final: bool, abandon: bool,
-               waited: float | None) -> Packet:
-        name = command_name(exchange.command)
+               waited: float | None, lead: bool) -> Packet:
+        """The wait loop (lock held). With ``lead`` the first step is the read: no reply can be there yet."""
         while True:
-            state = exchange.state
-            if state is ExchangeState.DONE:
-                assert exchange.reply is not None
-                return exchange.reply
-            if state is ExchangeState.PENDING and not final:
-                assert exchange.ack is not None
-                return exchange.ack
-            if state is ExchangeState.FAILED:
-                err = exchange.error
-                cls = type(err) if isinstance(err, ConnectionLost | ProtocolError) else GripperError
-                raise cls(err.message if err else "failed", device=self.device, command=name)
-            if state is ExchangeState.ABANDONED:
-                raise GripperTimeout("abandoned after a timeout", device=self.device, command=name)
+            if not lead:
+                state = exchange.state
+                if state is ExchangeState.DONE:
+                    assert exchange.reply is not None
+                    return exchange.reply
+                if state is ExchangeState.PENDING and not final:
+                    assert exchange.ack is not None
+                    return exchange.ack
+                if state is ExchangeState.FAILED or state is ExchangeState.ABANDONED:
+                    self._raise_failed(exchange)
             now = time.monotonic()
             if now >= deadline:
-                if abandon:
-                    self._session.abandon(exchange, now)
-                    self._cond.notify_all()
-                what = "final reply" if state is ExchangeState.PENDING else "reply"
-                after = f" within {waited:g} s" if waited is not None else ""
-                raise GripperTimeout(f"no {what}{after}", device=self.device, command=name)
-            if self._reading or self._subs or self._stop.is_set() or self._lost is not None:
-                if not self._reading:
-                    self._bg.notify()  # subscriptions: the reader thread reads (and runs the callbacks)
-                self._cond.wait(deadline - now)
-                continue
-            # Nobody is reading and no subscription needs the reader thread: read for ourselves.
-            self._reading = True
-            self._cond.release()
+                if lead:  # hand the reading role back before giving up
+                    self._reading = False
+                    lead = False
+                    if self._sleepers:
+                        self._cond.notify_all()
+                self._timed_out(exchange, now, abandon, waited)
+            if not lead:
+                if self._reading or self._subs or self._stop.is_set() or self._lost is not None:
+                    if not self._reading:
+                        self._bg.notify()  # subscriptions: the reader thread reads (and runs the callbacks)
+                    self._sleep(deadline - now)
+                    continue
+                # Nobody is reading and no subscription needs the reader thread: read for ourselves.
+                self._reading = True
+            lead = False
+            self._lock.release()
             try:
-                found = self._read_once(min(deadline - now, _POLL))
+                data = self._receive(min(deadline - now, _POLL))
             finally:
-                self._cond.acquire()
-            if found:  # an update that raced a new subscription: its callbacks belong to the reader thread
+                self._lock.acquire()
+            if data is not None and (found := self._process(data)):
+                # an update that raced a new subscription: its callbacks belong to the reader thread
                 self._deferred.extend(found)
                 self._bg.notify()
 
+    def _raise_failed(self, exchange: Exchange) -> NoReturn:
+        name = command_name(exchange.command)
+        if exchange.state is ExchangeState.ABANDONED:
+            raise GripperTimeout("abandoned after a timeout", device=self.device, command=name)
+        err = exchange.error
+        cls = type(err) if isinstance(err, ConnectionLost | ProtocolError) else GripperError
+        raise cls(err.message if err else "failed", device=self.device, command=name)
+
+    def _timed_out(self, exchange: Exchange, now: float, abandon: bool, waited: float | None) -> NoReturn:
+        state = exchange.state
+        if abandon:
+            self._session.abandon(exchange, now)
+            self._cond.notify_all()
+        what = "final reply" if state is ExchangeState.PENDING else "reply"
+        after = f" within {waited:g} s" if waited is not None else ""
+        raise GripperTimeout(f"no {what}{after}", device=self.device, command=command_name(exchange.command))
+
     def _check(self, cmd: int, packet: Packet) -> Reply:
-        name = command_name(cmd)
         try:
             reply = decode_reply(cmd, packet.payload)
         except ProtocolError as exc:
-            raise ProtocolError(exc.message, device=self.device, command=name) from None
+            raise ProtocolError(exc.message, device=self.device, command=command_name(cmd)) from None
         if not reply.ok:
             code = int(reply.status)
             raise CommandFailed(
                 Status.describe(code), status=code, status_name=reply.status_name, device=self.device,
-                command=name,
+                command=command_name(cmd),
             )
         return reply
 
     def _call(self, cmd: int, *, timeout: float | None = None, payload: bytes | None = None,
               internal: bool = False, **fields: Any) -> Reply:
-        self._check_supported(cmd)
+        if self.firmware is not None:  # nothing is refused before the firmware is known
+            self._check_supported(cmd)
         if payload is None:
             payload = self._encode(cmd, **fields)
         wait = self.timeout if timeout is None else timeout
         deadline = time.monotonic() + wait
-        exchange = self._begin(cmd, payload, deadline, internal=internal)
-        return self._check(cmd, self._wait(exchange, deadline, final=True, waited=wait, begun=True))
+        exchange, lead = self._begin(cmd, payload, deadline, internal=internal)
+        packet = self._wait(exchange, deadline, final=True, waited=wait, begun=True, lead=lead)
+        return self._check(cmd, packet)
 
     def _motion(self, cmd: int, wait: bool, timeout: float | None, **fields: Any) -> Pending | None:
         self._check_supported(cmd)
@@ -667,8 +726,8 @@ class WsgClient:
         total = self.motion_timeout if timeout is None else timeout
         deadline = start + total
         ack_wait = min(total, self.timeout)
-        exchange = self._begin(cmd, payload, start + ack_wait)
-        first = self._wait(exchange, start + ack_wait, final=False, waited=ack_wait, begun=True)
+        exchange, lead = self._begin(cmd, payload, start + ack_wait)
+        first = self._wait(exchange, start + ack_wait, final=False, waited=ack_wait, begun=True, lead=lead)
         if first.status != Status.E_CMD_PENDING:  # answered at once (an immediate error, or done)
             self._check(cmd, first)
             return None if wait else Pending(self, exchange)
@@ -687,8 +746,8 @@ class WsgClient:
         self._check_supported(cmd)
         wait = self.timeout if timeout is None else timeout
         deadline = time.monotonic() + wait
-        exchange = self._begin(cmd, bytes(payload), deadline)
-        packet = self._wait(exchange, deadline, final=True, waited=wait, begun=True)
+        exchange, lead = self._begin(cmd, bytes(payload), deadline)
+        packet = self._wait(exchange, deadline, final=True, waited=wait, begun=True, lead=lead)
         if check:
             self._check(cmd, packet)
         return packet

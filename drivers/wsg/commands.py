@@ -311,6 +311,10 @@ class Layout:
         self.fixed = fields[:-1] if self.tail else fields
         self.struct = struct.Struct("<" + "".join(f.fmt for f in self.fixed))
         self.size = self.struct.size
+        # A layout of plain fields (no flag bits, no conversion, no tail) unpacks straight into a dict: the
+        # replies of the state queries, decoded on every round trip and every auto update.
+        plain = self.tail is None and all(not f.bits and f.from_wire is None for f in fields)
+        self._plain_names = tuple(f.name for f in fields) if plain else None
 
     @property
     def empty(self) -> bool:
@@ -369,6 +373,10 @@ class Layout:
     def unpack(self, data: bytes, command: str) -> dict[str, Any]:
         """Values from ``data``; a length that does not fit raises :class:`ProtocolError` saying which."""
         size = self.size
+        names = self._plain_names
+        if names is not None and len(data) == size:
+            values = self.struct.unpack(data)
+            return {names[0]: values[0]} if len(names) == 1 else dict(zip(names, values, strict=True))
         if self.tail is None:
             if len(data) != size:
                 raise ProtocolError(f"expected {size} data bytes, got {len(data)}", command=command)
@@ -606,6 +614,13 @@ class Reply:
     status: Status | int
     fields: dict[str, Any]
 
+    def __init__(self, command: int, status: Status | int, fields: dict[str, Any]) -> None:
+        # One per reply: the slot setters take half the time of the generated frozen __init__
+        # (docs/performance.md, target 2); the instance stays frozen.
+        _set_reply_command(self, command)
+        _set_reply_status(self, status)
+        _set_reply_fields(self, fields)
+
     @property
     def ok(self) -> bool:
         return self.status == Status.E_SUCCESS
@@ -631,6 +646,11 @@ class Reply:
         return self.fields or None
 
 
+_set_reply_command = Reply.command.__set__  # type: ignore[attr-defined]
+_set_reply_status = Reply.status.__set__  # type: ignore[attr-defined]
+_set_reply_fields = Reply.fields.__set__  # type: ignore[attr-defined]
+
+
 def encode_reply(cmd: int, status: int = Status.E_SUCCESS, **fields: Any) -> bytes:
     """Reply payload: u16 status, then the data only when status is E_SUCCESS (WSG manual 4.0.x §1.2.2)."""
     head = struct.pack("<H", int(status))
@@ -647,14 +667,14 @@ def decode_reply(cmd: int, payload: bytes) -> Reply:
     name = command_name(cmd)
     if len(payload) < 2:
         raise ProtocolError(f"reply of {len(payload)} bytes has no status code", command=name)
-    status = to_status(payload[0] | (payload[1] << 8))
-    if status != Status.E_SUCCESS:
+    code = payload[0] | (payload[1] << 8)
+    if code:  # not E_SUCCESS (the enum lookup is left to the rare case)
         # Data follows only on success; anything else is ignored rather than failing a valid error report.
-        return Reply(cmd, status, {})
+        return Reply(cmd, to_status(code), {})
     s = COMMANDS.get(cmd)
     if s is None:
-        return Reply(cmd, status, {"data": bytes(payload[2:])})
-    return Reply(cmd, status, s.reply.unpack(payload[2:], name))
+        return Reply(cmd, Status.E_SUCCESS, {"data": bytes(payload[2:])})
+    return Reply(cmd, Status.E_SUCCESS, s.reply.unpack(payload[2:], name))
 
 
 def _format_value(value: Any) -> str:

@@ -65,7 +65,7 @@ class ExchangeState(Enum):
     ABANDONED = "abandoned"  # timed out; a stale marker swallows its late reply
 
 
-@dataclass(eq=False)
+@dataclass(eq=False, slots=True)
 class Exchange:
     """One request and its replies. ``context`` belongs to the caller (the client keeps its waiter there)."""
 
@@ -161,6 +161,8 @@ class Session:
         """Whether a request for ``command`` must wait: an exchange or a live stale marker holds its slot."""
         if command in self._active:
             return True
+        if not self._stale:
+            return False
         stale = self._stale.get(command)
         if stale is not None and stale.expires <= now:
             del self._stale[command]
@@ -171,7 +173,7 @@ class Session:
         self, command: int, payload: bytes = b"", *, now: float, context: Any = None
     ) -> tuple[Exchange, bytes]:
         """Register a request and return it with the bytes to write. The slot must be free (see is_busy)."""
-        if self.is_busy(command, now):
+        if command in self._active or (self._stale and self.is_busy(command, now)):
             raise GripperError("another exchange of this id is outstanding", command=command_name(command))
         payload = bytes(payload)
         key = (command, payload)
@@ -180,7 +182,9 @@ class Session:
             raw = encode_packet(command, payload)
             if len(payload) <= 8 and len(self._packets) < 256:  # bounded: motions carry varying floats
                 self._packets[key] = raw
-        exchange = Exchange(command, payload, now, context=context)
+        exchange = Exchange(command, payload, now)
+        if context is not None:  # a keyword argument costs as much as the rest of the construction
+            exchange.context = context
         self._active[command] = exchange
         return exchange, raw
 
@@ -211,7 +215,7 @@ class Session:
         """Whether a packet may still arrive for an exchange or a stale marker (cheap: no lists built)."""
         if self._active:
             return True
-        return any(s.expires > now for s in self._stale.values())
+        return bool(self._stale) and any(s.expires > now for s in self._stale.values())
 
     def stale_ids(self, now: float) -> list[int]:
         return [cmd for cmd, s in self._stale.items() if s.expires > now]
@@ -255,7 +259,7 @@ class Session:
 
     def _on_packet(self, packet: Packet, now: float, out: list[SessionEvent]) -> None:
         cmd = packet.command
-        stale = self._stale.get(cmd)
+        stale = self._stale.get(cmd) if self._stale else None
         if stale is not None:
             if stale.expires <= now:
                 del self._stale[cmd]
@@ -270,15 +274,16 @@ class Session:
                 return
         exchange = self._active.get(cmd)
         if exchange is not None:
-            if len(packet.payload) < 2:
+            payload = packet.payload
+            if len(payload) < 2:
                 del self._active[cmd]
                 exchange.state = ExchangeState.FAILED
                 exchange.error = ProtocolError(
-                    f"reply of {len(packet.payload)} bytes has no status code", command=command_name(cmd)
+                    f"reply of {len(payload)} bytes has no status code", command=command_name(cmd)
                 )
                 out.append(ExchangeFailed(exchange, exchange.error))
                 return
-            if _is_pending(packet):
+            if payload[0] | (payload[1] << 8) == _PENDING:  # _is_pending() inlined: once per reply
                 if exchange.state is ExchangeState.SENT:
                     exchange.state = ExchangeState.PENDING
                     exchange.ack = packet
@@ -307,6 +312,9 @@ class Session:
         out.append(ExchangeFailed(exchange, exchange.error))
 
 
+_PENDING = int(Status.E_CMD_PENDING)
+
+
 def _is_pending(packet: Packet) -> bool:
     p = packet.payload
-    return len(p) >= 2 and (p[0] | (p[1] << 8)) == Status.E_CMD_PENDING
+    return len(p) >= 2 and (p[0] | (p[1] << 8)) == _PENDING

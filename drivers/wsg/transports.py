@@ -7,7 +7,9 @@ thread can tell silence from failure. Every transport may be written from one th
 
 from __future__ import annotations
 
+import math
 import socket
+import struct
 import threading
 from typing import Protocol
 
@@ -38,6 +40,28 @@ DEFAULT_BAUDRATE = 115200
 DEFAULT_CAN_SEND_ID = 0x000
 DEFAULT_CAN_RECV_ID = 0x001
 
+# A blocked send (full send buffer: the peer stopped reading) fails after this long instead of hanging.
+_SEND_TIMEOUT = 2.0
+_TIMEVAL = struct.Struct("@ll")  # struct timeval {time_t tv_sec; suseconds_t tv_usec;} (Linux, BSD)
+
+
+def _timeval(seconds: float) -> bytes:
+    # A zero timeval means "wait forever" to SO_RCVTIMEO/SO_SNDTIMEO: the shortest real wait is 1 us.
+    micros = max(1, math.ceil(seconds * 1_000_000))
+    return _TIMEVAL.pack(micros // 1_000_000, micros % 1_000_000)
+
+
+def _blocking_with_timeouts(sock: socket.socket) -> None:
+    """Put ``sock`` in blocking mode with kernel-side timeouts (SO_RCVTIMEO, SO_SNDTIMEO).
+
+    Why: with a Python socket timeout every recv and send is a poll() plus the call (two system calls and
+    two GIL round trips); a blocking socket bounded by the kernel does one, which is most of a round trip's
+    cost on a fast link (docs/performance.md, target 2). An expired wait then shows up as BlockingIOError
+    (EAGAIN), and shutdown() from another thread still wakes a blocked recv.
+    """
+    sock.settimeout(None)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_SNDTIMEO, _timeval(_SEND_TIMEOUT))
+
 
 class Transport(Protocol):
     """What :class:`~drivers.wsg.client.WsgClient` needs from a line."""
@@ -67,6 +91,7 @@ class TcpTransport:
         except OSError as exc:
             raise ConnectionLost(f"cannot connect: {exc}", device=self.name) from None
         self._sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        _blocking_with_timeouts(self._sock)
         self._timeout: float | None = None
         self._send_lock = threading.Lock()
 
@@ -78,14 +103,13 @@ class TcpTransport:
             raise ConnectionLost(f"send failed: {exc}", device=self.name) from None
 
     def recv(self, timeout: float) -> bytes:
-        # Only the reader thread calls recv, so the socket timeout is the reader's (sendall is not affected
-        # in practice: a full send buffer on a LAN gripper link does not happen at these rates).
+        # One thread at a time reads, so the receive timeout is the reader's; set only when it changes.
         if timeout != self._timeout:
-            self._sock.settimeout(timeout)
+            self._sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVTIMEO, _timeval(timeout))
             self._timeout = timeout
         try:
             data = self._sock.recv(65536)
-        except TimeoutError:
+        except BlockingIOError:  # SO_RCVTIMEO expired
             return b""
         except OSError as exc:
             raise ConnectionLost(f"receive failed: {exc}", device=self.name) from None
@@ -119,6 +143,7 @@ class UdpTransport:
             self._peer = infos[0][4]
             self._sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
             self._sock.bind((local_host, local_port))
+            _blocking_with_timeouts(self._sock)
         except OSError as exc:
             raise ConnectionLost(f"cannot open UDP {host}:{port} (local port {local_port}): {exc}",
                                  device=f"udp://{host}:{port}") from None
@@ -134,11 +159,11 @@ class UdpTransport:
 
     def recv(self, timeout: float) -> bytes:
         if timeout != self._timeout:
-            self._sock.settimeout(timeout)
+            self._sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVTIMEO, _timeval(timeout))
             self._timeout = timeout
         try:
             data, source = self._sock.recvfrom(65536)
-        except TimeoutError:
+        except BlockingIOError:  # SO_RCVTIMEO expired
             return b""
         except ConnectionRefusedError:
             return b""  # ICMP port unreachable from an earlier send: not a broken link for a datagram socket
