@@ -103,6 +103,14 @@ def _preflight(gripper: Gripper, command: str, args: argparse.Namespace) -> None
     from grippers.errors import GripperError
     from grippers.gripper import FastStopActive
 
+    # Values beyond the limits are a usage error whatever state the gripper is in: say that first.
+    width, speed = getattr(args, "width", None), getattr(args, "speed", None)
+    gripper.check(
+        width=None if width is None else mm_to_m(width),
+        speed=None if speed is None else mm_to_m(speed),
+        force=getattr(args, "force", None),
+        command=command,
+    )
     state = gripper.state()
     if state.fast_stopped:
         raise FastStopActive(

@@ -88,6 +88,9 @@ def test_values_beyond_the_limits_are_usage_errors(wsg_tcp: str, cli) -> None:
     assert r.returncode == 2 and "500 mm is outside" in r.one_error_line()
     r = cli("grasp", wsg_tcp, "20", "--force", "500", "--timeout", T)
     assert r.returncode == 2 and "force" in r.one_error_line()
+    # Checked before anything else: an unhomed gripper still gets the usage error, naming the command.
+    r = cli("move", "sim://wsg50", "400", "--timeout", T)
+    assert r.returncode == 2 and "move: width 400 mm is outside" in r.one_error_line()
 
 
 def test_firmware_2_simulator(start_sim, cli_json) -> None:
