@@ -369,14 +369,19 @@ class Gripper(ABC):
         return min(max(f, lo), hi)
 
     def check(
-        self, width: float | None = None, speed: float | None = None, force: float | None = None
+        self,
+        width: float | None = None,
+        speed: float | None = None,
+        force: float | None = None,
+        *,
+        command: str = "check",
     ) -> tuple[float | None, float | None, float | None]:
-        """Validate values against the limits without sending anything (LimitError); returns them as used
-        (speed and force default from the profile when None)."""
+        """Validate values against the limits without sending anything (LimitError naming ``command``);
+        returns them as they would be used (speed and force default from the profile when None)."""
         return (
-            None if width is None else self._width(width, "check"),
-            self._speed(speed, "check"),
-            self._force(force, "check"),
+            None if width is None else self._width(width, command),
+            self._speed(speed, command),
+            self._force(force, command),
         )
 
     def _run_motion(self, name: str, call: Callable[[], T], wait: bool) -> T | MotionHandle[T]:
