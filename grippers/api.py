@@ -6,7 +6,7 @@ import os
 from typing import Any
 
 from .backends import get_backend
-from .errors import ProfileError
+from .errors import GripperError, ProfileError, URLError
 from .gripper import Gripper
 from .profiles import ProfileBase, load_profile
 from .settings import Settings
@@ -24,7 +24,7 @@ def open(target: str | os.PathLike[str], **overrides: Any) -> Gripper:  # noqa: 
     ``profile=`` names the profile when the device cannot report its model (the MSG's rail length).
     """
     text = os.fspath(target)
-    profile_name = overrides.pop("profile", None)
+    chosen = overrides.pop("profile", None)  # a name or a loaded profile; the keyword wins over ?profile=
     profile: ProfileBase | None = None
     if is_url(text):
         url = parse_url(text)
@@ -32,9 +32,13 @@ def open(target: str | os.PathLike[str], **overrides: Any) -> Gripper:  # noqa: 
         profile = load_profile(text)
         url = parse_url(overrides.pop("url", None) or profile.url)
     settings = Settings(url.url, url.params, overrides)
-    profile_name = settings.str("profile", profile_name)
-    if profile_name is not None:
-        profile = load_profile(profile_name)
+    from_query = settings.str("profile", None)
+    if chosen is None:
+        chosen = from_query
+    if isinstance(chosen, ProfileBase):
+        profile = chosen
+    elif chosen is not None:
+        profile = load_profile(chosen)
     if url.family == "sim":
         return _open_sim(url, profile, settings)
     backend = get_backend(url.family)
@@ -59,16 +63,26 @@ def _open_sim(url: ConnectionURL, profile: ProfileBase | None, settings: Setting
     """An in-process simulator served over a real transport (loopback TCP, a pty, a virtual CAN bus), and
     the ordinary backend connected to it: ``sim://`` exercises the same code as hardware."""
     if url.profile:
-        profile = load_profile(url.profile)
+        named = load_profile(url.profile)
+        if profile is not None and profile.name != named.name:
+            # Two different models asked for: simulating either one silently would test the wrong gripper.
+            raise ProfileError(f"{url.url}: simulates {named.name!r}, but profile {profile.name!r} was given")
+        profile = named
     elif profile is None:
         profile = load_profile(DEFAULT_SIM_PROFILE)
     backend = get_backend(profile.family)
     if not hasattr(backend, "simulate"):
         raise ProfileError(f"{url.url}: the {profile.family!r} backend has no simulator")
-    server = backend.simulate(profile, settings)
-    sim_url = parse_url(server.url)
-    settings.add_defaults(sim_url.params)  # e.g. the UDP simulator's reply port
     try:
+        server = backend.simulate(profile, settings)
+    except ValueError as exc:
+        if isinstance(exc, GripperError):
+            raise
+        # Every simulator parameter comes from the URL or the keywords, so a refused one is a settings error.
+        raise URLError(f"{url.url}: {exc}") from exc
+    try:
+        sim_url = parse_url(server.url)
+        settings.add_defaults(sim_url.params)  # e.g. the UDP simulator's reply port
         gripper = backend.open(sim_url, profile, settings)
     except BaseException:
         server.close()

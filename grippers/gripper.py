@@ -221,7 +221,9 @@ class StateStream:
         except queue.Empty:
             raise GripperTimeout(f"no state within {wait:g} s", command="stream") from None
         if isinstance(item, BaseException):
-            self.close()
+            # A timeout is one missed reading (the stream thread goes on); anything else ended the stream.
+            if not isinstance(item, GripperTimeout):
+                self.close()
             raise item
         return item
 
@@ -314,6 +316,10 @@ class Gripper(ABC):
     @abstractmethod
     def _close(self) -> None: ...
 
+    def _default_release_width(self) -> float:
+        """Where release() goes without a width: fully open, away from a part gripped from outside."""
+        return self.limits.max_width
+
     def _motion_timeout(self, distance: float, speed: float) -> float:
         """A bound on a motion's duration when the caller gives none: twice the travel time plus slack."""
         return 2.0 * distance / max(speed, 1e-6) + 2.0 + self.timeout
@@ -348,7 +354,10 @@ class Gripper(ABC):
 
     def _speed(self, speed: float | None, command: str) -> float:
         if speed is None:
-            return self.profile.mechanics.default_speed_mm_s / 1000
+            # The profile's default may lie above a safety limit or the device's own 53h limits (which narrow
+            # self.limits): sending it unchecked would bypass them, refusing it would break every call.
+            default = self.profile.mechanics.default_speed_mm_s / 1000
+            return min(max(default, self.limits.min_speed), self.limits.max_speed)
         s = _finite(speed, "speed", command, self.name)
         lo, hi = self.limits.min_speed, self.limits.max_speed
         if not lo - 1e-9 <= s <= hi + 1e-9 or s <= 0:
@@ -361,7 +370,8 @@ class Gripper(ABC):
 
     def _force(self, force: float | None, command: str) -> float:
         if force is None:
-            return self.profile.mechanics.default_force_n
+            default = self.profile.mechanics.default_force_n  # clamped for the reason given in _speed
+            return min(max(default, self.limits.min_force), self.limits.max_force)
         f = _finite(force, "force", command, self.name)
         lo, hi = self.limits.min_force, self.limits.max_force
         if not lo - 1e-9 <= f <= hi + 1e-9:
@@ -387,8 +397,9 @@ class Gripper(ABC):
     def _run_motion(self, name: str, call: Callable[[], T], wait: bool) -> T | MotionHandle[T]:
         if wait:
             return call()
-        handle = MotionHandle(name, call, self.stop)
-        with self._lock:
+        with self._lock:  # registered atomically with the closed check, so close() joins every handle
+            self._check_open(name)
+            handle = MotionHandle(name, call, self.stop)
             self._handles = [h for h in self._handles if not h.done()]
             self._handles.append(handle)
         return handle
@@ -431,7 +442,7 @@ class Gripper(ABC):
         timeout: float | None = None,
     ) -> MotionResult | MotionHandle[MotionResult]:
         """Open to ``width`` (m; default fully open) and end a grasp."""
-        w = self.limits.max_width if width is None else self._width(width, "release")
+        w = self._default_release_width() if width is None else self._width(width, "release")
         s = self._speed(speed, "release")
         self._check_motion("release")
         t = timeout if timeout is not None else self._motion_timeout(self.limits.stroke, s)
@@ -445,8 +456,10 @@ class Gripper(ABC):
     def fast_stop(self) -> None:
         """Stop at once; further motion is refused until :meth:`acknowledge`."""
         self._check_open("fast_stop")
-        self._fast_stop()
+        # Refuse motion from here on, even if the reply is lost or another thread starts a move meanwhile:
+        # the user asked for a stop, and acknowledge() is the one way out.
         self._fast_stopped = True
+        self._fast_stop()
 
     def acknowledge(self) -> None:
         """Clear a fast stop (WSG 24h; MSG: estop bit cleared, then the error)."""
@@ -469,9 +482,9 @@ class Gripper(ABC):
         self, rate_hz: float = 50.0, callback: Callable[[GripperState], Any] | None = None
     ) -> StateStream:
         """States at ``rate_hz``; an iterator, or calls ``callback`` from a background thread. Close it."""
-        self._check_open("stream")
-        s = StateStream(self._state, rate_hz, callback, on_close=self._forget_stream)
-        with self._lock:
+        with self._lock:  # registered atomically with the closed check, so close() stops every stream
+            self._check_open("stream")
+            s = StateStream(self._state, rate_hz, callback, on_close=self._forget_stream)
             self._streams.append(s)
         return s
 
@@ -528,10 +541,16 @@ class Gripper(ABC):
         raise NotSupported("not implemented by this backend", device=self.name, command="device_tag")
 
     def close(self) -> None:
-        """Stop streams, let running motions end (bounded), release the transport. Idempotent."""
-        if self._closed:
-            return
+        """Stop streams, let running motions end (bounded), release the transport. Idempotent.
+
+        Marked closed first, under the lock: a second close() (another thread, atexit) returns at once, no
+        stream or handle is registered behind our back, and a backend's motion wait that polls (MSG) sees
+        ``_closed`` and ends instead of polling a closed link until its motion timeout.
+        """
         with self._lock:
+            if self._closed:
+                return
+            self._closed = True
             streams, self._streams = list(self._streams), []
             handles, self._handles = list(self._handles), []
         for s in streams:
@@ -539,7 +558,6 @@ class Gripper(ABC):
         try:
             self._close()
         finally:
-            self._closed = True
             for h in handles:
                 h.join(5.0)
             for fn in reversed(self._on_close):

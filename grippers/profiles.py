@@ -11,6 +11,7 @@ as the data package ``grippers._profiles``.
 from __future__ import annotations
 
 import json
+import logging
 import os
 import re
 import tomllib
@@ -22,6 +23,8 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError, model_validator
 
 from .errors import ProfileError
+
+log = logging.getLogger(__name__)
 
 PROFILE_SUFFIXES = (".toml", ".yaml", ".yml", ".json")
 
@@ -353,11 +356,21 @@ def _candidate_files() -> Iterator[Path]:
     yield from _builtin_files()
 
 
-def list_profiles() -> list[ProfileBase]:
-    """Every profile on the search path; a user's file shadows a built-in of the same name."""
+def list_profiles(*, strict: bool = True) -> list[ProfileBase]:
+    """Every profile on the search path; a user's file shadows a built-in of the same name.
+
+    ``strict=False`` skips (and logs) files that do not validate: a lookup by alias or WSG device type must
+    not fail because of an unrelated broken file in the user's directory.
+    """
     seen: dict[str, ProfileBase] = {}
     for path in _candidate_files():
-        profile = load_file(path)
+        try:
+            profile = load_file(path)
+        except ProfileError as exc:
+            if strict:
+                raise
+            log.warning("skipping a profile that does not validate: %s", exc)
+            continue
         seen.setdefault(profile.name, profile)
     return list(seen.values())
 
@@ -375,10 +388,11 @@ def load_profile(name: str | os.PathLike[str]) -> ProfileBase:
         # The file name is the cheap test; aliases need the file's contents.
         if _key(path.stem) == _key(text):
             return load_file(path)
-    for profile in list_profiles():
+    profiles = list_profiles(strict=False)
+    for profile in profiles:
         if profile.matches(text):
             return profile
-    names = ", ".join(sorted(p.name for p in list_profiles()))
+    names = ", ".join(sorted(p.name for p in profiles))
     raise ProfileError(f"no profile named {text!r} (known: {names}; search path: {_describe_path()})")
 
 
@@ -388,7 +402,7 @@ def _describe_path() -> str:
 
 def wsg_profile_for_device_type(device_type: int) -> WsgProfile | None:
     """The built-in or user profile of the WSG model that reports ``device_type`` in 50h."""
-    for profile in list_profiles():
+    for profile in list_profiles(strict=False):
         if isinstance(profile, WsgProfile) and profile.wsg.device_type == device_type:
             return profile
     return None

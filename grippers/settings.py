@@ -37,6 +37,14 @@ class Settings:
     def float(self, name: str, default: Any) -> Any:
         return self._take(name, default, to_float)
 
+    def positive(self, name: str, default: Any) -> Any:
+        """A number above zero (timeouts, time scales): 0 would fail every exchange at once, and a negative
+        one too, with a misleading message (a TCP connect "in progress")."""
+        value = self._take(name, default, to_float)
+        if value is not None and value <= 0:
+            raise URLError(f"{self.url}: {name} must be above 0, not {value!r}")
+        return value
+
     def bool(self, name: str, default: Any) -> Any:
         return self._take(name, default, to_bool)
 

@@ -16,9 +16,10 @@ a plain device path is written with its leading slash (``wsg+serial:///dev/ttyUS
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Any
-from urllib.parse import parse_qsl, unquote, urlsplit
+from urllib.parse import SplitResult, parse_qsl, unquote, urlsplit
 
 from .errors import URLError
 
@@ -75,7 +76,7 @@ def parse_url(url: str) -> ConnectionURL:
         )
     if transport == "serial":
         return _parse_serial(url, family, rest)
-    parts = urlsplit(f"x://{rest}")
+    parts = _split(url, rest)
     params = _query(url, parts.query)
     if transport in ("tcp", "udp"):
         try:
@@ -84,13 +85,22 @@ def parse_url(url: str) -> ConnectionURL:
             raise URLError(f"{url!r}: bad port") from None
         if not host:
             raise URLError(f"{url!r}: no host")
-        return ConnectionURL(url, family, transport, host=host, port=port, params=params)
+        # An IPv6 zone is written %25 in a URL (RFC 6874: [fe80::1%25eth0]); sockets want fe80::1%eth0.
+        return ConnectionURL(url, family, transport, host=unquote(host), port=port, params=params)
     # can://INTERFACE/CHANNEL
     interface = unquote(parts.netloc)
     channel = unquote(parts.path.lstrip("/"))
     if not interface or not channel:
         raise URLError(f"{url!r}: a CAN URL names INTERFACE/CHANNEL, e.g. {family}+can://socketcan/can0")
     return ConnectionURL(url, family, transport, interface=interface, channel=channel, params=params)
+
+
+def _split(url: str, rest: str) -> SplitResult:
+    """urlsplit, with its ValueError (an unclosed ``[`` of an IPv6 host) turned into a URLError."""
+    try:
+        return urlsplit(f"x://{rest}")
+    except ValueError as exc:
+        raise URLError(f"{url!r}: {exc}") from None
 
 
 def _query(url: str, query: str) -> dict[str, str]:
@@ -110,7 +120,7 @@ def _parse_serial(url: str, family: str, rest: str) -> ConnectionURL:
 
 
 def _parse_sim(url: str, rest: str) -> ConnectionURL:
-    parts = urlsplit(f"x://{rest}")
+    parts = _split(url, rest)
     profile = unquote(parts.netloc + parts.path).strip("/") or None
     return ConnectionURL(url, "sim", "", profile=profile, params=_query(url, parts.query))
 
@@ -128,10 +138,15 @@ def to_int(value: Any, name: str, url: str = "") -> int:
 
 
 def to_float(value: Any, name: str, url: str = "") -> float:
+    """A finite number: no setting (timeout, time scale, a width) means anything as nan or inf, and a nan
+    timeout would make every deadline comparison false, i.e. a wait without end."""
     try:
-        return float(value)
+        number = float(value)
     except (TypeError, ValueError):
         raise URLError(f"{url or 'settings'}: {name} must be a number, not {value!r}") from None
+    if not math.isfinite(number):
+        raise URLError(f"{url or 'settings'}: {name} must be a finite number, not {value!r}")
+    return number
 
 
 def to_bool(value: Any, name: str, url: str = "") -> bool:

@@ -16,7 +16,7 @@ from typing import Any
 
 from drivers.stepfoc.can_protocol import Detection, GripperStatus
 
-from ..errors import GripperTimeout, URLError
+from ..errors import CommandFailed, ConnectionLost, GripperTimeout, ProtocolError, URLError
 from ..gripper import Capability, DeviceInfo, GraspResult, GraspState, Gripper, GripperState, MotionResult
 from ..profiles import MsgProfile, ProfileBase, load_profile
 from ..settings import Settings
@@ -171,10 +171,18 @@ class _UartLink(_Link):
         info = self.driver.gripinfo()
         position = self.driver.position()
         faults = ("fast_stop",) if info.estop else ()
+        try:
+            detection = Detection(int(info.detection))
+        except ValueError:  # the parser keeps a value outside 0..3 as the int printed
+            raise ProtocolError(
+                f"object detection status {info.detection!r} is not 0..3",
+                device=self.port,
+                command="Gripinfo",
+            ) from None
         return _Status(
             position,
             None,  # the UART reports setpoints, not the measured current
-            Detection(int(info.detection)),
+            detection,
             bool(info.calibrated),
             bool(info.activated),
             bool(info.action),
@@ -225,6 +233,15 @@ class MsgGripper(Gripper):
         if link.has_temperature:
             self.capabilities = self.capabilities | {Capability.TEMPERATURE}
         self._maps = profile.maps
+        # Force is a current limit here: a force beyond what the (safety) current limit gives, or below the
+        # stable minimum current, would be silently changed by _current_ma, so the limits say so up front.
+        npa = profile.maps.newton_per_amp
+        self.limits = self.limits.model_copy(
+            update={
+                "max_force": min(self.limits.max_force, profile.effective_max_current_ma / 1000 * npa),
+                "min_force": max(self.limits.min_force, profile.maps.min_current_ma / 1000 * npa),
+            }
+        )
         self._mode = "idle"  # what the last motion was, to name what the detection bits mean
         self._held = False  # a grasp found its part; detection 3 afterwards means the part was lost
 
@@ -266,12 +283,23 @@ class MsgGripper(Gripper):
     def _wait(self, command: str, timeout: float, done: Any) -> _Status:
         deadline = time.monotonic() + timeout
         while True:
+            if self._closed:  # close() from another thread: do not poll a closed link until the deadline
+                raise ConnectionLost(
+                    "the gripper was closed during the motion", device=self.name, command=command
+                )
             st = self._link.status()
             if st.estop:
                 from ..gripper import FastStopActive
 
                 self._fast_stopped = True
                 raise FastStopActive("e-stop raised during the motion", device=self.name, command=command)
+            if st.faults:  # a timeout or temperature error stops the motor; waiting would only time out
+                raise CommandFailed(
+                    f"motion stopped by a device error: {', '.join(st.faults)}",
+                    status_name=",".join(st.faults),
+                    device=self.name,
+                    command=command,
+                )
             if done(st):
                 return st
             if time.monotonic() >= deadline:
@@ -283,8 +311,11 @@ class MsgGripper(Gripper):
     ) -> _Status:
         self._link.go(position, self._speed_byte(speed), current_ma)
         # The immediate reply to a new command still carries the previous detection value (PROTOCOL-NOTES
-        # §2), so a fresh poll decides; detection 0 means moving.
-        return self._wait(command, timeout, lambda st: st.detection != Detection.MOVING)
+        # §2), so a fresh poll decides; detection 0 means moving. A motion stopped by stop()/cancel() (action
+        # or activation cleared) keeps detection 0 for good, so that ends the wait too.
+        return self._wait(
+            command, timeout, lambda st: st.detection != Detection.MOVING or not (st.activated and st.action)
+        )
 
     def _home(self, timeout: float) -> None:
         self._link.calibrate()
@@ -322,8 +353,14 @@ class MsgGripper(Gripper):
             GraspState.HOLDING if held else GraspState.NO_PART,
             reason=None
             if held
+            else f"stopped at {self._width_of(st.position) * 1000:.1f} mm before reaching the part"
+            if st.detection == Detection.MOVING
             else f"reached {self._width_of(st.position) * 1000:.1f} mm without meeting a part",
         )
+
+    def _default_release_width(self) -> float:
+        # A part gripped from inside is let go by closing: "fully open" would push into it.
+        return self.limits.min_width if self._maps.inside_grip else self.limits.max_width
 
     def _release(self, width: float, speed: float, timeout: float) -> MotionResult:
         self._mode, self._held = "release", False
@@ -405,7 +442,7 @@ class StepfocBackend:
             profile = load_profile(DEFAULT_PROFILE)
         assert isinstance(profile, MsgProfile)
         t = profile.transport
-        timeout = settings.float("timeout", t.timeout_s)
+        timeout = settings.positive("timeout", t.timeout_s)
         current_limit = profile.effective_max_current_ma
         link: _Link
         if url.transport == "can":
@@ -449,7 +486,7 @@ class StepfocBackend:
         from drivers.stepfoc.sim import serve_can, serve_uart
 
         assert models
-        time_scale = settings.float("time_scale", 1.0)
+        time_scale = settings.positive("time_scale", 1.0)
         if listen == "pty":
             if len(models) != 1:
                 raise URLError("a UART simulator serves one gripper")

@@ -206,7 +206,7 @@ class WsgBackend:
 
     def open(self, url: ConnectionURL, profile: ProfileBase | None, settings: Settings) -> WsgGripper:
         t = profile.transport if isinstance(profile, WsgProfile) else WsgTransport()
-        timeout = settings.float("timeout", t.timeout_s)
+        timeout = settings.positive("timeout", t.timeout_s)
         common = {
             "device": url.url,
             "timeout": timeout,
@@ -282,7 +282,7 @@ class WsgBackend:
                 from ..errors import URLError
 
                 raise URLError(f"{settings.url}: transport must be tcp, udp, pty or can, not {transport!r}")
-        return serve(model, listen, time_scale=settings.float("time_scale", sim.time_scale))
+        return serve(model, listen, time_scale=settings.positive("time_scale", sim.time_scale))
 
     def simulate(self, profile: ProfileBase, settings: Settings) -> Any:
         return self.simulator(profile, settings)
