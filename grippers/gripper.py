@@ -449,7 +449,8 @@ class Gripper(ABC):
         return self._run_motion("release", lambda: self._release(w, s, t), wait)
 
     def stop(self) -> None:
-        """Stop the fingers where they are; the motor stays on."""
+        """Stop the fingers where they are. The WSG keeps its motor on; the MSG clears its action bit (CAN)
+        or, having no other way over UART, deactivates the motor, so a held part is no longer squeezed."""
         self._check_open("stop")
         self._stop()
 

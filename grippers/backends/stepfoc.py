@@ -165,7 +165,7 @@ class _UartLink(_Link):
 
         self.port = port
         self.driver = StepfocUart(port, baudrate=baudrate, timeout=timeout, current_limit_ma=current_limit)
-        self._last: tuple[int, int, int] | None = None
+        self._go_lock = threading.Lock()
 
     def status(self) -> _Status:
         info = self.driver.gripinfo()
@@ -191,13 +191,16 @@ class _UartLink(_Link):
         )
 
     def go(self, position: int, speed: int, current_ma: int, *, action: bool = True) -> None:
+        # Three text commands make one motion: a stop() from another thread must not land between them and
+        # be undone by the final Grippos, so the sequence holds a lock.
         d = self.driver
-        d.velocity(speed)
-        d.current(current_ma)
-        if action:
-            d.position(position)  # a set also activates the gripper and starts the motion (PROTOCOL-NOTES §2)
-        else:
-            d.activate(0)
+        with self._go_lock:
+            d.velocity(speed)
+            d.current(current_ma)
+            if action:
+                d.position(position)  # a set also activates and starts the motion (PROTOCOL-NOTES §2)
+            else:
+                d.activate(0)  # the UART has no action bit: deactivating is its only way to stop
 
     def calibrate(self) -> None:
         self.driver.calibrate()
