@@ -139,9 +139,9 @@ class UdpTransport:
         local_host: str = "",
     ) -> None:
         try:
-            infos = socket.getaddrinfo(host, port, socket.AF_INET, socket.SOCK_DGRAM)
-            self._peer = infos[0][4]
-            self._sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+            # The gripper's address decides the family, so wsg+udp://[::1] works as well as IPv4.
+            family, _, _, _, self._peer = socket.getaddrinfo(host, port, 0, socket.SOCK_DGRAM)[0]
+            self._sock = socket.socket(family, socket.SOCK_DGRAM)
             self._sock.bind((local_host, local_port))
             _blocking_with_timeouts(self._sock)
         except OSError as exc:

@@ -17,7 +17,7 @@ from urllib.parse import parse_qs
 
 import can
 
-from drivers.errors import ConnectionLost, GripperError
+from drivers.errors import ConnectionLost
 from drivers.simkit import FaultHooks, FaultKind, SimClock
 from drivers.stepfoc.can_protocol import DEFAULT_BITRATE, CanFrame
 from drivers.stepfoc.sim.model import MsgModel
@@ -217,7 +217,7 @@ def serve_can(
         return CanSimServer(
             model_list, bus, interface=interface, channel=channel, own_bus=own, time_scale=time_scale
         )
-    except GripperError:
+    except BaseException:  # whatever the server refused, a bus it opened must not leak
         if own:
             bus.shutdown()
         raise

@@ -147,6 +147,10 @@ class WsgModel:
             raise ValueError("force limits must satisfy 0 <= min_force <= max_force")
         if default_homing_direction not in (1, 2):
             raise ValueError("default_homing_direction must be 1 (positive) or 2 (negative)")
+        if not 0 <= serial <= 0xFFFFFFFF:  # 50h: u32 serial number
+            raise ValueError(f"serial must fit a u32, not {serial!r}")
+        if part_width_mm is not None and not 0 <= part_width_mm <= stroke_mm:
+            raise ValueError(f"part_width_mm must lie within the stroke, not {part_width_mm!r}")
         self.device_type = device_type
         self.hw_revision = hw_revision
         self.stroke = float(stroke_mm)

@@ -164,7 +164,9 @@ def test_stop_aborts_the_pending_motion(homed) -> None:
     d.advance(0.3)
     replies = d.call(Cmd.STOP)
     assert [(r.command, r.status) for r in replies] == [
-        (Cmd.PREPOSITION, S.E_CMD_ABORTED), (Cmd.STOP, S.E_SUCCESS)]
+        (Cmd.PREPOSITION, S.E_CMD_ABORTED),
+        (Cmd.STOP, S.E_SUCCESS),
+    ]
     stopped_at = width(d)
     assert 0.0 < stopped_at < 110.0
     d.advance(1.0)
@@ -197,11 +199,17 @@ def test_fast_stop_and_acknowledge(homed) -> None:
     d.advance(0.2)
     replies = d.call(Cmd.FAST_STOP)
     assert [(r.command, r.status) for r in replies] == [
-        (Cmd.PREPOSITION, S.E_CMD_ABORTED), (Cmd.FAST_STOP, S.E_SUCCESS)]
+        (Cmd.PREPOSITION, S.E_CMD_ABORTED),
+        (Cmd.FAST_STOP, S.E_SUCCESS),
+    ]
     assert flags(d) & F.SF_FAST_STOP
     assert gstate(d) == G.ERROR
-    for cmd, fields in [(Cmd.HOMING, {}), (Cmd.PREPOSITION, {"width": 1, "speed": 9}),
-                        (Cmd.GRIP, {"width": 1, "speed": 9}), (Cmd.RELEASE, {"width": 1, "speed": 9})]:
+    for cmd, fields in [
+        (Cmd.HOMING, {}),
+        (Cmd.PREPOSITION, {"width": 1, "speed": 9}),
+        (Cmd.GRIP, {"width": 1, "speed": 9}),
+        (Cmd.RELEASE, {"width": 1, "speed": 9}),
+    ]:
         assert d.one(cmd, **fields).status == S.E_ACCESS_DENIED
     # state commands still work
     assert d.one(Cmd.GET_WIDTH).ok
@@ -386,15 +394,32 @@ def test_device_tag(driver) -> None:
 
 
 def test_system_info_and_limits_follow_parameters(make_driver) -> None:
-    d = make_driver(device_type=6, serial=0xDEADBEEF, firmware="4.1.2-rc3", stroke_mm=140.0,
-                    min_speed=1.0, max_speed=300.0, min_accel=50.0, max_accel=2000.0,
-                    min_force=10.0, max_force=200.0, overdrive_force=250.0)
+    d = make_driver(
+        device_type=6,
+        serial=0xDEADBEEF,
+        firmware="4.1.2-rc3",
+        stroke_mm=140.0,
+        min_speed=1.0,
+        max_speed=300.0,
+        min_accel=50.0,
+        max_accel=2000.0,
+        min_force=10.0,
+        max_force=200.0,
+        overdrive_force=250.0,
+    )
     info = d.one(Cmd.GET_SYSTEM_INFO).fields
     assert (int(info["device_type"]), info["serial"], str(info["firmware"])) == (6, 0xDEADBEEF, "4.1.2-rc3")
     limits = d.one(Cmd.GET_SYSTEM_LIMITS).fields
-    assert limits == {"stroke": 140.0, "min_speed": 1.0, "max_speed": 300.0, "min_acceleration": 50.0,
-                      "max_acceleration": 2000.0, "min_force": 10.0, "nominal_force": 200.0,
-                      "overdrive_force": 250.0}
+    assert limits == {
+        "stroke": 140.0,
+        "min_speed": 1.0,
+        "max_speed": 300.0,
+        "min_acceleration": 50.0,
+        "max_acceleration": 2000.0,
+        "min_force": 10.0,
+        "nominal_force": 200.0,
+        "overdrive_force": 250.0,
+    }
 
 
 def test_finger_interface_generic_fingers(driver) -> None:
@@ -474,7 +499,9 @@ def test_disconnect_announcement_then_access_denied(homed) -> None:
     assert d.one(Cmd.PREPOSITION, width=0.0, speed=50.0).pending
     replies = d.call(Cmd.DISCONNECT)
     assert [(r.command, r.status) for r in replies] == [
-        (Cmd.PREPOSITION, S.E_CMD_ABORTED), (Cmd.DISCONNECT, S.E_SUCCESS)]
+        (Cmd.PREPOSITION, S.E_CMD_ABORTED),
+        (Cmd.DISCONNECT, S.E_SUCCESS),
+    ]
     for cmd in (Cmd.GET_WIDTH, Cmd.LOOP, Cmd.DISCONNECT, 0x90):
         assert d.raw(cmd)[0].status == S.E_ACCESS_DENIED
     d.model.connection_lost(d.now, 0)
@@ -533,8 +560,19 @@ def decode_all(chunks: list[bytes]):
     return [decode_reply(p.command, p.payload) for p in packets]
 
 
-_IDS = sorted({0x06, 0x07, *range(0x20, 0x27), *range(0x30, 0x39), *range(0x40, 0x47), *range(0x50, 0x54),
-               *range(0x60, 0x64), *range(0x70, 0x74), 0x90})
+_IDS = sorted(
+    {
+        0x06,
+        0x07,
+        *range(0x20, 0x27),
+        *range(0x30, 0x39),
+        *range(0x40, 0x47),
+        *range(0x50, 0x54),
+        *range(0x60, 0x64),
+        *range(0x70, 0x74),
+        0x90,
+    }
+)
 
 
 _WIDTH = st.floats(-20, 130, allow_nan=False)
@@ -587,3 +625,11 @@ def test_any_request_sequence_gets_decodable_replies(steps, firmware, part) -> N
         for conn, data in model.advance_by_connection(now):
             absorb(conn, [data])
     assert not any(pending.values()), pending
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"), [({"serial": -1}, "serial"), ({"part_width_mm": -5}, "part_width")]
+)
+def test_impossible_parameters_are_refused_at_construction(kwargs: dict, match: str) -> None:
+    with pytest.raises(ValueError, match=match):
+        WsgModel(**kwargs)
