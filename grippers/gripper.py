@@ -471,8 +471,9 @@ class Gripper(ABC):
     def state(self) -> GripperState:
         self._check_open("state")
         st = self._state()
-        if st.fast_stopped:
-            self._fast_stopped = True
+        # The device is the truth: a fast stop raised or acknowledged elsewhere (another program, the web
+        # interface, the vendor extras in .driver) is taken over here.
+        self._fast_stopped = st.fast_stopped
         return st
 
     def info(self) -> DeviceInfo:

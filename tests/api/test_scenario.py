@@ -129,3 +129,18 @@ def test_msg_over_uart_has_no_temperature() -> None:
         pytest.raises(grippers.NotSupported),
     ):
         g.temperature()
+
+
+def test_fast_stop_state_follows_the_device() -> None:
+    """A fast stop acknowledged outside the API (here through the vendor client in ``.driver``) no longer
+    blocks motion once the state has been read; one raised elsewhere blocks it."""
+    with grippers.open(f"sim://wsg50?time_scale={TIME_SCALE}") as g:
+        g.home()
+        g.fast_stop()
+        g.driver.acknowledge_fast_stop()
+        assert not g.state().fast_stopped
+        g.move(0.05)
+        g.driver.fast_stop()
+        assert g.state().fast_stopped
+        with pytest.raises(grippers.FastStopActive):
+            g.move(0.06)
