@@ -56,9 +56,6 @@ class Settings:
         for key, value in values.items():
             self._values.setdefault(key, value)
 
-    def has(self, name: str) -> bool:
-        return name in self._values
-
     def finish(self) -> None:
         """Refuse what no one took: a typo must not silently fall back to a default."""
         if self._values:
