@@ -52,6 +52,7 @@ from drivers.wsg.commands import (
     command_name,
     decode_reply,
     encode_request,
+    reply_value,
 )
 from drivers.wsg.protocol import BadLength, ChecksumError, Discarded, Packet, Status
 from drivers.wsg.session import (
@@ -471,10 +472,12 @@ class WsgClient:
         """
         try:
             return self._transport.recv(timeout)
-        except Exception as exc:  # noqa: BLE001 - a transport bug must still release every waiter
+        except BaseException as exc:  # a transport bug must still release every waiter
             with self._lock:
                 self._reading = False
                 self._cond.notify_all()
+            if not isinstance(exc, Exception):  # KeyboardInterrupt: only this reader is gone
+                raise
             if not self._stop.is_set():
                 lost = exc if isinstance(exc, ConnectionLost) else ConnectionLost(
                     f"reader failed: {exc!r}", device=self.device)
@@ -587,10 +590,11 @@ class WsgClient:
                 if self._lost is not None or self._closing or self._closed:
                     self._usable(command_name(cmd), internal)
                 now = time.monotonic()
-                if not session.is_busy(cmd, now):
-                    exchange, raw = session.send(cmd, payload, now=now)
+                opened = session.open(cmd, payload, now)
+                if opened is not None:
+                    exchange, raw = opened
                     self._callers += 1  # released by the _wait(begun=True) that follows
-                    lead = not (self._reading or self._subs or self._stop.is_set())
+                    lead = not (self._reading or self._subs or self._closing)
                     if lead:
                         self._reading = True
                     break
@@ -608,6 +612,10 @@ class WsgClient:
                 if lead:  # never leave the reading role taken by a caller that is gone
                     self._reading = False
                     self._cond.notify_all()
+                if not isinstance(exc, ConnectionLost):
+                    # Interrupted (KeyboardInterrupt) or refused: whether the bytes left is unknown, so the
+                    # slot is held like a timed-out request's, long enough to swallow a late reply.
+                    session.abandon(exchange, time.monotonic())
             if not isinstance(exc, ConnectionLost):
                 raise
             self._connection_lost(exc)  # fails the exchange and wakes everybody
@@ -622,60 +630,84 @@ class WsgClient:
         finally:
             self._sleepers -= 1
 
+    def _read_own_reply(self, exchange: Exchange, wait: float) -> Packet | None:
+        """The first read of a caller that took the reading role in :meth:`_begin` (nothing can have arrived
+        before): when the bytes are exactly its final reply, which they nearly always are on TCP and UDP, the
+        exchange is done here without the general matching. Otherwise they are matched as usual and None
+        sends the caller on to :meth:`_wait`, still counted as a caller.
+        """
+        try:
+            data = self._receive(wait if wait < _POLL else _POLL)
+        except BaseException:  # KeyboardInterrupt: the caller is gone
+            with self._lock:
+                self._leave()
+            raise
+        with self._lock:
+            if data:
+                packet = self._session.take_reply(exchange, data)
+                if packet is not None:
+                    self._reading = False  # (no _last_rx: it matters only while the parser holds bytes)
+                    if self._sleepers:
+                        self._cond.notify_all()  # the reading role is free
+                    self._leave()
+                    return packet
+            self._absorb(data)
+        return None
+
+    def _absorb(self, data: bytes | None) -> None:
+        """Match bytes a caller read (lock held); updates among them go to the reader thread's callbacks
+        (an update that raced a new subscription)."""
+        if data is not None and (found := self._process(data)):
+            self._deferred.extend(found)
+            self._bg.notify()
+
+    def _leave(self) -> None:
+        """A caller is done with its exchange (lock held)."""
+        self._callers -= 1
+        if not self._callers and self._background_needed():
+            self._bg.notify()  # e.g. a pending motion's final reply: nobody waits to read it
+
     def _wait(self, exchange: Exchange, deadline: float, *, final: bool, abandon: bool = True,
-              waited: float | None = None, begun: bool = False, lead: bool = False) -> Packet:
+              waited: float | None = None, begun: bool = False) -> Packet:
         """Wait for ``exchange``'s reply (``final``: past E_CMD_PENDING), reading the line when nobody else
-        does. ``begun``: the caller was counted by :meth:`_begin`; ``lead``: it holds the reading role."""
+        does. ``begun``: the caller was counted by :meth:`_begin`."""
         with self._lock:
             if not begun:
                 self._callers += 1
             try:
-                return self._await(exchange, deadline, final, abandon, waited, lead)
+                return self._await(exchange, deadline, final, abandon, waited)
             finally:
-                self._callers -= 1
-                if not self._callers and self._background_needed():
-                    self._bg.notify()  # e.g. a pending motion's final reply: nobody waits to read it
+                self._leave()
 
     def _await(self, exchange: Exchange, deadline: float, final: bool, abandon: bool,
-               waited: float | None, lead: bool) -> Packet:
-        """The wait loop (lock held). With ``lead`` the first step is the read: no reply can be there yet."""
+               waited: float | None) -> Packet:
+        """The wait loop (lock held)."""
         while True:
-            if not lead:
-                state = exchange.state
-                if state is ExchangeState.DONE:
-                    assert exchange.reply is not None
-                    return exchange.reply
-                if state is ExchangeState.PENDING and not final:
-                    assert exchange.ack is not None
-                    return exchange.ack
-                if state is ExchangeState.FAILED or state is ExchangeState.ABANDONED:
-                    self._raise_failed(exchange)
+            state = exchange.state
+            if state is ExchangeState.DONE:
+                assert exchange.reply is not None
+                return exchange.reply
+            if state is ExchangeState.PENDING and not final:
+                assert exchange.ack is not None
+                return exchange.ack
+            if state is ExchangeState.FAILED or state is ExchangeState.ABANDONED:
+                self._raise_failed(exchange)
             now = time.monotonic()
             if now >= deadline:
-                if lead:  # hand the reading role back before giving up
-                    self._reading = False
-                    lead = False
-                    if self._sleepers:
-                        self._cond.notify_all()
                 self._timed_out(exchange, now, abandon, waited)
-            if not lead:
-                if self._reading or self._subs or self._stop.is_set() or self._lost is not None:
-                    if not self._reading:
-                        self._bg.notify()  # subscriptions: the reader thread reads (and runs the callbacks)
-                    self._sleep(deadline - now)
-                    continue
-                # Nobody is reading and no subscription needs the reader thread: read for ourselves.
-                self._reading = True
-            lead = False
+            if self._reading or self._subs or self._stop.is_set() or self._lost is not None:
+                if not self._reading:
+                    self._bg.notify()  # subscriptions: the reader thread reads (and runs the callbacks)
+                self._sleep(deadline - now)
+                continue
+            # Nobody is reading and no subscription needs the reader thread: read for ourselves.
+            self._reading = True
             self._lock.release()
             try:
                 data = self._receive(min(deadline - now, _POLL))
             finally:
                 self._lock.acquire()
-            if data is not None and (found := self._process(data)):
-                # an update that raced a new subscription: its callbacks belong to the reader thread
-                self._deferred.extend(found)
-                self._bg.notify()
+            self._absorb(data)
 
     def _raise_failed(self, exchange: Exchange) -> NoReturn:
         name = command_name(exchange.command)
@@ -713,11 +745,16 @@ class WsgClient:
             self._check_supported(cmd)
         if payload is None:
             payload = self._encode(cmd, **fields)
-        wait = self.timeout if timeout is None else timeout
+        return self._check(cmd, self._exchange(cmd, payload, self.timeout if timeout is None else timeout,
+                                               internal))
+
+    def _exchange(self, cmd: int, payload: bytes, wait: float, internal: bool = False) -> Packet:
+        """Send a request and return its final reply (past E_CMD_PENDING) within ``wait`` seconds."""
         deadline = time.monotonic() + wait
         exchange, lead = self._begin(cmd, payload, deadline, internal=internal)
-        packet = self._wait(exchange, deadline, final=True, waited=wait, begun=True, lead=lead)
-        return self._check(cmd, packet)
+        if lead and (packet := self._read_own_reply(exchange, wait)) is not None:
+            return packet
+        return self._wait(exchange, deadline, final=True, waited=wait, begun=True)
 
     def _motion(self, cmd: int, wait: bool, timeout: float | None, **fields: Any) -> Pending | None:
         self._check_supported(cmd)
@@ -727,7 +764,9 @@ class WsgClient:
         deadline = start + total
         ack_wait = min(total, self.timeout)
         exchange, lead = self._begin(cmd, payload, start + ack_wait)
-        first = self._wait(exchange, start + ack_wait, final=False, waited=ack_wait, begun=True, lead=lead)
+        first = self._read_own_reply(exchange, ack_wait) if lead else None
+        if first is None:
+            first = self._wait(exchange, start + ack_wait, final=False, waited=ack_wait, begun=True)
         if first.status != Status.E_CMD_PENDING:  # answered at once (an immediate error, or done)
             self._check(cmd, first)
             return None if wait else Pending(self, exchange)
@@ -744,10 +783,7 @@ class WsgClient:
         ``packet.status``.
         """
         self._check_supported(cmd)
-        wait = self.timeout if timeout is None else timeout
-        deadline = time.monotonic() + wait
-        exchange, lead = self._begin(cmd, bytes(payload), deadline)
-        packet = self._wait(exchange, deadline, final=True, waited=wait, begun=True, lead=lead)
+        packet = self._exchange(cmd, bytes(payload), self.timeout if timeout is None else timeout)
         if check:
             self._check(cmd, packet)
         return packet
@@ -861,7 +897,8 @@ class WsgClient:
 
     # -------------------------------------------------------------------------------------------- state
 
-    def _query(self, cmd: int, timeout: float | None) -> Reply:
+    def _query(self, cmd: int, timeout: float | None) -> Any:
+        """The value of a state query (40h-45h: all firmware has them, so no firmware check)."""
         # A plain query (auto update off) would switch a running subscription off on the device, so while one
         # is active the query repeats its parameters.
         params = self._sub_params.get(cmd)  # one dict read: atomic, no lock needed
@@ -869,25 +906,32 @@ class WsgClient:
             payload = _PLAIN_QUERY[cmd]
         else:
             payload = encode_request(cmd, auto_update=True, changes_only=params[1], period_ms=params[0])
-        return self._call(cmd, timeout=timeout, payload=payload)
+        packet = self._exchange(cmd, payload, self.timeout if timeout is None else timeout)
+        data = packet.payload  # a completed exchange's reply has its status (session)
+        if not (data[0] | data[1]):  # E_SUCCESS
+            try:
+                return reply_value(cmd, data)
+            except ProtocolError:
+                pass  # _check raises it with the device's name
+        return self._check(cmd, packet).value
 
     def system_state(self, *, timeout: float | None = None) -> SystemFlags:
-        return self._query(Cmd.GET_SYSTEM_STATE, timeout).fields["state"]
+        return self._query(Cmd.GET_SYSTEM_STATE, timeout)
 
     def grasping_state(self, *, timeout: float | None = None) -> GraspingState | int:
-        return self._query(Cmd.GET_GRASPING_STATE, timeout).fields["state"]
+        return self._query(Cmd.GET_GRASPING_STATE, timeout)
 
     def grasping_statistics(self, reset: bool = False, *, timeout: float | None = None) -> GraspingStatistics:
         return self._call(Cmd.GET_GRASPING_STATISTICS, timeout=timeout, reset=reset).value
 
     def width(self, *, timeout: float | None = None) -> float:
-        return self._query(Cmd.GET_WIDTH, timeout).fields["width"]
+        return self._query(Cmd.GET_WIDTH, timeout)
 
     def speed(self, *, timeout: float | None = None) -> float:
-        return self._query(Cmd.GET_SPEED, timeout).fields["speed"]
+        return self._query(Cmd.GET_SPEED, timeout)
 
     def force(self, *, timeout: float | None = None) -> float:
-        return self._query(Cmd.GET_FORCE, timeout).fields["force"]
+        return self._query(Cmd.GET_FORCE, timeout)
 
     def temperature(self, *, timeout: float | None = None) -> float:
         """Device temperature in °C (46h; firmware 4.x)."""

@@ -315,6 +315,8 @@ class Layout:
         # replies of the state queries, decoded on every round trip and every auto update.
         plain = self.tail is None and all(not f.bits and f.from_wire is None for f in fields)
         self._plain_names = tuple(f.name for f in fields) if plain else None
+        #: One plain field (width, speed, force): :func:`reply_value` unpacks it without building a dict.
+        self.single_plain = plain and len(fields) == 1
 
     @property
     def empty(self) -> bool:
@@ -675,6 +677,17 @@ def decode_reply(cmd: int, payload: bytes) -> Reply:
     if s is None:
         return Reply(cmd, Status.E_SUCCESS, {"data": bytes(payload[2:])})
     return Reply(cmd, Status.E_SUCCESS, s.reply.unpack(payload[2:], name))
+
+
+def reply_value(cmd: int, payload: bytes) -> Any:
+    """``decode_reply(cmd, payload).value``, with the same errors, but a successful reply of one plain field
+    is unpacked without the Reply and its dict: the width, speed and force queries that control loops poll
+    (docs/performance.md, target 2)."""
+    if len(payload) >= 2 and not (payload[0] | payload[1]):
+        s = COMMANDS.get(cmd)
+        if s is not None and s.reply.single_plain and len(payload) == s.reply.size + 2:
+            return s.reply.struct.unpack_from(payload, 2)[0]
+    return decode_reply(cmd, payload).value
 
 
 def _format_value(value: Any) -> str:

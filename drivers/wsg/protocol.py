@@ -31,6 +31,7 @@ __all__ = [
     "encode_packet",
     "status_name",
     "to_status",
+    "whole_packet",
 ]
 
 # WSG manual 4.0.x §1.2.1: AA AA AA, id (u8), size (u16 LE), payload, checksum (u16, low byte first).
@@ -122,6 +123,32 @@ _set_command = Packet.command.__set__  # type: ignore[attr-defined]
 _set_payload = Packet.payload.__set__  # type: ignore[attr-defined]
 
 
+def whole_packet(
+    data: bytes | bytearray | memoryview, verify_checksum: bool = True, max_payload: int = MAX_PAYLOAD
+) -> Packet | None:
+    """``data`` as exactly one whole, valid packet; None for anything else (a stream needs the parser).
+
+    Why a function of its own: on TCP and UDP a received chunk is nearly always exactly one reply, and the
+    client checks the reply it reads for itself with this alone (docs/performance.md, target 2). It accepts
+    only what :class:`PacketParser` would turn into this one packet, so a None costs nothing but the rescan.
+    """
+    n = len(data)
+    if n < HEADER_SIZE + TRAILER_SIZE:
+        return None
+    size = data[4] | (data[5] << 8)
+    if (n != HEADER_SIZE + size + TRAILER_SIZE or size > max_payload or data[3] == 0xAA
+            or data[:3] != PREAMBLE):
+        return None
+    if verify_checksum:
+        crc = CRC_AFTER_PREAMBLE
+        table = CRC_TABLE
+        for byte in data[3:]:  # crc16() inlined: the call costs ~10 % of the check
+            crc = table[(crc & 0xFF) ^ byte] ^ (crc >> 8)
+        if crc:
+            return None
+    return Packet(data[3], bytes(data[HEADER_SIZE:-TRAILER_SIZE]))
+
+
 def decode_packet(raw: bytes, *, verify_checksum: bool = True) -> Packet:
     """Decode exactly one whole packet (strict: for tests, captures and tools, not for streams)."""
     if len(raw) < HEADER_SIZE + TRAILER_SIZE or raw[:3] != PREAMBLE:
@@ -201,21 +228,10 @@ class PacketParser:
         out = self._pending
         self._pending = []
         buf = self._buf
-        if not buf and not out and len(data) >= HEADER_SIZE + TRAILER_SIZE:
-            # The usual chunk on TCP and UDP is exactly one whole packet: decoded here without the buffer and
-            # the scan (half the parsing cost of a reply). Anything else takes the general path, which
-            # gives the same result for this case.
-            size = data[4] | (data[5] << 8)
-            if (len(data) == HEADER_SIZE + size + TRAILER_SIZE and size <= self._max_payload
-                    and data[3] != 0xAA and data[:3] == PREAMBLE):
-                crc = 0
-                if self._verify:
-                    crc = CRC_AFTER_PREAMBLE
-                    table = CRC_TABLE
-                    for byte in data[3:]:
-                        crc = table[(crc & 0xFF) ^ byte] ^ (crc >> 8)
-                if not crc:
-                    return [Packet(data[3], bytes(data[HEADER_SIZE:-TRAILER_SIZE]))]
+        if not buf and not out and (packet := whole_packet(data, self._verify, self._max_payload)):
+            # The usual chunk on TCP and UDP is exactly one whole packet: decoded without the buffer and the
+            # scan (half the parsing cost of a reply). The general path gives the same result for it.
+            return [packet]
         if data:
             buf += data
         if buf:

@@ -32,15 +32,21 @@ from enum import Enum
 from typing import Any
 
 from drivers.errors import GripperError, ProtocolError
-from drivers.wsg.commands import command_name
+from drivers.wsg.commands import COMMANDS, command_name
 from drivers.wsg.protocol import (
+    CRC_AFTER_PREAMBLE,
+    HEADER_SIZE,
     MAX_PAYLOAD,
+    PREAMBLE,
+    TRAILER_SIZE,
     ChecksumError,
     Packet,
     PacketParser,
     ParseEvent,
     Status,
+    crc16,
     encode_packet,
+    whole_packet,
 )
 
 __all__ = [
@@ -147,6 +153,8 @@ class Session:
         stale_final_ttl: float = 60.0,
     ) -> None:
         self.parser = PacketParser(verify_checksum=verify_checksum, max_payload=max_payload)
+        self._verify = verify_checksum
+        self._max_payload = max_payload
         self.stale_ttl = stale_ttl
         self.stale_final_ttl = stale_final_ttl
         self._active: dict[int, Exchange] = {}
@@ -173,8 +181,17 @@ class Session:
         self, command: int, payload: bytes = b"", *, now: float, context: Any = None
     ) -> tuple[Exchange, bytes]:
         """Register a request and return it with the bytes to write. The slot must be free (see is_busy)."""
-        if command in self._active or (self._stale and self.is_busy(command, now)):
+        opened = self.open(command, payload, now)
+        if opened is None:
             raise GripperError("another exchange of this id is outstanding", command=command_name(command))
+        if context is not None:
+            opened[0].context = context
+        return opened
+
+    def open(self, command: int, payload: bytes, now: float) -> tuple[Exchange, bytes] | None:
+        """:meth:`send` when the slot is free, else None: is_busy and send in one step for the client."""
+        if command in self._active or (self._stale and self.is_busy(command, now)):
+            return None
         payload = bytes(payload)
         key = (command, payload)
         raw = self._packets.get(key)
@@ -183,8 +200,6 @@ class Session:
             if len(payload) <= 8 and len(self._packets) < 256:  # bounded: motions carry varying floats
                 self._packets[key] = raw
         exchange = Exchange(command, payload, now)
-        if context is not None:  # a keyword argument costs as much as the rest of the construction
-            exchange.context = context
         self._active[command] = exchange
         return exchange, raw
 
@@ -238,6 +253,38 @@ class Session:
     def receive(self, data: bytes, now: float) -> list[SessionEvent]:
         """Bytes from the transport in, events out. Never raises on any input."""
         return self._route(self.parser.feed(data), now)
+
+    def take_reply(self, exchange: Exchange, data: bytes) -> Packet | None:
+        """The fast path of :meth:`receive` for a caller reading its own reply: when ``data`` is exactly the
+        final reply of ``exchange`` (the usual chunk on TCP and UDP), complete the exchange and return the
+        packet. Anything else returns None and changes nothing: pass the same bytes to :meth:`receive`.
+
+        Why: this one check replaces the parser's buffer, the routing and the event objects of a general
+        receive, a good part of what a state query costs the client (docs/performance.md, target 2).
+        """
+        if self.parser.buffered or exchange.state is not ExchangeState.SENT:
+            return None
+        cmd = exchange.command
+        head = _SUCCESS_HEADS.get(cmd)
+        if head is not None and len(data) == head[2] and data[:_SUCCESS_HEAD_SIZE] == head[0]:
+            # Everything up to the data was known before the reply came: only the data's checksum is left.
+            if self._verify and crc16(data[_SUCCESS_HEAD_SIZE:], head[1]):
+                return None  # receive() reports the checksum error
+            packet = Packet(cmd, data[HEADER_SIZE:-TRAILER_SIZE])
+        else:
+            packet = whole_packet(data, self._verify, self._max_payload)
+            if packet is None:
+                return None
+            payload = packet.payload
+            # An E_CMD_PENDING (or a reply without a status) is not final: receive() handles it.
+            if (packet.command != cmd or len(payload) < 2 or payload[0] | (payload[1] << 8) == _PENDING):
+                return None
+        if self._active.get(cmd) is not exchange:
+            return None
+        del self._active[cmd]
+        exchange.state = ExchangeState.DONE
+        exchange.reply = packet
+        return packet
 
     def reset_parser(self, now: float) -> list[SessionEvent]:
         """After a silent gap: drop a half-received packet and rescan what the parser held."""
@@ -313,6 +360,21 @@ class Session:
 
 
 _PENDING = int(Status.E_CMD_PENDING)
+
+
+def _success_head(cmd: int, size: int) -> tuple[bytes, int, int]:
+    """What a successful reply of ``size`` data bytes starts with, the checksum state after it and the
+    whole packet's length: known before the reply comes, so checking a reply is one comparison plus the
+    checksum of its data (the state queries' round trip, docs/performance.md, target 2)."""
+    head = PREAMBLE + bytes((cmd, (size + 2) & 0xFF, (size + 2) >> 8, 0, 0))  # u16 size, u16 E_SUCCESS
+    return head, crc16(head[len(PREAMBLE):], CRC_AFTER_PREAMBLE), len(head) + size + TRAILER_SIZE
+
+
+_SUCCESS_HEAD_SIZE = HEADER_SIZE + 2  # the header and the u16 status
+# Commands whose successful reply has a fixed size (no variable tail).
+_SUCCESS_HEADS: dict[int, tuple[bytes, int, int]] = {
+    cmd: _success_head(cmd, s.reply.size) for cmd, s in COMMANDS.items() if s.reply.tail is None
+}
 
 
 def _is_pending(packet: Packet) -> bool:

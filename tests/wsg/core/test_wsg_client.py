@@ -385,3 +385,42 @@ def test_url_factories_refuse_unknown_schemes() -> None:
         WsgClient.from_url("http://example.com")
     with pytest.raises(ConnectionLost):
         WsgClient.tcp("127.0.0.1", 1, connect_timeout=1.0)
+
+
+class _InterruptedOnce(TcpTransport):
+    """A real TCP line whose next send or receive is interrupted by Ctrl-C (KeyboardInterrupt), once."""
+
+    def __init__(self, host: str, port: int, where: str) -> None:
+        super().__init__(host, port)
+        self.where: str | None = where
+
+    def send(self, data: bytes) -> None:
+        if self.where == "send":
+            self.where = None
+            raise KeyboardInterrupt
+        super().send(data)
+
+    def recv(self, timeout: float) -> bytes:
+        if self.where == "recv":
+            self.where = None
+            raise KeyboardInterrupt
+        return super().recv(timeout)
+
+
+@pytest.mark.parametrize("where", ["send", "recv"])
+def test_ctrl_c_during_an_exchange_leaves_the_client_usable(wsg_sim, where) -> None:
+    """An interrupted caller gives back the reading role at once; its command id is free again once its
+    possible reply is accounted for (read, or its stale marker expired)."""
+    server = wsg_sim("tcp://127.0.0.1:0")
+    host, port = server.url.split("//")[1].split(":")
+    c = WsgClient(_InterruptedOnce(host, int(port), where), stale_ttl=0.3)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            c.width()
+        t0 = time.monotonic()
+        assert not c.system_state() & SystemFlags.SF_FAST_STOP  # another id: no wait for a reader role
+        assert time.monotonic() - t0 < 0.25
+        assert c.width() == pytest.approx(0.0)  # the same id, within the default timeout
+        assert c.stats["unsolicited"] == 0
+    finally:
+        c.close()

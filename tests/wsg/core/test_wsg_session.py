@@ -234,3 +234,27 @@ def test_events_are_typed() -> None:
     assert any(isinstance(e, ChecksumError) for e in events)
     assert all(isinstance(e, AutoUpdate | ChecksumError | Discarded | Unsolicited | StaleReply | Acknowledged)
                for e in events)
+
+
+def test_take_reply_completes_only_an_exact_final_reply() -> None:
+    """The caller's shortcut (docs/performance.md, target 2) takes exactly one final reply and declines
+    everything the general path must see, leaving the session untouched."""
+    s = Session()
+    ex, _ = s.send(0x43, encode_request(0x43), now=0.0)
+    good = reply(0x43, width=12.5)
+    assert s.take_reply(ex, good + reply(0x44, speed=1.0)) is None  # two packets: routing needed
+    assert s.take_reply(ex, good[:-1]) is None  # half a packet
+    assert s.take_reply(ex, reply(0x44, speed=1.0)) is None  # another id
+    assert s.take_reply(ex, good[:-1] + bytes([good[-1] ^ 1])) is None  # checksum
+    assert ex.state is ExchangeState.SENT and s.is_busy(0x43, 0.0)
+    assert s.take_reply(ex, good) == Packet(0x43, encode_reply(0x43, 0, width=12.5))
+    assert ex.state is ExchangeState.DONE and not s.is_busy(0x43, 0.0)
+
+    motion, _ = s.send(0x21, encode_request(0x21, width=10, speed=50), now=0.0)
+    assert s.take_reply(motion, reply(0x21, Status.E_CMD_PENDING)) is None  # not final
+    failed, _ = s.send(0x20, b"\x00", now=0.0)
+    assert s.take_reply(failed, reply(0x20, Status.E_ACCESS_DENIED)).status == Status.E_ACCESS_DENIED
+
+    s.receive(b"\xaa\xaa", now=0.0)  # the parser holds the start of a preamble: the bytes belong together
+    q, _ = s.send(0x45, encode_request(0x45), now=0.0)
+    assert s.take_reply(q, reply(0x45, force=3.0)) is None
