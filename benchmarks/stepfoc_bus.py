@@ -65,12 +65,8 @@ def raw_loop_cpu(channel: str, node: int, seconds: float) -> float:
         bus.shutdown()
 
 
-def run(quick: bool = False) -> list[Result]:
-    seconds = 3.0 if quick else 10.0
-    channel = f"bench-{uuid.uuid4().hex[:8]}"
-    models = [MsgModel(node=n) for n in range(NODES)]
-    server = serve_can(models, f"can://virtual/{channel}")
-    bus = StepfocBus(interface="virtual", channel=channel)
+def _polling_slice(bus: StepfocBus, seconds: float) -> tuple[float, int, float]:
+    """Sixteen pollers for ``seconds``: (client CPU per round trip, round trips, wall time)."""
     counts = [0] * NODES
     cpu = [0.0] * NODES
     start = threading.Barrier(NODES + 1)
@@ -88,26 +84,46 @@ def run(quick: bool = False) -> list[Result]:
         cpu[i] = time.thread_time() - c0
         counts[i] = n
 
+    threads = [threading.Thread(target=poller, args=(i,), daemon=True) for i in range(NODES)]
+    for t in threads:
+        t.start()
+    reader_cpu = thread_cpu_clock(bus._thread.ident)  # the bus's reader thread
+    start.wait()
+    r0, w0 = reader_cpu(), time.perf_counter()
+    time.sleep(seconds)
+    stop.set()
+    for t in threads:
+        t.join(5)
+    wall = time.perf_counter() - w0
+    total = sum(counts)
+    return (sum(cpu) + reader_cpu() - r0) / total, total, wall
+
+
+def run(quick: bool = False) -> list[Result]:
+    # Slices of polling alternate with slices of the bare loop, and each side keeps its least disturbed
+    # slice (the fastest run, as in targets 1 and 4): sixteen threads' CPU on a shared 2-core machine
+    # varies by half from one run to the next with the rest of the machine's load.
+    slices, seconds = (3, 1.0) if quick else (5, 2.0)
+    channel = f"bench-{uuid.uuid4().hex[:8]}"
+    models = [MsgModel(node=n) for n in range(NODES)]
+    server = serve_can(models, f"can://virtual/{channel}")
+    bus = StepfocBus(interface="virtual", channel=channel)
+    client_cpu: list[float] = []
+    raw_cpu: list[float] = []
+    total = 0
+    wall = 0.0
     try:
-        threads = [threading.Thread(target=poller, args=(i,), daemon=True) for i in range(NODES)]
-        for t in threads:
-            t.start()
-        reader_cpu = thread_cpu_clock(bus._thread.ident)  # the bus's reader thread
-        start.wait()
-        r0, w0 = reader_cpu(), time.perf_counter()
-        time.sleep(seconds)
-        stop.set()
-        for t in threads:
-            t.join(5)
-        wall = time.perf_counter() - w0
-        reader = reader_cpu() - r0
-        raw = raw_loop_cpu(channel, 0, seconds / 3)
+        for _ in range(slices):
+            per_rt, n, w = _polling_slice(bus, seconds)
+            client_cpu.append(per_rt)
+            total += n
+            wall += w
+            raw_cpu.append(raw_loop_cpu(channel, 0, seconds / 3))
     finally:
         bus.close()
         server.close()
-    total = sum(counts)
     rate = total / wall
-    cpu_per_rt = (sum(cpu) + reader) / total
+    cpu_per_rt, raw = min(client_cpu), min(raw_cpu)
     bus_per_rt = POLL_BITS / BITRATE
     limit = BITRATE / POLL_BITS
     own = cpu_per_rt - raw
@@ -123,8 +139,8 @@ def run(quick: bool = False) -> list[Result]:
             [f"{rate:.0f} round trips/s aggregate ({total} in {wall:.1f} s, python-can virtual bus, "
              f"simulator in-process); 1 Mbit/s limit for these frames: {limit:.0f}/s "
              f"({frame_bits(0)} + {frame_bits(4)} bits worst case)",
-             f"client threads' CPU {us(cpu_per_rt)}/rt (pollers {us(sum(cpu) / total)} + reader "
-             f"{us(reader / total)}) minus {us(raw)}/rt that a bare python-can send/recv loop spends on the "
-             f"virtual bus = own CPU"],
+             f"client threads' CPU {us(cpu_per_rt)}/rt (pollers and bus reader; best of {slices} slices, "
+             f"{us(max(client_cpu))} the worst) minus {us(raw)}/rt that a bare python-can send/recv loop "
+             f"spends on the virtual bus (best of {slices}) = own CPU"],
         )
     ]

@@ -131,15 +131,17 @@ def compare(a, b, repeats: int) -> tuple[float, float]:  # noqa: ANN001 - two ze
 
 
 def run(quick: bool = False) -> list[Result]:
-    n = 10_000 if quick else 40_000
-    repeats = 3 if quick else 7
+    # Short runs, many of them: the best of each side is then a run that nothing else on the machine
+    # disturbed (a quick run of 3 long repeats sometimes had none for one side).
+    n = 5_000 if quick else 40_000
+    repeats = 9 if quick else 7
     commands, statuses = motion_frames(n)
     check_same_frames(commands, statuses)
     args = _vendor_args(commands)
     distinct = len({bytes(m.data) for m in statuses})
+    # Each ratio against the vendor runs it alternated with: the same number of tries on both sides.
     fast, ref = compare(lambda: ours(commands, statuses), lambda: vendor(args, statuses), repeats)
     generic, ref2 = compare(lambda: ours_generic(commands, statuses), lambda: vendor(args, statuses), repeats)
-    ref = max(ref, ref2)
     return [
         Result(
             "4 stepfoc codec (61 enc + 60 dec)",
@@ -150,6 +152,6 @@ def run(quick: bool = False) -> list[Result]:
             fast >= RATIO_TARGET * ref,
             [f"{n} frames of a simulated motion, {distinct} distinct 60 frames; no decode cache",
              f"with decode_frame (generic, builds a Message too): {rate(generic, 'pairs')} = "
-             f"{generic / ref:.1f}x vendor"],
+             f"{generic / ref2:.1f}x vendor ({rate(ref2, 'pairs')} in that comparison)"],
         )
     ]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import threading
+import time
 from collections.abc import Callable
 
 import can
@@ -293,3 +294,27 @@ def test_repeated_command_bytes(sim: CanSimServer, canbus: StepfocBus) -> None:
     node.send_command(cmd)
     assert sim.model.position_setpoint == 9
     assert encode_command(cmd) == bytes([9, 9, 1, 44, 0x80])
+
+
+def test_closing_the_bus_wakes_a_waiting_request_at_once(channel: str) -> None:
+    """A poll to a node nobody answers is woken by close() with ConnectionLost, not left to its timeout;
+    many waiters at once, and a close racing replies, never break the reply slots."""
+    bus = StepfocBus(interface="virtual", channel=channel)
+    errors: list[BaseException] = []
+
+    def wait(node: int) -> None:
+        try:
+            bus.node(node, timeout=5.0).poll()
+        except BaseException as exc:  # noqa: BLE001 - collected for the assertion
+            errors.append(exc)
+
+    threads = [threading.Thread(target=wait, args=(n,)) for n in range(8)]
+    for t in threads:
+        t.start()
+    time.sleep(0.1)  # every poll sent and waiting
+    t0 = time.monotonic()
+    bus.close()
+    for t in threads:
+        t.join(5)
+    assert time.monotonic() - t0 < 2.5
+    assert len(errors) == 8 and all(isinstance(e, ConnectionLost) for e in errors)
