@@ -133,11 +133,17 @@ def pack_id(node: int, command: int, error: bool = False) -> int:
     return node << 7 | command << 1 | (1 if error else 0)
 
 
+# Every 11-bit identifier split once (2,048 tuples of cached small ints): one index per received frame.
+_SPLIT_IDS: tuple[tuple[int, int, bool], ...] = tuple(
+    (i >> 7, (i >> 1) & 0x3F, (i & 1) == 1) for i in range(0x800)
+)
+
+
 def unpack_id(arbitration_id: int) -> tuple[int, int, bool]:
     """(node, command, error bit) of an identifier; bits above the 11 standard ones are refused."""
     if not 0 <= arbitration_id <= 0x7FF:
         raise ProtocolError(f"identifier 0x{arbitration_id:X} is not a standard 11-bit identifier")
-    return arbitration_id >> 7, (arbitration_id >> 1) & 0x3F, (arbitration_id & 1) == 1
+    return _SPLIT_IDS[arbitration_id]
 
 
 # --------------------------------------------------------------------------------------------- typed values

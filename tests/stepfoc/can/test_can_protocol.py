@@ -64,6 +64,14 @@ def test_identifier_round_trip(node: int, command: int, error: bool) -> None:
     assert unpack_id(arbitration_id) == (node, command, error)
 
 
+def test_every_identifier_splits_and_packs_back() -> None:
+    """unpack_id reads a precomputed table: all 2,048 standard identifiers checked, and -1 refused."""
+    for arbitration_id in range(0x800):
+        assert pack_id(*unpack_id(arbitration_id)) == arbitration_id
+    with pytest.raises(ProtocolError):
+        unpack_id(-1)
+
+
 def test_identifier_layout() -> None:
     # PROTOCOL-NOTES §2: id = node << 7 | command << 1 | error
     assert pack_id(3, 61) == 0x1FA
