@@ -224,6 +224,10 @@ class PacketParser:
     def verify_checksum(self) -> bool:
         return self._verify
 
+    @property
+    def max_payload(self) -> int:
+        return self._max_payload
+
     def feed(self, data: bytes | bytearray | memoryview = b"") -> list[Packet | ParseEvent]:
         out = self._pending
         self._pending = []

@@ -27,9 +27,8 @@ update.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from enum import Enum
-from typing import Any
 
 from drivers.errors import GripperError, ProtocolError
 from drivers.wsg.commands import COMMANDS, command_name
@@ -73,7 +72,7 @@ class ExchangeState(Enum):
 
 @dataclass(eq=False, slots=True)
 class Exchange:
-    """One request and its replies. ``context`` belongs to the caller (the client keeps its waiter there)."""
+    """One request and its replies."""
 
     command: int
     payload: bytes
@@ -82,7 +81,6 @@ class Exchange:
     ack: Packet | None = None
     reply: Packet | None = None
     error: GripperError | None = None
-    context: Any = field(default=None, repr=False)
 
     @property
     def finished(self) -> bool:
@@ -153,8 +151,6 @@ class Session:
         stale_final_ttl: float = 60.0,
     ) -> None:
         self.parser = PacketParser(verify_checksum=verify_checksum, max_payload=max_payload)
-        self._verify = verify_checksum
-        self._max_payload = max_payload
         self.stale_ttl = stale_ttl
         self.stale_final_ttl = stale_final_ttl
         self._active: dict[int, Exchange] = {}
@@ -178,14 +174,12 @@ class Session:
         return stale is not None
 
     def send(
-        self, command: int, payload: bytes = b"", *, now: float, context: Any = None
+        self, command: int, payload: bytes = b"", *, now: float
     ) -> tuple[Exchange, bytes]:
         """Register a request and return it with the bytes to write. The slot must be free (see is_busy)."""
         opened = self.open(command, payload, now)
         if opened is None:
             raise GripperError("another exchange of this id is outstanding", command=command_name(command))
-        if context is not None:
-            opened[0].context = context
         return opened
 
     def open(self, command: int, payload: bytes, now: float) -> tuple[Exchange, bytes] | None:
@@ -268,11 +262,11 @@ class Session:
         head = _SUCCESS_HEADS.get(cmd)
         if head is not None and len(data) == head[2] and data[:_SUCCESS_HEAD_SIZE] == head[0]:
             # Everything up to the data was known before the reply came: only the data's checksum is left.
-            if self._verify and crc16(data[_SUCCESS_HEAD_SIZE:], head[1]):
+            if self.parser.verify_checksum and crc16(data[_SUCCESS_HEAD_SIZE:], head[1]):
                 return None  # receive() reports the checksum error
             packet = Packet(cmd, data[HEADER_SIZE:-TRAILER_SIZE])
         else:
-            packet = whole_packet(data, self._verify, self._max_payload)
+            packet = whole_packet(data, self.parser.verify_checksum, self.parser.max_payload)
             if packet is None:
                 return None
             payload = packet.payload

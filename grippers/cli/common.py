@@ -42,6 +42,17 @@ def non_negative_float(text: str) -> float:
     return value
 
 
+def can_id(text: str) -> int:
+    """An argparse type for a CAN identifier in decimal or 0x hex (``--wsg-id`` of probe and monitor)."""
+    try:
+        value = int(text, 0)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+    if not 0 <= value < 0x7FF:
+        raise argparse.ArgumentTypeError(f"not a standard CAN id below 0x7FF: {text!r}")
+    return value
+
+
 def add_target(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "target",

@@ -19,7 +19,7 @@ import time
 from collections.abc import Iterator
 from typing import Any
 
-from .common import add_can_flags, positive_float
+from .common import add_can_flags, can_id, positive_float
 from .output import EXIT_FAILED, EXIT_OK, MONITOR_SCHEMA_ID, UsageError, write_json
 
 HELP = "decode live CAN traffic, a WSG TCP connection (--proxy) or a capture, one line per frame or packet"
@@ -35,16 +35,6 @@ PROTOCOLS = ("auto", "wsg", "stepfoc")
 FORMATS = ("auto", "candump", "hex", "raw")
 TO_GRIPPER = "host->gripper"
 FROM_GRIPPER = "gripper->host"
-
-
-def _can_id(text: str) -> int:
-    try:
-        value = int(text, 0)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
-    if not 0 <= value < 0x7FF:
-        raise argparse.ArgumentTypeError(f"not a standard CAN id below 0x7FF: {text!r}")
-    return value
 
 
 def _host_port(text: str) -> tuple[str, int]:
@@ -72,7 +62,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--wsg-id",
-        type=_can_id,
+        type=can_id,
         default=0x000,
         metavar="ID",
         help="WSG over CAN: the command id; replies come on ID+1 (default 0x000, PROTOCOL-NOTES §1)",

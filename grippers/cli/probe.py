@@ -15,7 +15,7 @@ import time
 from dataclasses import dataclass
 from typing import Any
 
-from .common import DEFAULT_TIMEOUT, add_can_flags, info_dict, positive_float, state_dict
+from .common import DEFAULT_TIMEOUT, add_can_flags, can_id, info_dict, positive_float, state_dict
 from .output import (
     EXIT_FAILED,
     EXIT_OK,
@@ -67,23 +67,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--wsg-id",
-        type=_can_id,
+        type=can_id,
         action="append",
         metavar="ID",
         help="on a bare CAN bus, look for a WSG taking commands on ID and replying on ID+1 (repeatable; "
         "default: the ids of the WSG profiles, 0x000)",
     )
     add_can_flags(parser)
-
-
-def _can_id(text: str) -> int:
-    try:
-        value = int(text, 0)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
-    if not 0 <= value < 0x7FF:
-        raise argparse.ArgumentTypeError(f"not a standard CAN id below 0x7FF: {text!r}")
-    return value
 
 
 def _wsg_can_ids(given: list[int] | None) -> tuple[tuple[int, int], ...]:
