@@ -48,8 +48,8 @@ def can_id(text: str) -> int:
         value = int(text, 0)
     except ValueError:
         raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
-    if not 0 <= value < 0x7FF:
-        raise argparse.ArgumentTypeError(f"not a standard CAN id below 0x7FF: {text!r}")
+    if not 0 <= value <= 0x7FF:  # 11-bit identifiers: 0x7FF is a valid one
+        raise argparse.ArgumentTypeError(f"not a standard (11-bit) CAN id 0..0x7FF: {text!r}")
     return value
 
 
