@@ -78,7 +78,7 @@ class MsgSimProcess:
 
 
 def _msg_child(nodes: int, listen: str) -> None:
-    from drivers.stepfoc.sim import MsgModel, serve_can
+    from grippers.drivers.stepfoc.sim import MsgModel, serve_can
 
     server = serve_can([MsgModel(node=n) for n in range(nodes)], listen)
     print(server.url, flush=True)
@@ -87,7 +87,7 @@ def _msg_child(nodes: int, listen: str) -> None:
 
 
 def _child(time_scale: float, record: str | None) -> None:
-    from drivers.wsg.sim import WsgModel, serve
+    from grippers.drivers.wsg.sim import WsgModel, serve
 
     server = serve(WsgModel(), "tcp://127.0.0.1:0", time_scale=time_scale)
     sent: list[tuple[int, str]] = []

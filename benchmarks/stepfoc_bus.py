@@ -20,9 +20,9 @@ import uuid
 import can
 
 from benchmarks.common import Result, thread_cpu_clock, us
-from drivers.stepfoc.can_client import StepfocBus
-from drivers.stepfoc.can_protocol import Cmd, pack_id
-from drivers.stepfoc.sim import MsgModel, serve_can
+from grippers.drivers.stepfoc.can_client import StepfocBus
+from grippers.drivers.stepfoc.can_protocol import Cmd, pack_id
+from grippers.drivers.stepfoc.sim import MsgModel, serve_can
 
 BITRATE = 1_000_000
 NODES = 16

@@ -22,7 +22,7 @@ from Spectral_BLDC import CAN_utils, SpectralCAN
 from Spectral_BLDC.Spectral_BLDC import CanMessage
 
 from benchmarks.common import Result, rate
-from drivers.stepfoc.can_protocol import (
+from grippers.drivers.stepfoc.can_protocol import (
     Cmd,
     Detection,
     GripperCommand,

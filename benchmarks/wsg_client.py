@@ -18,9 +18,9 @@ from typing import Any
 
 from benchmarks.common import Result, median, rss_bytes, us
 from benchmarks.simproc import WsgSimProcess
-from drivers.wsg.client import WsgClient
-from drivers.wsg.commands import Cmd, decode_reply, encode_request
-from drivers.wsg.protocol import encode_packet
+from grippers.drivers.wsg.client import WsgClient
+from grippers.drivers.wsg.commands import Cmd, decode_reply, encode_request
+from grippers.drivers.wsg.protocol import encode_packet
 
 LATENCY_RATIO_LIMIT = 1.3
 MEMORY_LIMIT = 5 * 1024 * 1024

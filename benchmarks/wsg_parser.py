@@ -13,8 +13,8 @@ import random
 import struct
 
 from benchmarks.common import Result, best_rate, rate
-from drivers.wsg.commands import Cmd, GraspingState, SystemFlags, encode_reply
-from drivers.wsg.protocol import CRC_TABLE, Packet, PacketParser, Status, encode_packet
+from grippers.drivers.wsg.commands import Cmd, GraspingState, SystemFlags, encode_reply
+from grippers.drivers.wsg.protocol import CRC_TABLE, Packet, PacketParser, Status, encode_packet
 
 TARGET_PACKETS_PER_S = 100_000
 

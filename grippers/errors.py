@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from drivers.errors import (
+from grippers.drivers.errors import (
     CommandFailed,
     ConnectionLost,
     GripperError,

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from drivers.errors import (
+from grippers.drivers.errors import (
     CommandFailed,
     ConnectionLost,
     GripperError,

@@ -5,8 +5,8 @@ Two ways in: CAN (:mod:`.can_protocol`, sans-IO; :mod:`.can_client`, python-can)
 PROTOCOL-NOTES §2 overrides the MSG document on byte order, bit order and the object-detection bits.
 """
 
-from drivers.stepfoc.can_client import StepfocBus, StepfocNode, open_node
-from drivers.stepfoc.can_protocol import (
+from .can_client import StepfocBus, StepfocNode, open_node
+from .can_protocol import (
     COMMANDS,
     Cmd,
     Detection,

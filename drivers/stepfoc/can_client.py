@@ -23,7 +23,7 @@ from typing import Any
 
 import can
 
-from drivers.errors import (
+from ..errors import (
     CommandFailed,
     ConnectionLost,
     GripperError,
@@ -31,7 +31,7 @@ from drivers.errors import (
     LimitError,
     ProtocolError,
 )
-from drivers.stepfoc.can_protocol import (
+from .can_protocol import (
     COMMANDS,
     DEFAULT_BITRATE,
     MAX_NODE,
@@ -63,7 +63,7 @@ _READ_POLL_S = 0.05  # the reader's longest block, so close() returns promptly
 
 def parse_url(url: str) -> tuple[str, str, dict[str, str]]:
     """``stepfoc+can://INTERFACE/CHANNEL?node=N&bitrate=B`` -> (interface, channel, query)."""
-    from drivers.stepfoc.sim.can_server import parse_can_url  # the one parser, shared with the simulator
+    from .sim.can_server import parse_can_url  # the one parser, shared with the simulator
 
     return parse_can_url(url)
 

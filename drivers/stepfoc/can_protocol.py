@@ -20,7 +20,7 @@ from dataclasses import dataclass
 from enum import Enum, IntEnum
 from typing import Any, NamedTuple
 
-from drivers.errors import LimitError, ProtocolError
+from ..errors import LimitError, ProtocolError
 
 __all__ = [
     "COMMANDS",

@@ -4,7 +4,7 @@ The protocol has no framing, no echo and no acknowledgement, and unknown command
 so every exchange is: flush what is waiting, send one line, read lines until the expected answer arrives,
 throwing away (a bounded number of) lines that are something else, all within a timeout. One lock per
 exchange keeps threads from reading each other's answers. The text itself comes from
-:mod:`drivers.stepfoc.uart_protocol`.
+:mod:`grippers.drivers.stepfoc.uart_protocol`.
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from typing import TypeVar
 
 import serial
 
-from drivers.errors import (
+from ..errors import (
     ConnectionLost,
     GripperError,
     GripperTimeout,
@@ -25,7 +25,7 @@ from drivers.errors import (
     NotSupported,
     ProtocolError,
 )
-from drivers.stepfoc.uart_protocol import (
+from .uart_protocol import (
     BAUDRATE,
     COMMANDS,
     MAX_CURRENT_MA,

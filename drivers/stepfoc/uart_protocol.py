@@ -21,8 +21,8 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from typing import Any
 
-from drivers.errors import LimitError, ProtocolError
-from drivers.stepfoc.can_protocol import Detection
+from ..errors import LimitError, ProtocolError
+from .can_protocol import Detection
 
 BAUDRATE = 256_000  # PROTOCOL-NOTES §2 UART
 MAX_COMMAND_CHARS = 20  # name + argument, PROTOCOL-NOTES §2 UART

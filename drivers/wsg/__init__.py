@@ -5,7 +5,7 @@ on top, over the byte lines of ``transports``. The client and the simulator (``s
 The client's names load lazily, so importing the codec pulls in no socket, thread, serial or CAN module.
 """
 
-from drivers.wsg.commands import (
+from .commands import (
     COMMANDS,
     Cmd,
     CommandSpec,
@@ -27,7 +27,7 @@ from drivers.wsg.commands import (
     encode_reply,
     encode_request,
 )
-from drivers.wsg.protocol import (
+from .protocol import (
     PREAMBLE,
     BadLength,
     ChecksumError,
@@ -45,10 +45,10 @@ _LAZY = {"Pending", "Subscription", "WsgClient"}
 
 def __getattr__(name: str) -> object:
     if name in _LAZY:
-        from drivers.wsg import client
+        from . import client
 
         return getattr(client, name)
-    raise AttributeError(f"module 'drivers.wsg' has no attribute {name!r}")
+    raise AttributeError(f"module 'grippers.drivers.wsg' has no attribute {name!r}")
 
 
 __all__ = [

@@ -1,8 +1,8 @@
 """The threaded WSG client: one connection over any transport, read by whichever thread needs the bytes.
 
-The matching rules live in :mod:`drivers.wsg.session` (sans-IO); this module adds the reading, the waiting
-with timeouts, the typed command methods and the auto-update subscriptions. Any number of threads may call
-the client at once: requests with different command ids run concurrently (state queries while a motion is
+The matching rules live in :mod:`grippers.drivers.wsg.session` (sans-IO); this module adds the reading, the
+waiting with timeouts, the typed command methods and the auto-update subscriptions. Any number of threads may
+call the client at once: requests with different command ids run concurrently (state queries while a motion is
 pending), requests with the same id take turns (see the session's docstring for why).
 
 Who reads (leader/follower): at most one thread is inside ``transport.recv`` at a time. A caller waiting for
@@ -26,7 +26,7 @@ from urllib.parse import parse_qs, urlsplit
 
 from can import BusABC
 
-from drivers.errors import (
+from ..errors import (
     CommandFailed,
     ConnectionLost,
     GripperError,
@@ -35,7 +35,7 @@ from drivers.errors import (
     NotSupported,
     ProtocolError,
 )
-from drivers.wsg.commands import (
+from .commands import (
     AUTO_UPDATE_COMMANDS,
     COMMANDS,
     Cmd,
@@ -54,8 +54,8 @@ from drivers.wsg.commands import (
     encode_request,
     reply_value,
 )
-from drivers.wsg.protocol import BadLength, ChecksumError, Discarded, Packet, Status
-from drivers.wsg.session import (
+from .protocol import BadLength, ChecksumError, Discarded, Packet, Status
+from .session import (
     AutoUpdate,
     Completed,
     Exchange,
@@ -64,7 +64,7 @@ from drivers.wsg.session import (
     StaleReply,
     Unsolicited,
 )
-from drivers.wsg.transports import (
+from .transports import (
     DEFAULT_BAUDRATE,
     DEFAULT_CAN_RECV_ID,
     DEFAULT_CAN_SEND_ID,

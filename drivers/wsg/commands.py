@@ -14,8 +14,8 @@ from dataclasses import dataclass, field
 from enum import IntEnum, IntFlag
 from typing import Any
 
-from drivers.errors import LimitError, ProtocolError
-from drivers.wsg.protocol import Packet, Status, status_name, to_status
+from ..errors import LimitError, ProtocolError
+from .protocol import Packet, Status, status_name, to_status
 
 __all__ = [
     "COMMANDS",

@@ -11,7 +11,7 @@ import struct
 from dataclasses import dataclass
 from enum import IntEnum
 
-from drivers.errors import ProtocolError
+from ..errors import ProtocolError
 
 __all__ = [
     "CRC_TABLE",

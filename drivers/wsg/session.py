@@ -30,9 +30,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from enum import Enum
 
-from drivers.errors import GripperError, ProtocolError
-from drivers.wsg.commands import COMMANDS, command_name
-from drivers.wsg.protocol import (
+from ..errors import GripperError, ProtocolError
+from .commands import COMMANDS, command_name
+from .protocol import (
     CRC_AFTER_PREAMBLE,
     HEADER_SIZE,
     MAX_PAYLOAD,

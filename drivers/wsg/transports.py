@@ -1,8 +1,9 @@
 """Byte transports for the WSG client: TCP, UDP, serial (pyserial) and CAN (python-can).
 
-A transport only moves bytes; framing lives in :mod:`drivers.wsg.protocol`. ``recv`` returns ``b""`` when
-nothing arrived within its timeout and raises :class:`ConnectionLost` when the line is gone, so the reader
-thread can tell silence from failure. Every transport may be written from one thread while another reads.
+A transport only moves bytes; framing lives in :mod:`grippers.drivers.wsg.protocol`. ``recv`` returns ``b""``
+when nothing arrived within its timeout and raises :class:`ConnectionLost` when the line is gone, so the
+reader thread can tell silence from failure. Every transport may be written from one thread while another
+reads.
 """
 
 from __future__ import annotations
@@ -16,8 +17,8 @@ from typing import Protocol
 import can
 import serial
 
-from drivers.errors import ConnectionLost, GripperTimeout
-from drivers.wsg.protocol import can_frames
+from ..errors import ConnectionLost, GripperTimeout
+from .protocol import can_frames
 
 __all__ = [
     "DEFAULT_CAN_RECV_ID",
@@ -64,7 +65,7 @@ def _blocking_with_timeouts(sock: socket.socket) -> None:
 
 
 class Transport(Protocol):
-    """What :class:`~drivers.wsg.client.WsgClient` needs from a line."""
+    """What :class:`~grippers.drivers.wsg.client.WsgClient` needs from a line."""
 
     name: str
     #: True where the WSG knows about connections (TCP): the client then announces its disconnect with 07h.

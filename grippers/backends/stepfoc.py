@@ -14,7 +14,7 @@ import uuid
 from dataclasses import dataclass
 from typing import Any
 
-from drivers.stepfoc.can_protocol import Detection, GripperStatus
+from grippers.drivers.stepfoc.can_protocol import Detection, GripperStatus
 
 from ..errors import CommandFailed, ConnectionLost, GripperTimeout, ProtocolError, URLError
 from ..gripper import Capability, DeviceInfo, GraspResult, GraspState, Gripper, GripperState, MotionResult
@@ -102,7 +102,7 @@ class _CanLink(_Link):
     def __init__(
         self, interface: str, channel: str, bitrate: int, node: int, current_limit: int, timeout: float
     ):
-        from drivers.stepfoc.can_client import StepfocBus
+        from grippers.drivers.stepfoc.can_client import StepfocBus
 
         self._key = (interface, channel)
         with self._buses_lock:
@@ -161,7 +161,7 @@ class _CanLink(_Link):
 
 class _UartLink(_Link):
     def __init__(self, port: str, baudrate: int, current_limit: int, timeout: float) -> None:
-        from drivers.stepfoc.uart_client import StepfocUart
+        from grippers.drivers.stepfoc.uart_client import StepfocUart
 
         self.port = port
         self.driver = StepfocUart(port, baudrate=baudrate, timeout=timeout, current_limit_ma=current_limit)
@@ -472,7 +472,7 @@ class StepfocBackend:
 
     def sim_model(self, profile: ProfileBase, node: int, part_width_mm: float | None) -> Any:
         """A simulated MSG on ``node`` with the profile's travel and a part of ``part_width_mm``."""
-        from drivers.stepfoc.sim import MsgModel
+        from grippers.drivers.stepfoc.sim import MsgModel
 
         assert isinstance(profile, MsgProfile)
         sim = profile.simulator
@@ -486,7 +486,7 @@ class StepfocBackend:
         )
 
     def serve(self, models: list[Any], listen: str, settings: Settings) -> Any:
-        from drivers.stepfoc.sim import serve_can, serve_uart
+        from grippers.drivers.stepfoc.sim import serve_can, serve_uart
 
         assert models
         time_scale = settings.positive("time_scale", 1.0)

@@ -1,4 +1,4 @@
-"""The WSG backend: :class:`drivers.wsg.client.WsgClient` behind the SI :class:`grippers.Gripper`.
+"""The WSG backend: :class:`grippers.drivers.wsg.client.WsgClient` behind the SI :class:`grippers.Gripper`.
 
 The driver speaks mm, mm/s and N; the conversion happens here and nowhere else. The device's own Get System
 Limits (53h) answer narrows the profile's limits at connect time, so a profile with optimistic datasheet
@@ -11,10 +11,10 @@ import time
 import uuid
 from typing import Any
 
-from drivers.errors import CommandFailed
-from drivers.wsg.client import WsgClient
-from drivers.wsg.commands import GraspingState, SystemFlags, SystemInfo, SystemLimits
-from drivers.wsg.protocol import Status
+from grippers.drivers.errors import CommandFailed
+from grippers.drivers.wsg.client import WsgClient
+from grippers.drivers.wsg.commands import GraspingState, SystemFlags, SystemInfo, SystemLimits
+from grippers.drivers.wsg.protocol import Status
 
 from ..gripper import Capability, DeviceInfo, GraspResult, GraspState, Gripper, GripperState, MotionResult
 from ..profiles import (
@@ -250,7 +250,7 @@ class WsgBackend:
 
     def simulator(self, profile: ProfileBase, settings: Settings, listen: str | None = None) -> Any:
         """A WSG simulator for ``profile`` serving on ``listen`` (default: loopback TCP, a free port)."""
-        from drivers.wsg.sim import WsgModel, serve
+        from grippers.drivers.wsg.sim import WsgModel, serve
 
         assert isinstance(profile, WsgProfile)
         m, sim = profile.mechanics, profile.simulator

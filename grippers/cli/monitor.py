@@ -143,7 +143,7 @@ class WsgStream:
     """Reassembles WSG packets from a byte stream per direction and decodes each with the command table."""
 
     def __init__(self) -> None:
-        from drivers.wsg import commands, protocol
+        from grippers.drivers.wsg import commands, protocol
 
         self._c = commands
         self._p = protocol
@@ -283,7 +283,7 @@ class CanDecoder:
         direction = FROM_GRIPPER if arbitration_id == self.wsg_id + 1 else TO_GRIPPER
         if not is_remote and self._is_wsg(arbitration_id, data, direction):
             return list(self._wsg_stream().feed(direction, data, stamp))
-        from drivers.stepfoc import can_protocol as cp
+        from grippers.drivers.stepfoc import can_protocol as cp
 
         node, command, _error = cp.unpack_id(arbitration_id)
         base = {

@@ -53,7 +53,7 @@ def test_hex_dump_with_directions(tmp_path: Path, cli) -> None:
 
 
 def test_direction_is_inferred_from_the_layout(tmp_path: Path, cli) -> None:
-    from drivers.wsg import Cmd, encode_packet, encode_reply, encode_request
+    from grippers.drivers.wsg import Cmd, encode_packet, encode_reply, encode_request
 
     move = encode_packet(
         Cmd.PREPOSITION,

@@ -18,9 +18,9 @@ from typing import Any
 
 import pytest
 
-from drivers.stepfoc.sim import MsgModel, serve_can, serve_uart
-from drivers.wsg.client import WsgClient
-from drivers.wsg.sim import WsgModel, serve
+from grippers.drivers.stepfoc.sim import MsgModel, serve_can, serve_uart
+from grippers.drivers.wsg.client import WsgClient
+from grippers.drivers.wsg.sim import WsgModel, serve
 
 WSG_TIME_SCALE = 50.0
 MSG_TIME_SCALE = 200.0  # an MSG calibration (~8 s simulated) then takes ~40 ms

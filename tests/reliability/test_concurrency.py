@@ -10,12 +10,12 @@ from collections.abc import Callable
 
 import pytest
 
-from drivers.errors import GripperTimeout
-from drivers.stepfoc.can_client import StepfocBus
-from drivers.stepfoc.sim import MsgModel, serve_can
-from drivers.wsg.client import WsgClient
-from drivers.wsg.commands import Cmd, GraspingState, SystemFlags
-from drivers.wsg.sim import WsgModel, serve
+from grippers.drivers.errors import GripperTimeout
+from grippers.drivers.stepfoc.can_client import StepfocBus
+from grippers.drivers.stepfoc.sim import MsgModel, serve_can
+from grippers.drivers.wsg.client import WsgClient
+from grippers.drivers.wsg.commands import Cmd, GraspingState, SystemFlags
+from grippers.drivers.wsg.sim import WsgModel, serve
 
 THREADS = 8
 COMMANDS_PER_THREAD = 1000

@@ -10,11 +10,11 @@ import pytest
 from can.interfaces.virtual import VirtualBus
 
 import grippers
-from drivers.errors import ConnectionLost, GripperError, GripperTimeout, ProtocolError
-from drivers.stepfoc.can_client import StepfocBus
-from drivers.stepfoc.can_protocol import Cmd, pack_id
-from drivers.stepfoc.sim import MsgModel
-from drivers.stepfoc.uart_client import StepfocUart
+from grippers.drivers.errors import ConnectionLost, GripperError, GripperTimeout, ProtocolError
+from grippers.drivers.stepfoc.can_client import StepfocBus
+from grippers.drivers.stepfoc.can_protocol import Cmd, pack_id
+from grippers.drivers.stepfoc.sim import MsgModel
+from grippers.drivers.stepfoc.uart_client import StepfocUart
 
 
 class FailingBus(VirtualBus):
@@ -144,7 +144,7 @@ def test_shut_down_bus_maps_to_connection_lost(msg_can_sim, can_channel) -> None
 
 
 def test_wsg_over_can_send_failure_maps_to_connection_lost(wsg_sim, can_channel) -> None:
-    from drivers.wsg.client import WsgClient
+    from grippers.drivers.wsg.client import WsgClient
 
     wsg_sim(f"can://virtual/{can_channel}")
     raw = FailingBus(channel=can_channel)

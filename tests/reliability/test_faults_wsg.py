@@ -1,7 +1,7 @@
 """WSG faults injected through the simulator's hooks: the exception the user sees and the state afterwards.
 
-Every fault goes through ``server.faults`` (drivers.simkit.FaultHooks) on a real loopback TCP connection,
-or closes the simulator's pseudo-terminal for the vanishing serial port.
+Every fault goes through ``server.faults`` (grippers.drivers.simkit.FaultHooks) on a real loopback TCP
+connection, or closes the simulator's pseudo-terminal for the vanishing serial port.
 """
 
 from __future__ import annotations
@@ -11,9 +11,9 @@ import time
 import pytest
 
 import grippers
-from drivers.errors import CommandFailed, ConnectionLost, GripperError, GripperTimeout, ProtocolError
-from drivers.wsg.commands import SystemFlags
-from drivers.wsg.protocol import Status, encode_packet
+from grippers.drivers.errors import CommandFailed, ConnectionLost, GripperError, GripperTimeout, ProtocolError
+from grippers.drivers.wsg.commands import SystemFlags
+from grippers.drivers.wsg.protocol import Status, encode_packet
 
 SLOW = 2.0  # mm/s: a motion that is still running when the fault hits
 

@@ -14,8 +14,8 @@ import itertools
 from hypothesis import given
 from hypothesis import strategies as st
 
-from drivers.errors import ProtocolError
-from drivers.stepfoc.can_protocol import (
+from grippers.drivers.errors import ProtocolError
+from grippers.drivers.stepfoc.can_protocol import (
     COMMANDS,
     Cmd,
     FrameLengthError,
@@ -23,8 +23,8 @@ from drivers.stepfoc.can_protocol import (
     decode_frame,
     pack_id,
 )
-from drivers.stepfoc.uart_protocol import COMMANDS as UART_COMMANDS
-from drivers.stepfoc.uart_protocol import Line, LineSplitter, LineTooLong, encode_lines
+from grippers.drivers.stepfoc.uart_protocol import COMMANDS as UART_COMMANDS
+from grippers.drivers.stepfoc.uart_protocol import Line, LineSplitter, LineTooLong, encode_lines
 
 
 def _check_frame(arbitration_id: int, data: bytes, remote: bool) -> None:

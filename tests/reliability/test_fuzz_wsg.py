@@ -13,9 +13,9 @@ import struct
 from hypothesis import given
 from hypothesis import strategies as st
 
-from drivers.errors import ProtocolError
-from drivers.wsg.commands import COMMANDS, RequestFormatError, decode_reply, decode_request
-from drivers.wsg.protocol import (
+from grippers.drivers.errors import ProtocolError
+from grippers.drivers.wsg.commands import COMMANDS, RequestFormatError, decode_reply, decode_request
+from grippers.drivers.wsg.protocol import (
     HEADER_SIZE,
     MAX_PAYLOAD,
     TRAILER_SIZE,

@@ -13,10 +13,10 @@ import struct
 from hypothesis import given
 from hypothesis import strategies as st
 
-from drivers.errors import ProtocolError
-from drivers.wsg.commands import COMMANDS, decode_reply, encode_reply, reply_value
-from drivers.wsg.protocol import PacketParser, Status, encode_packet, whole_packet
-from drivers.wsg.session import Completed, ExchangeState, Session
+from grippers.drivers.errors import ProtocolError
+from grippers.drivers.wsg.commands import COMMANDS, decode_reply, encode_reply, reply_value
+from grippers.drivers.wsg.protocol import PacketParser, Status, encode_packet, whole_packet
+from grippers.drivers.wsg.session import Completed, ExchangeState, Session
 
 STATE_QUERIES = (0x40, 0x41, 0x43, 0x44, 0x45)
 commands = st.sampled_from(sorted(COMMANDS))

@@ -17,11 +17,11 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 import grippers
-from drivers.errors import CommandFailed, LimitError
-from drivers.stepfoc.sim import MsgModel
-from drivers.stepfoc.uart_client import StepfocUart
-from drivers.wsg.commands import decode_request
-from drivers.wsg.sim import WsgModel, serve
+from grippers.drivers.errors import CommandFailed, LimitError
+from grippers.drivers.stepfoc.sim import MsgModel
+from grippers.drivers.stepfoc.uart_client import StepfocUart
+from grippers.drivers.wsg.commands import decode_request
+from grippers.drivers.wsg.sim import WsgModel, serve
 
 ROOT = Path(__file__).resolve().parents[2]
 LOOPBACK = "127.0.0.1"
@@ -213,7 +213,7 @@ def test_no_api_path_sends_an_msg_value_outside_the_limits(
 
 def test_msg_driver_clamps_current_to_the_profile_limit(msg_can_sim, can_channel, msg_uart_sim) -> None:
     """The MSG firmware does not clamp its current (PROTOCOL-NOTES §2): the drivers do, before sending."""
-    from drivers.stepfoc.can_client import StepfocBus
+    from grippers.drivers.stepfoc.can_client import StepfocBus
 
     server = msg_can_sim(MsgModel(node=0))
     with StepfocBus(interface="virtual", channel=can_channel) as bus:

@@ -19,12 +19,12 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from drivers.stepfoc.can_client import StepfocBus
-from drivers.stepfoc.can_protocol import Cmd, decode_status, pack_id
-from drivers.stepfoc.sim import MsgModel
-from drivers.wsg.commands import COMMANDS, RequestFormatError, decode_request
-from drivers.wsg.protocol import Packet, PacketParser, Status, encode_packet
-from drivers.wsg.sim import WsgModel, serve
+from grippers.drivers.stepfoc.can_client import StepfocBus
+from grippers.drivers.stepfoc.can_protocol import Cmd, decode_status, pack_id
+from grippers.drivers.stepfoc.sim import MsgModel
+from grippers.drivers.wsg.commands import COMMANDS, RequestFormatError, decode_request
+from grippers.drivers.wsg.protocol import Packet, PacketParser, Status, encode_packet
+from grippers.drivers.wsg.sim import WsgModel, serve
 
 NETWORK = settings(max_examples=40, deadline=None)
 
@@ -165,7 +165,7 @@ def test_msg_sim_and_client_survive_random_frames_on_the_bus(msg_can_sim, can_ch
 
 @pytest.fixture(scope="module")
 def uart_port():
-    from drivers.stepfoc.sim import serve_uart
+    from grippers.drivers.stepfoc.sim import serve_uart
 
     server = serve_uart(MsgModel(), "pty", time_scale=200)
     fd = os.open(server.path, os.O_RDWR | os.O_NOCTTY)

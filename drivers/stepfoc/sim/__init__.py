@@ -8,8 +8,8 @@ from __future__ import annotations
 
 from typing import Any
 
-from drivers.stepfoc.sim.can_server import CanSimServer, serve_can
-from drivers.stepfoc.sim.model import MsgModel
+from .can_server import CanSimServer, serve_can
+from .model import MsgModel
 
 __all__ = ["CanSimServer", "MsgModel", "serve", "serve_can", "serve_uart"]
 
@@ -17,8 +17,8 @@ __all__ = ["CanSimServer", "MsgModel", "serve", "serve_can", "serve_uart"]
 def serve_uart(
     model: MsgModel | None = None, listen: str = "pty", *, time_scale: float = 1.0, **kw: Any
 ) -> Any:
-    """Serve ``model`` on a pseudo-terminal (see :mod:`drivers.stepfoc.sim.uart_server`)."""
-    from drivers.stepfoc.sim.uart_server import serve_uart as _serve_uart
+    """Serve ``model`` on a pseudo-terminal (see :mod:`grippers.drivers.stepfoc.sim.uart_server`)."""
+    from .uart_server import serve_uart as _serve_uart
 
     return _serve_uart(model if model is not None else MsgModel(), listen, time_scale=time_scale, **kw)
 

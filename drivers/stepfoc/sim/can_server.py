@@ -1,8 +1,9 @@
 """Serve one or several simulated MSG nodes on a python-can bus (virtual, udp_multicast, socketcan, …).
 
 The server is thin: one thread reads the bus, advances every model to the scaled clock, lets the model whose
-node id matches answer, and applies the test's :class:`~drivers.simkit.FaultHooks` to each reply. Heartbeats
-(command 9) are sent from the same thread; only replies a test asked to DELAY leave from a timer thread.
+node id matches answer, and applies the test's :class:`~grippers.drivers.simkit.FaultHooks` to each reply.
+Heartbeats (command 9) are sent from the same thread; only replies a test asked to DELAY leave from a timer
+thread.
 
 Reach: python-can's ``udp_multicast`` bus binds to all interfaces and sends with TTL / hop limit 1, so its
 frames stay on the local link but are NOT confined to loopback; on Linux every bus on the host with the same
@@ -17,10 +18,10 @@ from urllib.parse import parse_qs
 
 import can
 
-from drivers.errors import ConnectionLost
-from drivers.simkit import FaultHooks, FaultKind, SimClock
-from drivers.stepfoc.can_protocol import DEFAULT_BITRATE, CanFrame
-from drivers.stepfoc.sim.model import MsgModel
+from ...errors import ConnectionLost
+from ...simkit import FaultHooks, FaultKind, SimClock
+from ..can_protocol import DEFAULT_BITRATE, CanFrame
+from .model import MsgModel
 
 __all__ = ["CanSimServer", "parse_can_url", "serve_can"]
 

@@ -33,8 +33,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from enum import Enum
 
-from drivers.errors import ProtocolError
-from drivers.stepfoc.can_protocol import (
+from ...errors import ProtocolError
+from ..can_protocol import (
     COMMANDS,
     CanFrame,
     Cmd,

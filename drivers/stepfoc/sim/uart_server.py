@@ -1,9 +1,10 @@
 """The MSG gripper's UART text interface, simulated on a pseudo-terminal.
 
 A client opens the pty's slave path like any serial port (pyserial, minicom, the vendor's tools) and talks the
-exact text protocol. The device behaviour lives in :class:`~drivers.stepfoc.sim.model.MsgModel` (shared with
-the CAN simulator); the request parsing and every answer line come from
-:mod:`drivers.stepfoc.uart_protocol`, so this module only maps commands onto the model and moves bytes.
+exact text protocol. The device behaviour lives in :class:`~grippers.drivers.stepfoc.sim.model.MsgModel`
+(shared with the CAN simulator); the request parsing and every answer line come from
+:mod:`grippers.drivers.stepfoc.uart_protocol`, so this module only maps commands onto the model and moves
+bytes.
 """
 
 from __future__ import annotations
@@ -16,9 +17,8 @@ import time
 import tty
 from collections.abc import Sequence
 
-from drivers.simkit import FaultHooks, FaultKind, SimClock
-from drivers.stepfoc.sim.model import MsgModel
-from drivers.stepfoc.uart_protocol import (
+from ...simkit import FaultHooks, FaultKind, SimClock
+from ..uart_protocol import (
     COMMANDS,
     UNKNOWN_COMMAND,
     CommandReceiver,
@@ -30,6 +30,7 @@ from drivers.stepfoc.uart_protocol import (
     render_gripinfo,
     render_info,
 )
+from .model import MsgModel
 
 _TICK_S = 0.02  # wall seconds between control-loop advances while idle
 _MAX_OUT = 64 * 1024  # bytes held for a client that does not read; beyond that answers are lost, as on a UART

@@ -2,9 +2,9 @@
 
 Every transport (TCP, UDP, pty, CAN) differs only in how bytes come in and go out, so this base class owns
 everything else: the scaled clock that advances the model, the per-link packet parsers (the client's
-own :class:`~drivers.wsg.protocol.PacketParser`), the silent-gap resynchronisation, the fault hooks applied to
-each outgoing packet, and the timing of due packets (async final replies, auto updates), which the model
-announces with ``next_event_time`` so the thread sleeps exactly until then instead of polling.
+own :class:`~grippers.drivers.wsg.protocol.PacketParser`), the silent-gap resynchronisation, the fault hooks
+applied to each outgoing packet, and the timing of due packets (async final replies, auto updates), which the
+model announces with ``next_event_time`` so the thread sleeps exactly until then instead of polling.
 """
 
 from __future__ import annotations
@@ -15,9 +15,9 @@ import threading
 import time
 from collections.abc import Callable
 
-from drivers.simkit import FaultHooks, FaultKind, SimClock
-from drivers.wsg.protocol import ChecksumError, Packet, PacketParser
-from drivers.wsg.sim.model import WsgModel
+from ...simkit import FaultHooks, FaultKind, SimClock
+from ..protocol import ChecksumError, Packet, PacketParser
+from .model import WsgModel
 
 # PROTOCOL-NOTES §1: a device drops a half-received packet after a silent gap of tens of milliseconds.
 SILENT_GAP_S = 0.03

@@ -3,8 +3,8 @@
 The model owns no clock, socket or thread: a server passes the time in (``handle(packet, now)``,
 ``advance(now)``) and writes the reply packets it gets back. That keeps every rule of the manuals testable by
 direct calls, and lets one model be served over any transport. Byte layouts come from
-:mod:`drivers.wsg.protocol` and :mod:`drivers.wsg.commands` only (the client's own codec), so the simulator
-can never disagree with the client about a layout without a test noticing.
+:mod:`grippers.drivers.wsg.protocol` and :mod:`grippers.drivers.wsg.commands` only (the client's own codec),
+so the simulator can never disagree with the client about a layout without a test noticing.
 
 Connections: a gripper keeps per-connection state (07h, auto updates, where an async final reply goes), so the
 model numbers its connections. Connection 0 exists from the start and is connection-oriented (TCP-like); a
@@ -22,8 +22,8 @@ import struct
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-from drivers.errors import ProtocolError
-from drivers.wsg.commands import (
+from ...errors import ProtocolError
+from ..commands import (
     COMMANDS,
     Cmd,
     FingerFlags,
@@ -34,8 +34,8 @@ from drivers.wsg.commands import (
     decode_request,
     encode_reply,
 )
-from drivers.wsg.protocol import Packet, Status, encode_packet
-from drivers.wsg.sim.motion import Trapezoid
+from ..protocol import Packet, Status, encode_packet
+from .motion import Trapezoid
 
 # What the simulator leaves out; the lead copies this into the issue note.
 NOT_MODELLED = (

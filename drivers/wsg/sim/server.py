@@ -15,9 +15,9 @@ from urllib.parse import parse_qs, urlsplit
 
 import can
 
-from drivers.wsg.sim.engine import SimServer
-from drivers.wsg.sim.model import WsgModel
-from drivers.wsg.sim.transports import CanSimServer, PtySimServer, TcpSimServer, UdpSimServer
+from .engine import SimServer
+from .model import WsgModel
+from .transports import CanSimServer, PtySimServer, TcpSimServer, UdpSimServer
 
 __all__ = ["SimServer", "serve"]
 

@@ -13,9 +13,9 @@ import tty
 
 import can
 
-from drivers.wsg.protocol import PacketParser, can_frames
-from drivers.wsg.sim.engine import Link, SimServer
-from drivers.wsg.sim.model import WsgModel
+from ..protocol import PacketParser, can_frames
+from .engine import Link, SimServer
+from .model import WsgModel
 
 
 class _SelectorServer(SimServer):

@@ -11,9 +11,9 @@ from collections.abc import Callable, Iterator
 import can
 import pytest
 
-from drivers.stepfoc.can_client import StepfocBus
-from drivers.stepfoc.sim import MsgModel, serve_can
-from drivers.stepfoc.sim.can_server import CanSimServer
+from grippers.drivers.stepfoc.can_client import StepfocBus
+from grippers.drivers.stepfoc.sim import MsgModel, serve_can
+from grippers.drivers.stepfoc.sim.can_server import CanSimServer
 
 TIME_SCALE = 200.0  # simulated seconds per wall second: calibration (~8 s simulated) takes ~40 ms
 

@@ -9,11 +9,18 @@ from collections.abc import Callable
 import can
 import pytest
 
-from drivers.errors import CommandFailed, ConnectionLost, GripperTimeout, LimitError, ProtocolError
-from drivers.stepfoc.can_client import StepfocBus, open_node
-from drivers.stepfoc.can_protocol import Cmd, Detection, GripperCommand, decode_frame, encode_command, pack_id
-from drivers.stepfoc.sim import MsgModel
-from drivers.stepfoc.sim.can_server import CanSimServer
+from grippers.drivers.errors import CommandFailed, ConnectionLost, GripperTimeout, LimitError, ProtocolError
+from grippers.drivers.stepfoc.can_client import StepfocBus, open_node
+from grippers.drivers.stepfoc.can_protocol import (
+    Cmd,
+    Detection,
+    GripperCommand,
+    decode_frame,
+    encode_command,
+    pack_id,
+)
+from grippers.drivers.stepfoc.sim import MsgModel
+from grippers.drivers.stepfoc.sim.can_server import CanSimServer
 
 
 def test_poll_and_driver_queries(sim: CanSimServer, canbus: StepfocBus) -> None:

@@ -6,8 +6,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from drivers.errors import LimitError, ProtocolError
-from drivers.stepfoc.can_protocol import (
+from grippers.drivers.errors import LimitError, ProtocolError
+from grippers.drivers.stepfoc.can_protocol import (
     COMMANDS,
     CanFrame,
     Cmd,

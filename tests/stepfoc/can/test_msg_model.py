@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from drivers.stepfoc.can_protocol import (
+from grippers.drivers.stepfoc.can_protocol import (
     CanFrame,
     Cmd,
     Detection,
@@ -16,7 +16,7 @@ from drivers.stepfoc.can_protocol import (
     encode_frame,
     pack_id,
 )
-from drivers.stepfoc.sim.model import MsgModel, Phase
+from grippers.drivers.stepfoc.sim.model import MsgModel, Phase
 
 
 def go(position: int, speed: int = 255, current: int = 800, *, estop: bool = False) -> GripperCommand:

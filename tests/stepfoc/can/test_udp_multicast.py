@@ -14,9 +14,9 @@ from collections.abc import Callable, Iterator
 
 import pytest
 
-from drivers.errors import GripperTimeout
-from drivers.stepfoc.can_client import StepfocBus, open_node
-from drivers.stepfoc.can_protocol import Detection
+from grippers.drivers.errors import GripperTimeout
+from grippers.drivers.stepfoc.can_client import StepfocBus, open_node
+from grippers.drivers.stepfoc.can_protocol import Detection
 
 pytest.importorskip("msgpack")  # python-can's udp_multicast needs it
 pytestmark = pytest.mark.udp_multicast
@@ -25,7 +25,7 @@ GROUP = "239.74.163.2"  # python-can's IPv4 default group (administratively scop
 
 SCRIPT = """
 import sys
-from drivers.stepfoc.sim import MsgModel, serve_can
+from grippers.drivers.stepfoc.sim import MsgModel, serve_can
 nodes = [int(n) for n in sys.argv[2].split(",")]
 server = serve_can([MsgModel(node=n, part_width_mm=50.0) for n in nodes], sys.argv[1], time_scale=200.0)
 print(server.url, flush=True)

@@ -10,9 +10,9 @@ import sys
 
 import pytest
 
-from drivers.stepfoc.can_client import StepfocBus
-from drivers.stepfoc.can_protocol import Detection
-from drivers.stepfoc.sim import MsgModel, serve_can
+from grippers.drivers.stepfoc.can_client import StepfocBus
+from grippers.drivers.stepfoc.can_protocol import Detection
+from grippers.drivers.stepfoc.sim import MsgModel, serve_can
 
 pytestmark = pytest.mark.vcan
 

@@ -16,7 +16,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from drivers.stepfoc.can_protocol import (
+from grippers.drivers.stepfoc.can_protocol import (
     Cmd,
     Detection,
     GripperCommand,
@@ -26,8 +26,8 @@ from drivers.stepfoc.can_protocol import (
     encode_status,
     pack_id,
 )
-from drivers.stepfoc.sim import MsgModel
-from drivers.stepfoc.sim.can_server import CanSimServer
+from grippers.drivers.stepfoc.sim import MsgModel
+from grippers.drivers.stepfoc.sim.can_server import CanSimServer
 
 Spectral_BLDC = pytest.importorskip("Spectral_BLDC")
 from Spectral_BLDC import CAN_utils, CanCommunication, SpectralCAN  # noqa: E402

@@ -85,8 +85,8 @@ def scripted_pty() -> Iterator[Callable[[Script], ScriptedPty]]:
 @pytest.fixture
 def msg_sim():
     """The UART simulator of one MSG gripper on a pty, 200x faster than real time."""
-    from drivers.stepfoc.sim.model import MsgModel
-    from drivers.stepfoc.sim.uart_server import serve_uart
+    from grippers.drivers.stepfoc.sim.model import MsgModel
+    from grippers.drivers.stepfoc.sim.uart_server import serve_uart
 
     servers = []
 

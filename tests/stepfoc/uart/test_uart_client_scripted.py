@@ -9,9 +9,9 @@ import threading
 
 import pytest
 
-from drivers.errors import ConnectionLost, GripperTimeout, LimitError, NotSupported, ProtocolError
-from drivers.stepfoc.can_protocol import Detection
-from drivers.stepfoc.uart_client import StepfocUart
+from grippers.drivers.errors import ConnectionLost, GripperTimeout, LimitError, NotSupported, ProtocolError
+from grippers.drivers.stepfoc.can_protocol import Detection
+from grippers.drivers.stepfoc.uart_client import StepfocUart
 
 GRIPINFO = (
     b"I am a gripper\r\n"

@@ -6,9 +6,9 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from drivers.errors import LimitError, ProtocolError
-from drivers.stepfoc.can_protocol import Detection
-from drivers.stepfoc.uart_protocol import (
+from grippers.drivers.errors import LimitError, ProtocolError
+from grippers.drivers.stepfoc.can_protocol import Detection
+from grippers.drivers.stepfoc.uart_protocol import (
     COMMANDS,
     GripInfo,
     GripInfoAssembler,
@@ -29,7 +29,7 @@ from drivers.stepfoc.uart_protocol import (
     render_gripinfo,
     render_info,
 )
-from drivers.stepfoc.uart_protocol import (
+from grippers.drivers.stepfoc.uart_protocol import (
     CommandReceiver as Receiver,
 )
 

@@ -8,11 +8,11 @@ import time
 
 import pytest
 
-from drivers.errors import ConnectionLost, GripperTimeout, NotSupported
-from drivers.stepfoc.can_protocol import Detection
-from drivers.stepfoc.sim.model import MsgModel
-from drivers.stepfoc.uart_client import StepfocUart
-from drivers.stepfoc.uart_protocol import COMMANDS
+from grippers.drivers.errors import ConnectionLost, GripperTimeout, NotSupported
+from grippers.drivers.stepfoc.can_protocol import Detection
+from grippers.drivers.stepfoc.sim.model import MsgModel
+from grippers.drivers.stepfoc.uart_client import StepfocUart
+from grippers.drivers.stepfoc.uart_protocol import COMMANDS
 
 
 def wait_for(predicate, timeout: float = 5.0, poll: float = 0.01):
@@ -236,7 +236,7 @@ def test_raw_pty_exchange_with_cr_lf(msg_sim) -> None:
 
 
 def test_serve_uart_arguments() -> None:
-    from drivers.stepfoc.sim.uart_server import serve_uart
+    from grippers.drivers.stepfoc.sim.uart_server import serve_uart
 
     with pytest.raises(ValueError):
         serve_uart(MsgModel(), "tcp://127.0.0.1:0")
@@ -247,7 +247,7 @@ def test_serve_uart_arguments() -> None:
 
 
 def test_package_serve_dispatches_pty() -> None:
-    from drivers.stepfoc.sim import serve
+    from grippers.drivers.stepfoc.sim import serve
 
     with serve(MsgModel(), "pty", time_scale=100.0) as srv, StepfocUart(srv.url, timeout=0.5) as client:
         assert client.gripper() == 1

@@ -55,7 +55,7 @@ def can_channel() -> str:
 @pytest.fixture
 def wsg_sim() -> Iterator[Callable[..., object]]:
     """Start WSG simulators (wsg-sim helper's ``serve``) at time scale 50; all are closed at teardown."""
-    sim = pytest.importorskip("drivers.wsg.sim")
+    sim = pytest.importorskip("grippers.drivers.wsg.sim")
     servers = []
 
     def start(listen: str, *, time_scale: float = 50.0, **model_kw: object) -> object:
@@ -71,7 +71,7 @@ def wsg_sim() -> Iterator[Callable[..., object]]:
 @pytest.fixture
 def wsg_client_factory() -> Iterator[Callable[..., object]]:
     """Open WsgClients from URLs; every client is closed at teardown."""
-    from drivers.wsg.client import WsgClient
+    from grippers.drivers.wsg.client import WsgClient
 
     clients: list[WsgClient] = []
 

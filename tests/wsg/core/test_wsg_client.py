@@ -8,7 +8,7 @@ import time
 import can
 import pytest
 
-from drivers.errors import (
+from grippers.drivers.errors import (
     CommandFailed,
     ConnectionLost,
     GripperError,
@@ -17,12 +17,12 @@ from drivers.errors import (
     NotSupported,
     ProtocolError,
 )
-from drivers.wsg.client import WsgClient
-from drivers.wsg.commands import Cmd, FirmwareVersion, GraspingState, SystemFlags
-from drivers.wsg.protocol import PacketParser, Status, decode_packet, encode_packet
-from drivers.wsg.transports import TcpTransport
+from grippers.drivers.wsg.client import WsgClient
+from grippers.drivers.wsg.commands import Cmd, FirmwareVersion, GraspingState, SystemFlags
+from grippers.drivers.wsg.protocol import PacketParser, Status, decode_packet, encode_packet
+from grippers.drivers.wsg.transports import TcpTransport
 
-pytest.importorskip("drivers.wsg.sim")
+pytest.importorskip("grippers.drivers.wsg.sim")
 
 TRANSPORTS = ["tcp", "udp", "pty", "can"]
 

@@ -1,4 +1,5 @@
-"""Every command of both manuals: request and reply layouts, errata, typed values (drivers.wsg.commands)."""
+"""Every command of both manuals: request and reply layouts, errata, typed values
+(grippers.drivers.wsg.commands)."""
 
 from __future__ import annotations
 
@@ -6,8 +7,8 @@ import struct
 
 import pytest
 
-from drivers.errors import LimitError, ProtocolError
-from drivers.wsg.commands import (
+from grippers.drivers.errors import LimitError, ProtocolError
+from grippers.drivers.wsg.commands import (
     AUTO_UPDATE_COMMANDS,
     COMMANDS,
     Cmd,
@@ -30,7 +31,7 @@ from drivers.wsg.commands import (
     encode_reply,
     encode_request,
 )
-from drivers.wsg.protocol import Packet, Status, decode_packet
+from grippers.drivers.wsg.protocol import Packet, Status, decode_packet
 
 
 def f32(*values: float) -> bytes:

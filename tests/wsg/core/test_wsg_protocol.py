@@ -1,4 +1,4 @@
-"""Checksum, packet codec and the incremental parser (drivers.wsg.protocol)."""
+"""Checksum, packet codec and the incremental parser (grippers.drivers.wsg.protocol)."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from drivers.errors import ProtocolError
-from drivers.wsg.protocol import (
+from grippers.drivers.errors import ProtocolError
+from grippers.drivers.wsg.protocol import (
     CRC_AFTER_PREAMBLE,
     CRC_TABLE,
     PREAMBLE,

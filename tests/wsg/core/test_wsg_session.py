@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import pytest
 
-from drivers.errors import GripperError, ProtocolError
-from drivers.wsg.commands import encode_reply, encode_request
-from drivers.wsg.protocol import ChecksumError, Discarded, Packet, Status, encode_packet
-from drivers.wsg.session import (
+from grippers.drivers.errors import GripperError, ProtocolError
+from grippers.drivers.wsg.commands import encode_reply, encode_request
+from grippers.drivers.wsg.protocol import ChecksumError, Discarded, Packet, Status, encode_packet
+from grippers.drivers.wsg.session import (
     Acknowledged,
     AutoUpdate,
     Completed,

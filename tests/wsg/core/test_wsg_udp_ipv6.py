@@ -7,9 +7,9 @@ import threading
 
 import pytest
 
-from drivers.wsg.client import WsgClient
-from drivers.wsg.commands import Cmd, encode_reply
-from drivers.wsg.protocol import PacketParser, encode_packet
+from grippers.drivers.wsg.client import WsgClient
+from grippers.drivers.wsg.commands import Cmd, encode_reply
+from grippers.drivers.wsg.protocol import PacketParser, encode_packet
 
 
 def _has_ipv6_loopback() -> bool:

@@ -17,9 +17,9 @@ from urllib.parse import parse_qs, urlsplit
 import can
 import pytest
 
-from drivers.wsg.commands import Reply, decode_reply, encode_request
-from drivers.wsg.protocol import Packet, PacketParser, can_frames, encode_packet
-from drivers.wsg.sim import SimServer, WsgModel, serve
+from grippers.drivers.wsg.commands import Reply, decode_reply, encode_request
+from grippers.drivers.wsg.protocol import Packet, PacketParser, can_frames, encode_packet
+from grippers.drivers.wsg.sim import SimServer, WsgModel, serve
 
 TIME_SCALE = 50.0
 _channels = itertools.count()

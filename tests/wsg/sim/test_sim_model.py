@@ -8,7 +8,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from drivers.wsg.commands import (
+from grippers.drivers.wsg.commands import (
     Cmd,
     FingerFlags,
     FingerType,
@@ -17,8 +17,8 @@ from drivers.wsg.commands import (
     SystemFlags,
     decode_reply,
 )
-from drivers.wsg.protocol import Packet, PacketParser, Status
-from drivers.wsg.sim import WsgModel
+from grippers.drivers.wsg.protocol import Packet, PacketParser, Status
+from grippers.drivers.wsg.sim import WsgModel
 
 S = Status
 G = GraspingState

@@ -6,7 +6,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from drivers.wsg.sim.motion import Trapezoid
+from grippers.drivers.wsg.sim.motion import Trapezoid
 
 
 def test_long_move_cruises_at_speed() -> None:

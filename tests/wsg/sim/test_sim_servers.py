@@ -9,9 +9,9 @@ import time
 import can
 import pytest
 
-from drivers.wsg.commands import Cmd, GraspingState, SystemFlags, encode_request
-from drivers.wsg.protocol import ChecksumError, Packet, Status, encode_packet
-from drivers.wsg.sim import WsgModel, serve
+from grippers.drivers.wsg.commands import Cmd, GraspingState, SystemFlags, encode_request
+from grippers.drivers.wsg.protocol import ChecksumError, Packet, Status, encode_packet
+from grippers.drivers.wsg.sim import WsgModel, serve
 
 S = Status
 
