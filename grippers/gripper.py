@@ -17,9 +17,10 @@ import time
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
-from typing import Any, Generic, TypeVar
+from typing import Any, TypeVar
 
-from .errors import GripperError, GripperTimeout, LimitError, NotSupported
+from .errors import CommandFailed, GripperError, GripperTimeout, LimitError, NotSupported
+from .motions import MotionHandle, wait_seconds
 from .profiles import Limits, ProfileBase
 
 T = TypeVar("T")
@@ -107,46 +108,6 @@ class DeviceInfo:
         return self.limits.stroke
 
 
-class MotionHandle(Generic[T]):
-    """A motion started with ``wait=False``: poll ``done()``, ``wait()`` for the result, or ``cancel()``."""
-
-    def __init__(self, name: str, run: Callable[[], T], cancel: Callable[[], None]) -> None:
-        self.name = name
-        self._cancel = cancel
-        self._done = threading.Event()
-        self._result: T | None = None
-        self._error: BaseException | None = None
-        self._thread = threading.Thread(target=self._run, args=(run,), name=f"grippers-{name}", daemon=True)
-        self._thread.start()
-
-    def _run(self, run: Callable[[], T]) -> None:
-        try:
-            self._result = run()
-        except BaseException as exc:  # handed to whoever waits
-            self._error = exc
-        finally:
-            self._done.set()
-
-    def done(self) -> bool:
-        return self._done.is_set()
-
-    def wait(self, timeout: float | None = None) -> T:
-        """The motion's result; re-raises its error; GripperTimeout if still running after ``timeout``."""
-        if not self._done.wait(timeout):
-            raise GripperTimeout(f"still running after {timeout:g} s", command=self.name)
-        if self._error is not None:
-            raise self._error
-        return self._result  # type: ignore[return-value]
-
-    def cancel(self) -> None:
-        """Stop the motion on the device; ``wait()`` then returns or raises what the device reported."""
-        if not self.done():
-            self._cancel()
-
-    def join(self, timeout: float) -> None:
-        self._thread.join(timeout)
-
-
 class StateStream:
     """States at ``rate_hz``: iterate over it, or pass a callback. Bounded: a slow reader drops the oldest."""
 
@@ -159,7 +120,7 @@ class StateStream:
         on_close: Callable[[StateStream], None] | None = None,
     ) -> None:
         if not (math.isfinite(rate_hz) and rate_hz > 0):
-            raise ValueError(f"rate_hz must be a positive number, not {rate_hz!r}")
+            raise LimitError(f"rate_hz must be a positive number, not {rate_hz!r}", command="stream")
         self.period = 1.0 / rate_hz
         self._read = read
         self._callback = callback
@@ -249,6 +210,8 @@ class FastStopActive(GripperError):
 def _finite(value: float, name: str, command: str, device: str) -> float:
     try:
         number = float(value)
+    except OverflowError:  # float(10**400)
+        raise LimitError(f"{name} is too large for a float", device=device, command=command) from None
     except (TypeError, ValueError):
         raise LimitError(f"{name} must be a number, not {value!r}", device=device, command=command) from None
     if not math.isfinite(number):
@@ -394,20 +357,155 @@ class Gripper(ABC):
             self._force(force, command),
         )
 
-    def _run_motion(self, name: str, call: Callable[[], T], wait: bool) -> T | MotionHandle[T]:
-        if wait:
-            return call()
+    # -- motions: one at a time, the newest wins (grippers/motions.py states the rule) -------------------
+
+    def _settle_time(self) -> float:
+        """How long a stop and the end of the motion it stops may take: two exchanges and some slack."""
+        return 2.0 * self.timeout + 1.0
+
+    def _supersede(self) -> None:
+        """End the running motion on the device before a newer one is sent. A stop, by default: the WSG
+        refuses a motion while one runs (E_ALREADY_RUNNING, WSG manual 4.0.x §3.2.2); a backend whose device
+        takes a new target mid-motion may override this to do nothing."""
+        self._stop()
+
+    def _run_motion(
+        self, name: str, call: Callable[[], T], wait: bool, *, timeout: float = 0.0, what: str = ""
+    ) -> T | MotionHandle[T]:
+        """Start ``call`` (the backend's blocking motion) in its own thread, superseding any running motion.
+
+        The blocking form waits for that thread, so Ctrl-C lands in this wait and never in the middle of an
+        exchange: the motion is then stopped (bounded) before the exception leaves the call.
+        """
+        superseded: list[MotionHandle[Any]] = []
         with self._lock:  # registered atomically with the closed check, so close() joins every handle
             self._check_open(name)
-            handle = MotionHandle(name, call, self.stop)
-            self._handles = [h for h in self._handles if not h.done()]
-            self._handles.append(handle)
-        return handle
+            handle: MotionHandle[T] = MotionHandle(name, device=self.name)
+            handle._cancel = lambda: self._abort_motions("cancel()", handle)
+            previous = [h for h in self._handles if h._busy()]
+            for h in previous:
+                error = CommandFailed(f"superseded by {name}{what}", device=self.name, command=h.name)
+                if h._mark_aborted(error):
+                    superseded.append(h)
+            self._handles = [*previous, handle]
+            handle._start(lambda: self._motion_body(handle, call, previous))
+        for h in superseded:  # outside the lock: done callbacks may call back into this gripper
+            h._settle_aborted()
+        if not wait:
+            return handle
+        return self._wait_motion(handle, timeout + 2 * self._settle_time() + 1.0)
 
-    def home(self, timeout: float | None = None) -> None:
+    def _motion_body(
+        self, handle: MotionHandle[T], call: Callable[[], T], previous: list[MotionHandle[Any]]
+    ) -> T:
+        running = [h for h in previous if h._busy()]
+        if running:
+            # Stop the device, then let the older calls end (their replies, their polls) before sending:
+            # two motion calls at once would share one device and muddle each other's replies.
+            try:
+                self._supersede()
+            except Exception as exc:
+                log.debug("%s: stopping the superseded motion failed: %s", self.name, exc)
+            deadline = time.monotonic() + self._settle_time()
+            for h in running:
+                h.join(max(0.0, deadline - time.monotonic()))
+        self._may_send(handle)
+        return call()
+
+    def _may_send(self, handle: MotionHandle[Any]) -> None:
+        """Raise instead of sending when the motion was ended (or the gripper closed) before it began."""
+        with self._lock:
+            if self._closed:
+                raise GripperError(
+                    "the gripper was closed before the motion began", device=self.name, command=handle.name
+                )
+            if handle._ended():  # the handle holds the reason; this error is discarded
+                raise CommandFailed("ended before it was sent", device=self.name, command=handle.name)
+
+    def _current_handle(self) -> MotionHandle[Any] | None:
+        with self._lock:
+            for h in self._handles:
+                if h._thread is threading.current_thread():
+                    return h
+        return None
+
+    def _wait_motion(self, handle: MotionHandle[T], bound: float) -> T:
+        try:
+            return handle.wait(bound)
+        except BaseException as exc:
+            if handle.done():
+                raise  # the motion's own outcome
+            # Ctrl-C, a signal handler's exception, or the bound running out: stop the gripper first, so a
+            # script that is interrupted does not leave the jaws closing on whatever is between them.
+            by = "Ctrl-C" if isinstance(exc, KeyboardInterrupt) else type(exc).__name__
+            failure = self._abort_motions(by, handle, bounded=True)
+            if failure is not None:
+                exc.add_note(f"{self.name}: stopping the gripper after {by} failed: {failure}")
+            raise
+
+    def _abort_motions(
+        self,
+        by: str,
+        only: MotionHandle[Any] | None = None,
+        *,
+        bounded: bool = False,
+        device_stop: Callable[[], None] | None = None,
+    ) -> BaseException | None:
+        """Mark motions aborted by ``by``, stop the device, settle them; returns a bounded stop's error."""
+        with self._lock:
+            targets = [only] if only is not None else list(self._handles)
+            marked = [
+                h
+                for h in targets
+                if h._mark_aborted(CommandFailed(f"aborted by {by}", device=self.name, command=h.name))
+            ]
+        stop = device_stop or self._stop
+        try:
+            if only is not None and not marked:
+                return None  # that motion had already ended: nothing to stop
+            if bounded:
+                return self._bounded(stop, by)
+            stop()
+            return None
+        finally:
+            for h in marked:
+                h._settle_aborted()
+
+    def _bounded(self, fn: Callable[[], None], why: str) -> BaseException | None:
+        """Run ``fn`` in its own thread and wait a bounded time: a stop after Ctrl-C must never hang, and a
+        second Ctrl-C ends the wait (the stop goes on in its thread) instead of interrupting an exchange."""
+        outcome: list[BaseException | None] = []
+
+        def run() -> None:
+            try:
+                fn()
+                outcome.append(None)
+            except BaseException as exc:
+                outcome.append(exc)
+
+        thread = threading.Thread(target=run, name=f"grippers-stop-after-{why}", daemon=True)
+        thread.start()
+        try:
+            thread.join(self._settle_time())
+        except BaseException as exc:
+            return exc
+        if not outcome:
+            return GripperTimeout(
+                f"no answer within {self._settle_time():g} s", device=self.name, command="stop"
+            )
+        return outcome[0]
+
+    def home(self, timeout: float | None = None, *, wait: bool = True) -> None | MotionHandle[None]:
         """Reference the axis (WSG homing) or calibrate the stroke (MSG); blocks until done."""
         self._check_motion("home")
-        self._home(timeout if timeout is not None else self._motion_timeout(2 * self.limits.stroke, 0.02))
+        t = self._timeout(timeout, "home", self._motion_timeout(2 * self.limits.stroke, 0.02))
+        return self._run_motion("home", lambda: self._home(t), wait, timeout=t)
+
+    def _timeout(self, timeout: float | None, command: str, default: float) -> float:
+        seconds = wait_seconds(timeout, command, self.name)
+        if seconds is None or seconds >= threading.TIMEOUT_MAX / 4:
+            return default if seconds is None else threading.TIMEOUT_MAX / 4
+        return seconds
 
     def move(
         self, width: float, speed: float | None = None, *, wait: bool = True, timeout: float | None = None
@@ -415,8 +513,10 @@ class Gripper(ABC):
         """Move the fingers to ``width`` (m) at ``speed`` (m/s; default from the profile)."""
         w, s = self._width(width, "move"), self._speed(speed, "move")
         self._check_motion("move")
-        t = timeout if timeout is not None else self._motion_timeout(self.limits.stroke, s)
-        return self._run_motion("move", lambda: self._move(w, s, t), wait)
+        t = self._timeout(timeout, "move", self._motion_timeout(self.limits.stroke, s))
+        return self._run_motion(
+            "move", lambda: self._move(w, s, t), wait, timeout=t, what=f" to {w * 1000:g} mm"
+        )
 
     def grasp(
         self,
@@ -427,11 +527,46 @@ class Gripper(ABC):
         wait: bool = True,
         timeout: float | None = None,
     ) -> GraspResult | MotionHandle[GraspResult]:
-        """Close on a part of nominal ``width`` (m) with ``force`` (N); ``.grasped`` says if it is held."""
+        """Close on a part of nominal ``width`` (m) with ``force`` (N); ``.grasped`` says if it is held.
+
+        When the jaws are already inside the part's width (an MSG rests closed after its calibration), they
+        first open to the width plus ``GRASP_CLEARANCE`` (within the limits), then grasp: closing from
+        inside the part would end at once "without meeting a part". For a part gripped from inside (MSG
+        ``maps.inside_grip``) the same holds the other way round.
+        """
         w, s, f = self._width(width, "grasp"), self._speed(speed, "grasp"), self._force(force, "grasp")
         self._check_motion("grasp")
-        t = timeout if timeout is not None else self._motion_timeout(self.limits.stroke, s)
-        return self._run_motion("grasp", lambda: self._grasp(w, s, f, t), wait)
+        t = self._timeout(timeout, "grasp", self._motion_timeout(self.limits.stroke, s))
+        return self._run_motion(
+            "grasp",
+            lambda: self._grasp_from_outside(w, s, f, t),
+            wait,
+            timeout=2 * t,
+            what=f" {w * 1000:g} mm",
+        )
+
+    GRASP_CLEARANCE = 0.005  # m: where grasp() opens to when the jaws start inside the part's width
+
+    def _grips_from_inside(self) -> bool:
+        """Whether a grasp opens onto the part (MSG ``maps.inside_grip``); others grip from outside."""
+        return bool(getattr(getattr(self.profile, "maps", None), "inside_grip", False))
+
+    def _grasp_from_outside(self, width: float, speed: float, force: float, timeout: float) -> GraspResult:
+        try:
+            now = self._state().width
+        except GripperError as exc:  # the grasp itself will report a device that does not answer
+            log.debug("%s: no state before the grasp: %s", self.name, exc)
+            now = None
+        if now is not None:
+            inside = self._grips_from_inside()
+            if inside and now > width:
+                self._move(max(width - self.GRASP_CLEARANCE, self.limits.min_width), speed, timeout)
+            elif not inside and now < width:
+                self._move(min(width + self.GRASP_CLEARANCE, self.limits.max_width), speed, timeout)
+            handle = self._current_handle()
+            if handle is not None:
+                self._may_send(handle)  # stopped while opening: do not grasp after all
+        return self._grasp(width, speed, force, timeout)
 
     def release(
         self,
@@ -445,22 +580,27 @@ class Gripper(ABC):
         w = self._default_release_width() if width is None else self._width(width, "release")
         s = self._speed(speed, "release")
         self._check_motion("release")
-        t = timeout if timeout is not None else self._motion_timeout(self.limits.stroke, s)
-        return self._run_motion("release", lambda: self._release(w, s, t), wait)
+        t = self._timeout(timeout, "release", self._motion_timeout(self.limits.stroke, s))
+        return self._run_motion(
+            "release", lambda: self._release(w, s, t), wait, timeout=t, what=f" to {w * 1000:g} mm"
+        )
 
     def stop(self) -> None:
-        """Stop the fingers where they are. The WSG keeps its motor on; the MSG clears its action bit (CAN)
-        or, having no other way over UART, deactivates the motor, so a held part is no longer squeezed."""
+        """Stop the fingers where they are; a running motion raises CommandFailed "aborted by stop()".
+
+        The WSG keeps its motor on; the MSG clears its action bit (CAN) or, having no other way over UART,
+        deactivates the motor, so a held part is no longer squeezed."""
         self._check_open("stop")
-        self._stop()
+        self._abort_motions("stop()")
 
     def fast_stop(self) -> None:
-        """Stop at once; further motion is refused until :meth:`acknowledge`."""
+        """Stop at once; further motion is refused until :meth:`acknowledge`. A running motion raises
+        CommandFailed "aborted by fast_stop()"."""
         self._check_open("fast_stop")
         # Refuse motion from here on, even if the reply is lost or another thread starts a move meanwhile:
         # the user asked for a stop, and acknowledge() is the one way out.
         self._fast_stopped = True
-        self._fast_stop()
+        self._abort_motions("fast_stop()", device_stop=self._fast_stop)
 
     def acknowledge(self) -> None:
         """Clear a fast stop (WSG 24h; MSG: estop bit cleared, then the error)."""
