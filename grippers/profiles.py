@@ -14,8 +14,10 @@ import json
 import logging
 import os
 import re
+import threading
 import tomllib
 from collections.abc import Iterator
+from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 from typing import Annotated, Any, Literal
@@ -28,8 +30,29 @@ log = logging.getLogger(__name__)
 
 PROFILE_SUFFIXES = (".toml", ".yaml", ".yml", ".json")
 
-NonNegative = Annotated[float, Field(ge=0)]
-Positive = Annotated[float, Field(gt=0)]
+# Every number is finite and below a bound no real gripper comes near: beyond them a profile cannot work
+# (an infinite stroke makes home() wait for ever, an opening width of 1e308 overflows in state(), a WSG stroke
+# of 1e308 kills the simulator's thread), so they are refused at load, naming the field and the rule.
+MAX_LENGTH_MM = 10_000.0  # 10 m
+MAX_SPEED_MM_S = 100_000.0  # 100 m/s
+MAX_ACCEL_MM_S2 = 10_000_000.0
+MAX_FORCE_N = 100_000.0
+MAX_TIMEOUT_S = 3600.0  # an exchange that takes longer than an hour is not an exchange
+MAX_TIME_SCALE = 1_000_000.0
+MAX_PROFILE_BYTES = 1 << 20  # 1 MiB: every shipped profile is under 2 kB; a bigger file is not a profile
+
+NonNegative = Annotated[float, Field(ge=0, allow_inf_nan=False)]
+Positive = Annotated[float, Field(gt=0, allow_inf_nan=False)]
+Length = Annotated[float, Field(ge=0, le=MAX_LENGTH_MM, allow_inf_nan=False)]
+PositiveLength = Annotated[float, Field(gt=0, le=MAX_LENGTH_MM, allow_inf_nan=False)]
+Speed = Annotated[float, Field(ge=0, le=MAX_SPEED_MM_S, allow_inf_nan=False)]
+PositiveSpeed = Annotated[float, Field(gt=0, le=MAX_SPEED_MM_S, allow_inf_nan=False)]
+Accel = Annotated[float, Field(ge=0, le=MAX_ACCEL_MM_S2, allow_inf_nan=False)]
+PositiveAccel = Annotated[float, Field(gt=0, le=MAX_ACCEL_MM_S2, allow_inf_nan=False)]
+Force = Annotated[float, Field(ge=0, le=MAX_FORCE_N, allow_inf_nan=False)]
+PositiveForce = Annotated[float, Field(gt=0, le=MAX_FORCE_N, allow_inf_nan=False)]
+Timeout = Annotated[float, Field(gt=0, le=MAX_TIMEOUT_S, allow_inf_nan=False)]
+TimeScale = Annotated[float, Field(gt=0, le=MAX_TIME_SCALE, allow_inf_nan=False)]
 Port = Annotated[int, Field(ge=1, le=65535)]
 CanId = Annotated[int, Field(ge=0, le=0x7FF)]  # standard 11-bit identifiers
 
@@ -42,16 +65,16 @@ class _Model(BaseModel):
 class Mechanics(_Model):
     """The mechanism's own range (datasheet or device), in mm, mm/s, mm/s² and N."""
 
-    stroke_mm: Positive
-    min_width_mm: NonNegative = 0.0
-    min_speed_mm_s: NonNegative
-    max_speed_mm_s: Positive
-    default_speed_mm_s: Positive
-    min_accel_mm_s2: NonNegative | None = None
-    max_accel_mm_s2: Positive | None = None
-    min_force_n: NonNegative
-    max_force_n: Positive
-    default_force_n: Positive
+    stroke_mm: PositiveLength
+    min_width_mm: Length = 0.0
+    min_speed_mm_s: Speed
+    max_speed_mm_s: PositiveSpeed
+    default_speed_mm_s: PositiveSpeed
+    min_accel_mm_s2: Accel | None = None
+    max_accel_mm_s2: PositiveAccel | None = None
+    min_force_n: Force
+    max_force_n: PositiveForce
+    default_force_n: PositiveForce
 
     @property
     def max_width_mm(self) -> float:
@@ -75,11 +98,18 @@ class Mechanics(_Model):
 class Safety(_Model):
     """Limits the library enforces below the mechanism's own: beyond them, refused before sending."""
 
-    max_force_n: Positive | None = None
-    max_speed_mm_s: Positive | None = None
-    min_width_mm: NonNegative | None = None
-    max_width_mm: Positive | None = None
+    max_force_n: PositiveForce | None = None
+    max_speed_mm_s: PositiveSpeed | None = None
+    min_width_mm: Length | None = None
+    max_width_mm: PositiveLength | None = None
     max_current_ma: Annotated[int, Field(gt=0, le=2800)] | None = None  # MSG: the driver can push 2800 mA
+
+    @model_validator(mode="after")
+    def _ordered(self) -> Safety:
+        lo, hi = self.min_width_mm, self.max_width_mm
+        if lo is not None and hi is not None and lo >= hi:
+            raise ValueError("needs min_width_mm < max_width_mm (no width would be allowed)")
+        return self
 
 
 class Limits(_Model):
@@ -110,6 +140,31 @@ class ProfileBase(_Model):
     mechanics: Mechanics
     safety: Safety = Safety()
     path: Annotated[str | None, Field(exclude=True)] = None  # the file it was read from
+    # The profile this one was built on (docs/profiles.md "extends"); resolved at load, not part of a dump.
+    extends: Annotated[str | None, Field(exclude=True)] = None
+
+    @model_validator(mode="after")
+    def _safety_leaves_a_range(self) -> ProfileBase:
+        """Safety limits narrow the mechanics; narrowed to nothing, every command would be refused."""
+        m, s = self.mechanics, self.safety
+        lo = max(m.min_width_mm, s.min_width_mm or 0.0)
+        hi = min(m.max_width_mm, s.max_width_mm if s.max_width_mm is not None else m.max_width_mm)
+        if lo >= hi:
+            raise ValueError(
+                f"safety: the allowed widths {lo:g}..{hi:g} mm are empty (mechanics: {m.min_width_mm:g}.."
+                f"{m.max_width_mm:g} mm); needs safety.min_width_mm < safety.max_width_mm within the stroke"
+            )
+        if s.max_speed_mm_s is not None and s.max_speed_mm_s < m.min_speed_mm_s:
+            raise ValueError(
+                f"safety.max_speed_mm_s: {s.max_speed_mm_s:g} is below mechanics.min_speed_mm_s "
+                f"{m.min_speed_mm_s:g} (no speed would be allowed)"
+            )
+        if s.max_force_n is not None and s.max_force_n < m.min_force_n:
+            raise ValueError(
+                f"safety.max_force_n: {s.max_force_n:g} is below mechanics.min_force_n {m.min_force_n:g} "
+                "(no grasp force would be allowed)"
+            )
+        return self
 
     def limits(self) -> Limits:
         m, s = self.mechanics, self.safety
@@ -133,8 +188,8 @@ class ProfileBase(_Model):
 
 
 class WsgTransport(_Model):
-    # Defaults from PROTOCOL-NOTES §1 "Transport defaults" (public drivers and set-up notes, not the manuals).
-    timeout_s: Positive = 1.0
+    # Defaults from docs/protocols.md §1 "Transport defaults" (public drivers and set-up notes, not manuals).
+    timeout_s: Timeout = 1.0
     tcp_port: Port = 1000
     udp_port: Port = 1500
     udp_local_port: Annotated[int, Field(ge=0, le=65535)] = 1501
@@ -153,15 +208,15 @@ class WsgTransport(_Model):
 class WsgDevice(_Model):
     device_type: Annotated[int, Field(ge=0, le=255)]  # 50h TYPE: 1 WSG 50, 2 WSG 32, 5 WSG 25, 6 WSG 70
     # Set in the web interface: how far past the nominal width Grip Part (25h) may close (PROTOCOL-NOTES §1).
-    clamping_travel_mm: NonNegative = 10.0
+    clamping_travel_mm: Length = 10.0
 
 
 class WsgSimulator(_Model):
     firmware: Annotated[str, Field(pattern=r"^\d+\.\d+\.\d+$")] = "4.0.1"
     serial: Annotated[int, Field(ge=0, le=0xFFFFFFFF)] = 12345
-    part_width_mm: NonNegative | None = None
+    part_width_mm: Length | None = None
     force_fingers: bool = False
-    time_scale: Positive = 1.0
+    time_scale: TimeScale = 1.0
 
 
 class WsgProfile(ProfileBase):
@@ -175,7 +230,7 @@ class WsgProfile(ProfileBase):
 
 
 class StepfocTransport(_Model):
-    timeout_s: Positive = 0.5
+    timeout_s: Timeout = 0.5
     baudrate: Annotated[int, Field(gt=0)] = 256_000  # PROTOCOL-NOTES §2 UART
     can_interface: str = "socketcan"
     can_channel: str = "can0"
@@ -192,15 +247,15 @@ class MsgMaps(_Model):
     force sensor; force is estimated from the current limit.
     """
 
-    open_width_mm: NonNegative
-    closed_width_mm: NonNegative = 0.0
-    speed_at_0_mm_s: Positive
-    speed_at_255_mm_s: Positive
-    newton_per_amp: Positive
+    open_width_mm: Length
+    closed_width_mm: Length = 0.0
+    speed_at_0_mm_s: PositiveSpeed
+    speed_at_255_mm_s: PositiveSpeed
+    newton_per_amp: Annotated[float, Field(gt=0, le=MAX_FORCE_N, allow_inf_nan=False)]
     min_current_ma: Annotated[int, Field(ge=0)] = 150  # below about 150 mA the motion is unstable (MSG doc)
     max_current_ma: Annotated[int, Field(gt=0, le=2800)] = 1000  # MSG doc: 0-1000 mA
     default_current_ma: Annotated[int, Field(gt=0)] = 500
-    grasp_travel_mm: NonNegative = 10.0  # a grasp commands this far inside the nominal width
+    grasp_travel_mm: Length = 10.0  # a grasp commands this far inside the nominal width
     inside_grip: bool = False  # a part gripped from inside (object detected while opening)
 
     @model_validator(mode="after")
@@ -215,11 +270,11 @@ class MsgMaps(_Model):
 
 
 class MsgSimulator(_Model):
-    part_width_mm: NonNegative | None = None
+    part_width_mm: Length | None = None
     hardware_version: Annotated[int, Field(ge=0, le=255)] = 1
     software_version: Annotated[int, Field(ge=0, le=255)] = 1
-    serial: int = 1001
-    time_scale: Positive = 1.0
+    serial: Annotated[int, Field(ge=0, le=0xFFFFFFFF)] = 1001
+    time_scale: TimeScale = 1.0
 
 
 class MsgProfile(ProfileBase):
@@ -227,6 +282,27 @@ class MsgProfile(ProfileBase):
     transport: StepfocTransport = StepfocTransport()
     maps: MsgMaps
     simulator: MsgSimulator = MsgSimulator()
+
+    @model_validator(mode="after")
+    def _maps_fit_the_mechanics(self) -> MsgProfile:
+        m, maps = self.mechanics, self.maps
+        # Position bytes 0..255 span closed..open (docs/protocols.md §2): a map narrower than the stroke
+        # would clamp every byte at its end and silently end moves early.
+        if maps.closed_width_mm > m.min_width_mm + 1e-9 or maps.open_width_mm < m.max_width_mm - 1e-9:
+            raise ValueError(
+                f"maps: closed_width_mm..open_width_mm ({maps.closed_width_mm:g}..{maps.open_width_mm:g} mm) "
+                f"must cover the stroke ({m.min_width_mm:g}..{m.max_width_mm:g} mm), or moves end early"
+            )
+        # The force is estimated from the current limit: the currents the driver may use must give a force
+        # inside the mechanics' range, or every grasp is refused.
+        npa, low_ma, high_ma = maps.newton_per_amp, maps.min_current_ma, self.effective_max_current_ma
+        if max(m.min_force_n, low_ma / 1000 * npa) > min(m.max_force_n, high_ma / 1000 * npa):
+            raise ValueError(
+                f"maps.newton_per_amp: {npa:g} N/A over {low_ma}..{high_ma} mA gives "
+                f"{low_ma / 1000 * npa:g}..{high_ma / 1000 * npa:g} N, outside mechanics' "
+                f"{m.min_force_n:g}..{m.max_force_n:g} N: no grasp force would be possible"
+            )
+        return self
 
     @property
     def effective_max_current_ma(self) -> int:
@@ -241,6 +317,11 @@ Profile = ProfileBase  # the type users annotate with
 
 
 # --- loading --------------------------------------------------------------------------------------------
+#
+# Every lookup walks the search path in order and the first file that declares the name (or an alias) wins,
+# whether it is valid or not: a user's file that lowers a limit is never passed over for a built-in. Files
+# are parsed once per modification (cache keyed by path, mtime, size and inode), and a file larger than
+# MAX_PROFILE_BYTES is refused unread, so a stray 50 MB file on the path costs a stat(), not a parse.
 
 
 def _key(name: str) -> str:
@@ -260,29 +341,158 @@ def _profile_model(family: Any) -> type[ProfileBase]:
     raise ValueError(f"family: unknown family {family!r} (built in: {known}; others come from backends)")
 
 
+Stamp = tuple[int, int, int]  # st_mtime_ns, st_size, st_ino
+
+_cache_lock = threading.Lock()
+_raw_cache: dict[str, tuple[Stamp, dict[str, Any] | ProfileError]] = {}
+_profile_cache: dict[str, tuple[tuple[tuple[str, Stamp], ...], ProfileBase]] = {}
+
+
+CACHE_ENTRIES = 512  # files remembered; the oldest is forgotten first
+
+
+def _remember(cache: dict[str, Any], key: str, value: Any) -> None:
+    with _cache_lock:
+        cache.pop(key, None)
+        cache[key] = value
+        while len(cache) > CACHE_ENTRIES:
+            del cache[next(iter(cache))]
+
+
+def _stamp(path: Path) -> Stamp:
+    try:
+        st = path.stat()
+    except OSError as exc:
+        raise ProfileError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    return (st.st_mtime_ns, st.st_size, st.st_ino)
+
+
 def _read(path: Path) -> dict[str, Any]:
-    text = path.read_text(encoding="utf-8")
-    if path.suffix == ".toml":
-        return tomllib.loads(text)
-    if path.suffix == ".json":
-        return json.loads(text)
-    if path.suffix in (".yaml", ".yml"):
+    """Parse one file (size-bounded); no cache, no validation."""
+    try:
+        with path.open("rb") as f:
+            blob = f.read(MAX_PROFILE_BYTES + 1)
+    except OSError as exc:
+        raise ProfileError(f"{path}: cannot read: {exc.strerror or exc}") from None
+    if len(blob) > MAX_PROFILE_BYTES:
+        raise ProfileError(
+            f"{path}: larger than {MAX_PROFILE_BYTES} bytes, the most a profile may have; not read"
+        )
+    try:
+        text = blob.decode("utf-8")
+        if path.suffix == ".toml":
+            data: Any = tomllib.loads(text)
+        elif path.suffix == ".json":
+            data = json.loads(text)
+        elif path.suffix in (".yaml", ".yml"):
+            try:
+                import yaml  # type: ignore[import-untyped]
+            except ImportError:
+                raise ProfileError(f"{path}: YAML profiles need: pip install 'grippers[yaml]'") from None
+            data = yaml.safe_load(text)
+        else:
+            raise ProfileError(f"{path}: not a profile file (expected one of {', '.join(PROFILE_SUFFIXES)})")
+    except UnicodeDecodeError as exc:
+        raise ProfileError(f"{path}: not UTF-8 text: {exc.reason} at byte {exc.start}") from None
+    except (tomllib.TOMLDecodeError, json.JSONDecodeError) as exc:
+        raise ProfileError(f"{path}: not valid {path.suffix[1:].upper()}: {exc}") from None
+    except ProfileError:
+        raise
+    except Exception as exc:  # YAML's errors, without importing yaml here; RecursionError of deep JSON
+        raise ProfileError(f"{path}: cannot parse: {exc}") from None
+    if not isinstance(data, dict):
+        raise ProfileError(f"{path}: a profile is a mapping of fields, not {type(data).__name__}")
+    return data
+
+
+def _raw(path: Path) -> dict[str, Any]:
+    """The file's mapping, parsed once per modification. Callers must not mutate it."""
+    key, stamp = os.path.abspath(path), _stamp(path)
+    with _cache_lock:
+        hit = _raw_cache.get(key)
+    if hit is None or hit[0] != stamp:
         try:
-            import yaml  # type: ignore[import-untyped]
-        except ImportError:
-            raise ProfileError(f"{path}: YAML profiles need: pip install 'grippers[yaml]'") from None
-        data = yaml.safe_load(text)
-        if not isinstance(data, dict):
-            raise ProfileError(f"{path}: a profile is a mapping of fields, not {type(data).__name__}")
-        return data
-    raise ProfileError(f"{path}: not a profile file (expected one of {', '.join(PROFILE_SUFFIXES)})")
+            value: dict[str, Any] | ProfileError = _read(path)
+        except ProfileError as exc:
+            value = exc
+        hit = (stamp, value)
+        _remember(_raw_cache, key, hit)
+    if isinstance(hit[1], ProfileError):
+        raise ProfileError(str(hit[1])) from None  # a fresh one: re-raising one object grows its traceback
+    return hit[1]
+
+
+def _declared(path: Path, names_only: bool = False) -> set[str]:
+    """The lookup keys a file declares: its name and aliases (raises the file's ProfileError)."""
+    data = _raw(path)
+    aliases = data.get("aliases")
+    names = [data.get("name"), *(aliases if isinstance(aliases, list) and not names_only else [])]
+    return {_key(n) for n in names if isinstance(n, str)}
+
+
+def _merge(base: dict[str, Any], override: dict[str, Any]) -> dict[str, Any]:
+    """``override`` over ``base``: tables merge key by key, everything else is replaced."""
+    out = dict(base)
+    for key, value in override.items():
+        if isinstance(value, dict) and isinstance(out.get(key), dict):
+            out[key] = _merge(out[key], value)
+        else:
+            out[key] = value
+    return out
+
+
+def _find(name: str, skip: set[str], *, names_only: bool = False) -> tuple[Path | None, Path | None]:
+    """The first file on the search path declaring ``name``, not in ``skip``; and the first one in ``skip``
+    that declares it (to tell a cycle from a missing base)."""
+    key, skipped = _key(name), None
+    for path in _candidate_files():
+        try:
+            declared = _declared(path, names_only)
+        except ProfileError:
+            if _key(path.stem) == key:
+                raise  # meant to be that profile, and broken: never fall back to another one
+            continue
+        if key in declared:
+            if os.path.abspath(path) in skip:
+                skipped = skipped or path
+                continue
+            return path, skipped
+    return None, skipped
+
+
+def _load(path: Path, chain: tuple[str, ...]) -> tuple[ProfileBase, tuple[tuple[str, Stamp], ...]]:
+    """Validate one file, its ``extends`` resolved; returns the stamps of every file it was built from."""
+    where = str(path)
+    me = os.path.abspath(path)
+    data = _raw(path)
+    stamps: tuple[tuple[str, Stamp], ...] = ((me, _stamp(path)),)
+    base_name = data.get("extends")
+    if base_name is not None:
+        if not isinstance(base_name, str) or not base_name.strip():
+            raise ProfileError(f"{where}: extends: must be the name of a profile, not {base_name!r}")
+        skip = {*chain, me}
+        base_path, in_chain = _find(base_name, skip)
+        if base_path is None:
+            if in_chain is not None:
+                files = " -> ".join([*chain, me, os.path.abspath(in_chain)])
+                raise ProfileError(f"{where}: extends: {base_name!r} makes a cycle ({files})")
+            raise ProfileError(f"{where}: extends: no profile named {base_name!r} ({_describe_path()})")
+        try:
+            base, base_stamps = _load(base_path, (*chain, me))
+        except ProfileError as exc:
+            raise ProfileError(f"{where}: extends {base_name!r}: {exc}") from None
+        inherited = base.model_dump(mode="python", exclude={"aliases"})  # aliases stay with the base
+        data = _merge(inherited, data)
+        stamps += base_stamps
+    return parse_profile(data, where), stamps
 
 
 def _format_errors(where: str, exc: ValidationError) -> str:
     parts = []
     for err in exc.errors(include_url=False):
         loc = ".".join(str(p) for p in err["loc"]) or "(top level)"
-        parts.append(f"{loc}: {err['msg']}")
+        msg = str(err["msg"]).removeprefix("Value error, ")
+        parts.append(f"{loc}: {msg}" if err["loc"] else msg)
     return f"{where}: " + "; ".join(parts)
 
 
@@ -302,18 +512,23 @@ def parse_profile(data: dict[str, Any], where: str = "<profile>") -> ProfileBase
 
 
 def load_file(path: str | os.PathLike[str]) -> ProfileBase:
+    """One profile file, validated (its ``extends`` resolved); cached until it or a base changes."""
     p = Path(path)
-    try:
-        data = _read(p)
-    except OSError as exc:
-        raise ProfileError(f"{p}: cannot read: {exc.strerror or exc}") from None
-    except (tomllib.TOMLDecodeError, json.JSONDecodeError) as exc:
-        raise ProfileError(f"{p}: not valid {p.suffix[1:].upper()}: {exc}") from None
-    except Exception as exc:  # YAML's errors, without importing yaml here
-        if isinstance(exc, ProfileError):
-            raise
-        raise ProfileError(f"{p}: cannot parse: {exc}") from None
-    return parse_profile(data, str(p))
+    key = os.path.abspath(p)
+    with _cache_lock:
+        hit = _profile_cache.get(key)
+    if hit is not None:
+        try:
+            fresh = all(_stamp(Path(f)) == stamp for f, stamp in hit[0])
+        except ProfileError:
+            fresh = False
+        if fresh:
+            return hit[1]
+    # Only valid profiles are remembered here: a parse error is remembered by _raw (the costly part), and a
+    # validation error may depend on a base file that is fixed later.
+    profile, stamps = _load(p, ())
+    _remember(_profile_cache, key, (stamps, profile))
+    return profile
 
 
 def validate_file(path: str | os.PathLike[str]) -> list[str]:
@@ -331,10 +546,13 @@ def user_profile_dir() -> Path:
 
 
 def _files_in(entry: Path) -> list[Path]:
-    if entry.is_file():
-        return [entry]
-    if entry.is_dir():
-        return sorted(p for p in entry.iterdir() if p.suffix in PROFILE_SUFFIXES and p.is_file())
+    try:
+        if entry.is_file():
+            return [entry]
+        if entry.is_dir():
+            return sorted(p for p in entry.iterdir() if p.suffix in PROFILE_SUFFIXES and p.is_file())
+    except OSError as exc:  # an unreadable directory on the path is skipped, not fatal
+        log.warning("skipping %s on the profile path: %s", entry, exc.strerror or exc)
     return []
 
 
@@ -356,23 +574,45 @@ def _candidate_files() -> Iterator[Path]:
     yield from _builtin_files()
 
 
-def list_profiles(*, strict: bool = True) -> list[ProfileBase]:
-    """Every profile on the search path; a user's file shadows a built-in of the same name.
+@dataclass(frozen=True)
+class ProfileScan:
+    """Every profile on the search path (first of each name), and the files that failed, with why."""
 
-    ``strict=False`` skips (and logs) files that do not validate: a lookup by alias or WSG device type must
-    not fail because of an unrelated broken file in the user's directory.
-    """
+    profiles: list[ProfileBase]
+    problems: list[tuple[str, str]]  # (file, the ProfileError's message)
+    shadowed: list[tuple[str, str]]  # (file, the file whose profile of the same name wins)
+
+
+def scan_profiles() -> ProfileScan:
+    """What ``grippers profiles list`` shows: one bad file is named, the rest are listed."""
     seen: dict[str, ProfileBase] = {}
+    problems: list[tuple[str, str]] = []
+    shadowed: list[tuple[str, str]] = []
     for path in _candidate_files():
         try:
             profile = load_file(path)
         except ProfileError as exc:
-            if strict:
-                raise
-            log.warning("skipping a profile that does not validate: %s", exc)
+            problems.append((str(path), str(exc)))
             continue
-        seen.setdefault(profile.name, profile)
-    return list(seen.values())
+        if profile.name in seen:
+            shadowed.append((str(path), str(seen[profile.name].path)))
+        else:
+            seen[profile.name] = profile
+    return ProfileScan(list(seen.values()), problems, shadowed)
+
+
+def list_profiles(*, strict: bool = False) -> list[ProfileBase]:
+    """Every profile on the search path; the first of each name wins (a user's file shadows a built-in).
+
+    Files that do not validate are skipped and logged (``scan_profiles`` returns them); ``strict=True``
+    raises the first one's ProfileError instead.
+    """
+    scan = scan_profiles()
+    for _file, problem in scan.problems:
+        if strict:
+            raise ProfileError(problem)
+        log.warning("skipping a profile that does not validate: %s", problem)
+    return scan.profiles
 
 
 def _looks_like_path(name: str) -> bool:
@@ -380,19 +620,23 @@ def _looks_like_path(name: str) -> bool:
 
 
 def load_profile(name: str | os.PathLike[str]) -> ProfileBase:
-    """A profile by file path, name or alias (``wsg50``, ``WSG 50``, ``msg-150``)."""
+    """A profile by file path, name or alias (``wsg50``, ``WSG 50``, ``msg-150``).
+
+    The first file on the search path that declares the name or alias wins, and if that file is invalid its
+    error is raised: falling back to a later file (a built-in) would silently drop the user's limits.
+    """
     text = os.fspath(name)
     if _looks_like_path(text):
         return load_file(text)
-    for path in _candidate_files():
-        # The file name is the cheap test; aliases need the file's contents.
-        if _key(path.stem) == _key(text):
-            return load_file(path)
-    profiles = list_profiles(strict=False)
-    for profile in profiles:
-        if profile.matches(text):
-            return profile
-    names = ", ".join(sorted(p.name for p in profiles))
+    path, _ = _find(text, set())
+    if path is not None:
+        name = _raw(path).get("name")
+        if isinstance(name, str) and _key(name) != _key(text):
+            # Reached by an alias: the profile of that name that comes first wins, so a user's file named
+            # like a built-in is used whichever of the built-in's aliases is asked for.
+            path = _find(name, set(), names_only=True)[0] or path
+        return load_file(path)
+    names = ", ".join(sorted(p.name for p in list_profiles()))
     raise ProfileError(f"no profile named {text!r} (known: {names}; search path: {_describe_path()})")
 
 
@@ -401,8 +645,8 @@ def _describe_path() -> str:
 
 
 def wsg_profile_for_device_type(device_type: int) -> WsgProfile | None:
-    """The built-in or user profile of the WSG model that reports ``device_type`` in 50h."""
-    for profile in list_profiles(strict=False):
+    """The first profile on the search path for the WSG model that reports ``device_type`` in 50h."""
+    for profile in list_profiles():
         if isinstance(profile, WsgProfile) and profile.wsg.device_type == device_type:
             return profile
     return None

@@ -214,7 +214,10 @@ def test_a_broken_user_profile_does_not_break_lookups(
     with grippers.open(f"sim://wsg32?time_scale={TIME_SCALE}") as sim, grippers.open(sim.simulator.url) as g:
         assert g.profile.name == "wsg32"
     with pytest.raises(ProfileError, match="broken"):
-        grippers.profiles.list_profiles()  # the strict listing still reports it
+        grippers.profiles.list_profiles(strict=True)  # the strict listing still reports it
+    scan = grippers.profiles.scan_profiles()  # what `profiles list` shows: the rest, and the bad file named
+    assert "wsg50" in {p.name for p in scan.profiles}
+    assert [f for f, _ in scan.problems] == [str(tmp_path / "broken.toml")]
 
 
 def test_grasp_state_after_a_cancelled_msg_grasp_is_not_holding() -> None:
