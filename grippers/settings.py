@@ -16,6 +16,26 @@ from .urls import to_bool, to_float, to_int
 T = TypeVar("T")
 
 
+# The range of every setting that has one, checked where it is taken, so a backend never hands a socket or a
+# timer a value it cannot take (``local_port=70000`` was an OverflowError from bind(), ``timeout=1e10`` one
+# from the clock). Names are the query parameters of docs/cli.md; CAN ids are standard 11-bit identifiers.
+RANGES: dict[str, tuple[float, float]] = {
+    "local_port": (0, 65535),
+    "port": (1, 65535),
+    "node": (0, 15),
+    "send_id": (0, 0x7FF),
+    "recv_id": (0, 0x7FF),
+    "bitrate": (1, 10_000_000),
+    "baudrate": (1, 10_000_000),
+    "bytesize": (5, 8),
+    "serial": (0, 0xFFFFFFFF),
+    "timeout": (0, 3600.0),  # an exchange longer than an hour is not an exchange
+    "time_scale": (0, 1_000_000.0),
+    "part_width_mm": (0, 10_000.0),
+    "clamping_travel_mm": (0, 10_000.0),
+}
+
+
 class Settings:
     def __init__(self, url: str, query: dict[str, str], overrides: dict[str, Any]) -> None:
         self.url = url
@@ -29,7 +49,13 @@ class Settings:
         value = self._values.pop(name)
         if value is None:
             return default
-        return convert(value, name, self.url)
+        converted = convert(value, name, self.url)
+        bounds = RANGES.get(name)
+        if bounds is not None and isinstance(converted, int | float) and not isinstance(converted, bool):
+            lo, hi = bounds
+            if not lo <= converted <= hi:
+                raise URLError(f"{self.url}: {name} must lie within {lo:g}..{hi:g}, not {value!r}")
+        return converted
 
     def int(self, name: str, default: Any) -> Any:
         return self._take(name, default, to_int)

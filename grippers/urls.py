@@ -16,6 +16,7 @@ a plain device path is written with its leading slash (``wsg+serial:///dev/ttyUS
 
 from __future__ import annotations
 
+import ipaddress
 import math
 from dataclasses import dataclass, field
 from typing import Any
@@ -85,14 +86,33 @@ def parse_url(url: str) -> ConnectionURL:
             raise URLError(f"{url!r}: bad port") from None
         if not host:
             raise URLError(f"{url!r}: no host")
+        if port == 0:
+            # Port 0 means "any port" to a socket; connecting there silently went to the profile's default.
+            raise URLError(f"{url!r}: port 0 is not a port a gripper listens on (1..65535, or leave it out)")
         # An IPv6 zone is written %25 in a URL (RFC 6874: [fe80::1%25eth0]); sockets want fe80::1%eth0.
-        return ConnectionURL(url, family, transport, host=unquote(host), port=port, params=params)
+        host = unquote(host)
+        _check_host(url, host)
+        return ConnectionURL(url, family, transport, host=host, port=port, params=params)
     # can://INTERFACE/CHANNEL
     interface = unquote(parts.netloc)
     channel = unquote(parts.path.lstrip("/"))
     if not interface or not channel:
         raise URLError(f"{url!r}: a CAN URL names INTERFACE/CHANNEL, e.g. {family}+can://socketcan/can0")
     return ConnectionURL(url, family, transport, interface=interface, channel=channel, params=params)
+
+
+def _check_host(url: str, host: str) -> None:
+    """Refuse a host name that no resolver could take (``a..b``: an empty label), here, as a URLError,
+    instead of a UnicodeError from the IDNA codec when the socket connects."""
+    try:
+        ipaddress.ip_address(host.partition("%")[0])
+        return
+    except ValueError:
+        pass
+    try:
+        host.encode("idna")
+    except UnicodeError as exc:
+        raise URLError(f"{url!r}: {host!r} is not a valid host name ({exc})") from None
 
 
 def _split(url: str, rest: str) -> SplitResult:

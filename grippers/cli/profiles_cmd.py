@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from typing import TYPE_CHECKING, Any
 
 from .output import EXIT_FAILED, EXIT_OK, PROFILES_SCHEMA_ID, UsageError, table, to_plain, write_json
@@ -67,9 +68,16 @@ def run(args: argparse.Namespace) -> int:
     if args.action in ("list", "schema", "path") and args.names:
         raise UsageError(f"{args.action} takes no names")
     if args.action == "list":
-        rows = [summary(p) for p in sorted(profiles.list_profiles(), key=lambda p: (p.family, p.name))]
+        scan = profiles.scan_profiles()  # one bad file is named below, the rest still listed
+        rows = [summary(p) for p in sorted(scan.profiles, key=lambda p: (p.family, p.name))]
+        for _file, problem in scan.problems:
+            print(f"grippers: skipped: {problem}", file=sys.stderr)
         if args.json:
-            write_json({"schema": PROFILES_SCHEMA_ID, "profiles": rows})
+            document: dict[str, Any] = {"schema": PROFILES_SCHEMA_ID, "profiles": rows}
+            if scan.problems:
+                bad = scan.problems
+                document["skipped"] = [{"file": f, "valid": False, "problems": [why]} for f, why in bad]
+            write_json(document)
         else:
             headers = ["NAME", "FAMILY", "VENDOR", "MODEL", "STROKE", "FORCE", "FROM"]
             print(

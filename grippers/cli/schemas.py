@@ -195,6 +195,9 @@ class ProfilesDocument(_Strict):
     profile: dict[str, object] | None = Field(default=None, description="the whole profile, as in its file")
     validation: list[Validation] | None = None
     search_path: list[str] | None = None
+    skipped: list[Validation] | None = Field(
+        default=None, description="with profiles (list): files on the search path that do not validate"
+    )
 
 
 SCHEMAS: dict[str, type[BaseModel]] = {

@@ -184,3 +184,20 @@ def test_extends_cycles_and_unknown_bases_are_refused(_own_search_path: Path) ->
     )
     with pytest.raises(ProfileError, match=r"d\.toml: .*must cover the stroke"):
         p.load_profile("d")
+
+
+def test_profiles_list_names_the_bad_file_and_lists_the_rest(_own_search_path: Path) -> None:
+    import json
+    import subprocess
+    import sys
+
+    (_own_search_path / "broken.toml").write_text('name = "broken"\nfamily = "wsg"\n', encoding="utf-8")
+    run = subprocess.run(
+        [sys.executable, "-m", "grippers", "profiles", "list", "--json"], capture_output=True, text=True,
+        env=os.environ.copy(), timeout=60,
+    )
+    assert run.returncode == 0, run.stderr
+    document = json.loads(run.stdout)
+    assert "wsg50" in {row["name"] for row in document["profiles"]}
+    assert [Path(s["file"]).name for s in document["skipped"]] == ["broken.toml"]
+    assert "broken.toml" in run.stderr
