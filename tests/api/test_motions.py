@@ -56,7 +56,7 @@ def _until_moving(g: grippers.Gripper, bound: float = 3.0) -> None:
         time.sleep(0.005)
 
 
-@pytest.mark.parametrize("key", BOTH)
+@pytest.mark.parametrize("key", list(TARGETS))
 def test_a_newer_motion_supersedes_and_the_older_handle_never_returns_its_result(key: str) -> None:
     with _open(key) as g:
         first = _slow_move(g)
@@ -82,7 +82,7 @@ def test_a_motion_superseded_before_it_was_sent_sends_nothing(key: str) -> None:
                 old.wait(0)
 
 
-@pytest.mark.parametrize("key", BOTH)
+@pytest.mark.parametrize("key", list(TARGETS))
 @pytest.mark.parametrize("how", ["stop", "fast_stop", "cancel"])
 def test_stop_fast_stop_and_cancel_abort_the_running_motion(key: str, how: str) -> None:
     with _open(key) as g:

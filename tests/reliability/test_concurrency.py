@@ -177,3 +177,58 @@ def test_api_close_leaves_no_thread_or_descriptor(snapshot, url: str) -> None:
     g.close()  # closes the stream and the simulator too
     threads, fds = before.leaks()
     assert not threads and not fds, (threads, fds)
+
+
+@pytest.mark.parametrize("url", ["sim://wsg50?time_scale=50", "sim://msg-150?time_scale=200"])
+def test_api_racing_motions_and_stops_each_end_honestly(snapshot, url: str) -> None:
+    """Eight threads start motions, stop and cancel them at random on one gripper (issue 12 §3): every
+    motion ends with its own result or CommandFailed "superseded"/"aborted", none hangs, none returns the
+    result of another motion, and the gripper is usable and leak-free afterwards."""
+    import random
+
+    import grippers
+    from grippers import CommandFailed, GripperTimeout
+    from grippers.motions import MotionHandle
+
+    before = snapshot()
+    g = grippers.open(url)
+    g.home()
+    lo, hi = g.limits.min_width, g.limits.max_width
+    outcomes: dict[str, int] = {"own result": 0, "superseded": 0, "aborted": 0}
+    lock = threading.Lock()
+
+    def count(kind: str) -> None:
+        with lock:
+            outcomes[kind] += 1
+
+    def work(i: int) -> None:
+        rng = random.Random(i)
+        for _ in range(25):
+            target = round(rng.uniform(lo + 0.005, hi - 0.005), 3)
+            roll = rng.random()
+            try:
+                if roll < 0.15:
+                    g.stop()
+                    continue
+                handle = g.move(target, wait=False)
+                assert isinstance(handle, MotionHandle)
+                if roll < 0.3:
+                    handle.cancel()
+                result = handle.wait(30.0)
+                # Its own result: the width it was sent to (a motion that returns has reached its target).
+                assert result.width == pytest.approx(target, abs=0.003), (target, result)
+                count("own result")
+            except CommandFailed as exc:
+                text = str(exc)
+                kind = "superseded" if "superseded by" in text else "aborted" if "aborted by" in text else ""
+                assert kind, exc
+                count(kind)
+            except GripperTimeout as exc:  # a wait(30) that runs out is a hang
+                raise AssertionError(f"a motion hung: {exc}") from exc
+
+    _run_workers(work, [])
+    assert sum(outcomes.values()) > 100 and outcomes["superseded"] and outcomes["aborted"], outcomes
+    assert g.move((lo + hi) / 2).width == pytest.approx((lo + hi) / 2, abs=0.003)
+    g.close()
+    threads, fds = before.leaks()
+    assert not threads and not fds, (threads, fds)

@@ -9,6 +9,7 @@ from __future__ import annotations
 import atexit
 import copy
 import json
+import math
 import shutil
 import tempfile
 import tomllib
@@ -129,3 +130,84 @@ def test_json_profile_that_is_not_an_object_is_a_profile_error(text: str) -> Non
             load_file(path)
     finally:
         path.unlink()
+
+
+NUMBERS = {name: [p for p in PATHS[name] if isinstance(_get(BASES[name], p), int | float)
+                  and not isinstance(_get(BASES[name], p), bool)] for name in BASES}
+EXTREME = st.sampled_from(
+    [float("inf"), float("-inf"), float("nan"), 1e308, -1e308, 1e-300, 0.0, -1.0, 2**63]
+)
+
+
+@given(
+    base=st.sampled_from(sorted(BASES)),
+    data=st.data(),
+    value=EXTREME | st.floats(allow_nan=True, allow_infinity=True) | st.integers(-(2**70), 2**70),
+)
+def test_fuzz_profile_numbers_load_only_when_they_can_work(
+    base: str, data: st.DataObject, value: float, fuzz_count
+) -> None:
+    """Any number in any numeric field (issue 13 item 6): either a ProfileError naming a field, or a profile
+    whose limits are finite and non-empty, so every check has something to allow and every wait is finite."""
+    fuzz_count["profile loader: numbers"] += 1
+    profile = copy.deepcopy(BASES[base])
+    path = data.draw(st.sampled_from(NUMBERS[base]))
+    _get(profile, path[:-1])[path[-1]] = value
+    file, result = _load(profile)
+    if isinstance(result, ProfileError):
+        assert str(file) in str(result)
+        return
+    limits = result.limits()
+    numbers = [limits.min_width, limits.max_width, limits.min_speed, limits.max_speed, limits.min_force,
+               limits.max_force]
+    assert all(math.isfinite(n) for n in numbers), (path, value, limits)
+    assert limits.min_width < limits.max_width <= 10.0, (path, value, limits)
+    assert limits.min_speed <= limits.max_speed and limits.max_speed > 0, (path, value, limits)
+    assert limits.min_force <= limits.max_force, (path, value, limits)
+    timeout = result.transport.timeout_s  # type: ignore[attr-defined]
+    assert 0 < timeout <= 3600, (path, value)
+    maps = getattr(result, "maps", None)
+    if maps is not None:  # the MSG's force comes from its current: some current must give a legal force
+        npa, top = maps.newton_per_amp, result.effective_max_current_ma  # type: ignore[attr-defined]
+        reachable = (maps.min_current_ma / 1000 * npa, top / 1000 * npa)
+        assert max(limits.min_force, reachable[0]) <= min(limits.max_force, reachable[1])
+        assert maps.closed_width_mm / 1000 <= limits.min_width + 1e-9
+        assert maps.open_width_mm / 1000 >= limits.max_width - 1e-9
+
+
+def _extends_chain(tmp: Path, names: list[str], bases: list[str]) -> None:
+    for name, base in zip(names, bases, strict=True):
+        (tmp / f"{name}.toml").write_text(f'name = "{name}"\nextends = "{base}"\n', encoding="utf-8")
+
+
+@given(
+    edges=st.lists(st.integers(0, 5), min_size=1, max_size=6),
+)
+def test_fuzz_profile_extends_graphs_end_or_are_refused(edges: list[int], fuzz_count) -> None:
+    """Random ``extends`` graphs among six user files (some ending at a built-in): every lookup ends, with
+    a profile or a ProfileError (a cycle, an unknown base), never a RecursionError or a hang."""
+    import os
+
+    from grippers.profiles import load_profile
+
+    fuzz_count["profile loader: extends graphs"] += 1
+    tmp = Path(tempfile.mkdtemp(dir=_TMP))
+    names = [f"p{i}" for i in range(len(edges))]
+    bases = [f"p{e}" if e < len(edges) else "wsg50" for e in edges]
+    _extends_chain(tmp, names, bases)
+    old = os.environ.get("GRIPPERS_PROFILE_PATH")
+    os.environ["GRIPPERS_PROFILE_PATH"] = str(tmp)
+    try:
+        for name in names:
+            try:
+                profile = load_profile(name)
+            except ProfileError as exc:
+                assert "cycle" in str(exc) or "no profile named" in str(exc), exc
+            else:
+                assert profile.name == name and profile.mechanics.stroke_mm == 110.0
+    finally:
+        if old is None:
+            os.environ.pop("GRIPPERS_PROFILE_PATH", None)
+        else:
+            os.environ["GRIPPERS_PROFILE_PATH"] = old
+        shutil.rmtree(tmp, True)
