@@ -207,7 +207,7 @@ class WsgTransport(_Model):
 
 class WsgDevice(_Model):
     device_type: Annotated[int, Field(ge=0, le=255)]  # 50h TYPE: 1 WSG 50, 2 WSG 32, 5 WSG 25, 6 WSG 70
-    # Set in the web interface: how far past the nominal width Grip Part (25h) may close (PROTOCOL-NOTES §1).
+    # Set in the web interface: how far Grip Part (25h) may close past the width (docs/protocols.md §1).
     clamping_travel_mm: Length = 10.0
 
 
@@ -231,10 +231,10 @@ class WsgProfile(ProfileBase):
 
 class StepfocTransport(_Model):
     timeout_s: Timeout = 0.5
-    baudrate: Annotated[int, Field(gt=0)] = 256_000  # PROTOCOL-NOTES §2 UART
+    baudrate: Annotated[int, Field(gt=0)] = 256_000  # docs/protocols.md §2 UART
     can_interface: str = "socketcan"
     can_channel: str = "can0"
-    can_bitrate: Annotated[int, Field(gt=0)] = 1_000_000  # PROTOCOL-NOTES §2 CAN
+    can_bitrate: Annotated[int, Field(gt=0)] = 1_000_000  # docs/protocols.md §2 CAN
     node: Annotated[int, Field(ge=0, le=15)] = 0
 
 
@@ -242,7 +242,7 @@ class MsgMaps(_Model):
     """How the driver's raw bytes and milliamps relate to width, speed and force.
 
     Position: byte 0 is fully open, 255 fully closed, linear between the calibrated end stops
-    (PROTOCOL-NOTES §2). Speed: byte 0..255 maps linearly to about 500..60000 encoder ticks/s; the mm/s at
+    (docs/protocols.md §2). Speed: byte 0..255 maps linearly to about 500..60000 encoder ticks/s; the mm/s at
     both ends depend on the rail's gearing and are estimates to calibrate per unit. Force: the MSG has no
     force sensor; force is estimated from the current limit.
     """

@@ -212,7 +212,7 @@ def test_no_api_path_sends_an_msg_value_outside_the_limits(
 
 
 def test_msg_driver_clamps_current_to_the_profile_limit(msg_can_sim, can_channel, msg_uart_sim) -> None:
-    """The MSG firmware does not clamp its current (PROTOCOL-NOTES §2): the drivers do, before sending."""
+    """The MSG firmware does not clamp its current (docs/protocols.md §2): the drivers do, before sending."""
     from grippers.drivers.stepfoc.can_client import StepfocBus
 
     server = msg_can_sim(MsgModel(node=0))
