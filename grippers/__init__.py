@@ -36,10 +36,10 @@ if TYPE_CHECKING:
         GraspState,
         Gripper,
         GripperState,
-        MotionHandle,
         MotionResult,
         StateStream,
     )
+    from .motions import MotionHandle
     from .profiles import Limits, Profile, load_profile
 
 __version__ = "0.1.0"
@@ -53,12 +53,14 @@ _LAZY = {
     "GraspState": ".gripper",
     "Gripper": ".gripper",
     "GripperState": ".gripper",
-    "MotionHandle": ".gripper",
+    "MotionHandle": ".motions",
     "MotionResult": ".gripper",
     "StateStream": ".gripper",
     "Limits": ".profiles",
     "Profile": ".profiles",
     "load_profile": ".profiles",
+    # Added to grippers/errors.py by the remote (Zenoh) layer: a peer refused by the server's access rules.
+    "AccessDenied": ".errors",
 }
 
 __all__ = [

@@ -201,3 +201,16 @@ def test_profiles_list_names_the_bad_file_and_lists_the_rest(_own_search_path: P
     assert "wsg50" in {row["name"] for row in document["profiles"]}
     assert [Path(s["file"]).name for s in document["skipped"]] == ["broken.toml"]
     assert "broken.toml" in run.stderr
+
+
+def test_the_extends_examples_in_docs_profiles_md_load(_own_search_path: Path) -> None:
+    import re
+
+    text = (ROOT / "docs" / "profiles.md").read_text(encoding="utf-8")
+    blocks = re.findall(r"```toml\n(.*?)```", text, re.S)
+    assert len(blocks) == 2
+    for i, block in enumerate(blocks):
+        (_own_search_path / f"example{i}.toml").write_text(block, encoding="utf-8")
+    glass = p.load_profile("wsg50-glass")
+    assert glass.limits().max_force == 15.0 and glass.limits().max_speed == pytest.approx(0.05)
+    assert p.load_profile("wsg50").limits().max_force == 25.0
