@@ -19,8 +19,8 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from typing import Any, TypeVar
 
-from .errors import CommandFailed, GripperError, GripperTimeout, LimitError, NotSupported
-from .motions import MotionHandle, wait_seconds
+from .errors import GripperError, GripperTimeout, LimitError, NotSupported
+from .motions import MotionHandle, MotionSupervisor, wait_seconds
 from .profiles import Limits, ProfileBase
 
 T = TypeVar("T")
@@ -176,7 +176,8 @@ class StateStream:
         """The next state; GripperTimeout when none comes within ``timeout`` (default: ten periods + 2 s)."""
         if self._stop.is_set() and self._queue.empty():
             raise StopIteration
-        wait = timeout if timeout is not None else 10 * self.period + 2.0
+        chosen = wait_seconds(timeout, "stream")
+        wait = chosen if chosen is not None else 10 * self.period + 2.0
         try:
             item = self._queue.get(timeout=wait)
         except queue.Empty:
@@ -224,7 +225,9 @@ class Gripper(ABC):
 
     Every value is checked against the profile's limits before anything is sent (``LimitError``, also a
     ``ValueError``); every wait has a timeout (``GripperTimeout``, also a ``TimeoutError``); ``state()`` may
-    be called from any thread at any time, also while a motion runs.
+    be called from any thread at any time, also while a motion runs. One motion runs at a time and the newer
+    one wins; a motion ended early raises ``CommandFailed`` "superseded by …" or "aborted by …", and Ctrl-C
+    stops the gripper before it leaves a blocking call (grippers/motions.py).
     """
 
     capabilities: frozenset[Capability] = frozenset()
@@ -237,7 +240,15 @@ class Gripper(ABC):
         self._fast_stopped = False
         self._closed = False
         self._lock = threading.Lock()
-        self._handles: list[MotionHandle[Any]] = []
+        self._motions = MotionSupervisor(
+            self._lock,
+            device=lambda: self.name,
+            check_open=self._check_open,
+            is_closed=lambda: self._closed,
+            stop=lambda: self._stop(),
+            supersede=lambda: self._supersede(),
+            settle_time=self._settle_time,
+        )
         self._streams: list[StateStream] = []
         self._on_close: list[Callable[[], None]] = []
         self.simulator: Any = None  # the in-process simulator server behind a sim:// gripper
@@ -372,128 +383,8 @@ class Gripper(ABC):
     def _run_motion(
         self, name: str, call: Callable[[], T], wait: bool, *, timeout: float = 0.0, what: str = ""
     ) -> T | MotionHandle[T]:
-        """Start ``call`` (the backend's blocking motion) in its own thread, superseding any running motion.
-
-        The blocking form waits for that thread, so Ctrl-C lands in this wait and never in the middle of an
-        exchange: the motion is then stopped (bounded) before the exception leaves the call.
-        """
-        superseded: list[MotionHandle[Any]] = []
-        with self._lock:  # registered atomically with the closed check, so close() joins every handle
-            self._check_open(name)
-            handle: MotionHandle[T] = MotionHandle(name, device=self.name)
-            handle._cancel = lambda: self._abort_motions("cancel()", handle)
-            previous = [h for h in self._handles if h._busy()]
-            for h in previous:
-                error = CommandFailed(f"superseded by {name}{what}", device=self.name, command=h.name)
-                if h._mark_aborted(error):
-                    superseded.append(h)
-            self._handles = [*previous, handle]
-            handle._start(lambda: self._motion_body(handle, call, previous))
-        for h in superseded:  # outside the lock: done callbacks may call back into this gripper
-            h._settle_aborted()
-        if not wait:
-            return handle
-        return self._wait_motion(handle, timeout + 2 * self._settle_time() + 1.0)
-
-    def _motion_body(
-        self, handle: MotionHandle[T], call: Callable[[], T], previous: list[MotionHandle[Any]]
-    ) -> T:
-        running = [h for h in previous if h._busy()]
-        if running:
-            # Stop the device, then let the older calls end (their replies, their polls) before sending:
-            # two motion calls at once would share one device and muddle each other's replies.
-            try:
-                self._supersede()
-            except Exception as exc:
-                log.debug("%s: stopping the superseded motion failed: %s", self.name, exc)
-            deadline = time.monotonic() + self._settle_time()
-            for h in running:
-                h.join(max(0.0, deadline - time.monotonic()))
-        self._may_send(handle)
-        return call()
-
-    def _may_send(self, handle: MotionHandle[Any]) -> None:
-        """Raise instead of sending when the motion was ended (or the gripper closed) before it began."""
-        with self._lock:
-            if self._closed:
-                raise GripperError(
-                    "the gripper was closed before the motion began", device=self.name, command=handle.name
-                )
-            if handle._ended():  # the handle holds the reason; this error is discarded
-                raise CommandFailed("ended before it was sent", device=self.name, command=handle.name)
-
-    def _current_handle(self) -> MotionHandle[Any] | None:
-        with self._lock:
-            for h in self._handles:
-                if h._thread is threading.current_thread():
-                    return h
-        return None
-
-    def _wait_motion(self, handle: MotionHandle[T], bound: float) -> T:
-        try:
-            return handle.wait(bound)
-        except BaseException as exc:
-            if handle.done():
-                raise  # the motion's own outcome
-            # Ctrl-C, a signal handler's exception, or the bound running out: stop the gripper first, so a
-            # script that is interrupted does not leave the jaws closing on whatever is between them.
-            by = "Ctrl-C" if isinstance(exc, KeyboardInterrupt) else type(exc).__name__
-            failure = self._abort_motions(by, handle, bounded=True)
-            if failure is not None:
-                exc.add_note(f"{self.name}: stopping the gripper after {by} failed: {failure}")
-            raise
-
-    def _abort_motions(
-        self,
-        by: str,
-        only: MotionHandle[Any] | None = None,
-        *,
-        bounded: bool = False,
-        device_stop: Callable[[], None] | None = None,
-    ) -> BaseException | None:
-        """Mark motions aborted by ``by``, stop the device, settle them; returns a bounded stop's error."""
-        with self._lock:
-            targets = [only] if only is not None else list(self._handles)
-            marked = [
-                h
-                for h in targets
-                if h._mark_aborted(CommandFailed(f"aborted by {by}", device=self.name, command=h.name))
-            ]
-        stop = device_stop or self._stop
-        try:
-            if only is not None and not marked:
-                return None  # that motion had already ended: nothing to stop
-            if bounded:
-                return self._bounded(stop, by)
-            stop()
-            return None
-        finally:
-            for h in marked:
-                h._settle_aborted()
-
-    def _bounded(self, fn: Callable[[], None], why: str) -> BaseException | None:
-        """Run ``fn`` in its own thread and wait a bounded time: a stop after Ctrl-C must never hang, and a
-        second Ctrl-C ends the wait (the stop goes on in its thread) instead of interrupting an exchange."""
-        outcome: list[BaseException | None] = []
-
-        def run() -> None:
-            try:
-                fn()
-                outcome.append(None)
-            except BaseException as exc:
-                outcome.append(exc)
-
-        thread = threading.Thread(target=run, name=f"grippers-stop-after-{why}", daemon=True)
-        thread.start()
-        try:
-            thread.join(self._settle_time())
-        except BaseException as exc:
-            return exc
-        if not outcome:
-            return GripperTimeout(
-                f"no answer within {self._settle_time():g} s", device=self.name, command="stop"
-            )
-        return outcome[0]
+        """Run a backend motion under the one rule (grippers/motions.py): supersede, abort, Ctrl-C stops."""
+        return self._motions.run(name, call, wait, timeout=timeout, what=what)  # type: ignore[no-any-return]
 
     def home(self, timeout: float | None = None, *, wait: bool = True) -> None | MotionHandle[None]:
         """Reference the axis (WSG homing) or calibrate the stroke (MSG); blocks until done."""
@@ -563,9 +454,9 @@ class Gripper(ABC):
                 self._move(max(width - self.GRASP_CLEARANCE, self.limits.min_width), speed, timeout)
             elif not inside and now < width:
                 self._move(min(width + self.GRASP_CLEARANCE, self.limits.max_width), speed, timeout)
-            handle = self._current_handle()
+            handle = self._motions.current()
             if handle is not None:
-                self._may_send(handle)  # stopped while opening: do not grasp after all
+                self._motions.may_send(handle)  # stopped while opening: do not grasp after all
         return self._grasp(width, speed, force, timeout)
 
     def release(
@@ -591,7 +482,7 @@ class Gripper(ABC):
         The WSG keeps its motor on; the MSG clears its action bit (CAN) or, having no other way over UART,
         deactivates the motor, so a held part is no longer squeezed."""
         self._check_open("stop")
-        self._abort_motions("stop()")
+        self._motions.abort("stop()")
 
     def fast_stop(self) -> None:
         """Stop at once; further motion is refused until :meth:`acknowledge`. A running motion raises
@@ -600,7 +491,7 @@ class Gripper(ABC):
         # Refuse motion from here on, even if the reply is lost or another thread starts a move meanwhile:
         # the user asked for a stop, and acknowledge() is the one way out.
         self._fast_stopped = True
-        self._abort_motions("fast_stop()", device_stop=self._fast_stop)
+        self._motions.abort("fast_stop()", device_stop=self._fast_stop)
 
     def acknowledge(self) -> None:
         """Clear a fast stop (WSG 24h; MSG: estop bit cleared, then the error)."""
@@ -694,7 +585,7 @@ class Gripper(ABC):
                 return
             self._closed = True
             streams, self._streams = list(self._streams), []
-            handles, self._handles = list(self._handles), []
+            handles = self._motions.take_all()
         for s in streams:
             s.close()
         try:

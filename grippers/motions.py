@@ -21,10 +21,11 @@ from __future__ import annotations
 import logging
 import math
 import threading
+import time
 from collections.abc import Callable
 from typing import Any, Generic, TypeVar
 
-from .errors import CommandFailed, GripperTimeout, LimitError
+from .errors import CommandFailed, GripperError, GripperTimeout, LimitError
 
 T = TypeVar("T")
 
@@ -179,3 +180,163 @@ class MotionHandle(Generic[T]):
     def __repr__(self) -> str:
         state = "done" if self.done() else "running"
         return f"<MotionHandle {self.name} {state}>"
+
+
+class MotionSupervisor:
+    """The rule above for one gripper: registers motions, supersedes, aborts, and stops after Ctrl-C.
+
+    It shares the gripper's lock, so registering a motion is atomic with the gripper's closed check and
+    close() sees every handle. Everything device-specific comes in as callables from the Gripper.
+    """
+
+    def __init__(
+        self,
+        lock: threading.Lock,
+        *,
+        device: Callable[[], str],
+        check_open: Callable[[str], None],
+        is_closed: Callable[[], bool],
+        stop: Callable[[], None],
+        supersede: Callable[[], None],
+        settle_time: Callable[[], float],
+    ) -> None:
+        self._lock = lock
+        self._device = device
+        self._check_open = check_open
+        self._is_closed = is_closed
+        self._stop = stop
+        self._supersede = supersede
+        self._settle_time = settle_time
+        self.handles: list[MotionHandle[Any]] = []
+
+    def run(self, name: str, call: Callable[[], T], wait: bool, *, timeout: float, what: str = "") -> Any:
+        """Start ``call`` (the backend's blocking motion) in its own thread, superseding any running motion;
+        return its handle, or (``wait``) its result.
+
+        The blocking form waits for that thread, so Ctrl-C lands in this wait and never in the middle of an
+        exchange: the motion is then stopped (bounded) before the exception leaves the call.
+        """
+        device = self._device()
+        superseded: list[MotionHandle[Any]] = []
+        with self._lock:
+            self._check_open(name)
+            handle: MotionHandle[T] = MotionHandle(name, device=device)
+            handle._cancel = lambda: self.abort("cancel()", handle)
+            previous = [h for h in self.handles if h._busy()]
+            for h in previous:
+                error = CommandFailed(f"superseded by {name}{what}", device=device, command=h.name)
+                if h._mark_aborted(error):
+                    superseded.append(h)
+            self.handles = [*previous, handle]
+            handle._start(lambda: self._body(handle, call, previous))
+        for h in superseded:  # outside the lock: done callbacks may call back into the gripper
+            h._settle_aborted()
+        if not wait:
+            return handle
+        return self._wait(handle, timeout + 2 * self._settle_time() + 1.0)
+
+    def _body(self, handle: MotionHandle[T], call: Callable[[], T], previous: list[MotionHandle[Any]]) -> T:
+        running = [h for h in previous if h._busy()]
+        if running:
+            # Stop the device, then let the older calls end (their replies, their polls) before sending:
+            # two motion calls at once would share one device and muddle each other's replies.
+            try:
+                self._supersede()
+            except Exception as exc:
+                log.debug("%s: stopping the superseded motion failed: %s", self._device(), exc)
+            deadline = time.monotonic() + self._settle_time()
+            for h in running:
+                h.join(max(0.0, deadline - time.monotonic()))
+        self.may_send(handle)
+        return call()
+
+    def may_send(self, handle: MotionHandle[Any]) -> None:
+        """Raise instead of sending when the motion was ended (or the gripper closed) before it began."""
+        with self._lock:
+            if self._is_closed():
+                raise GripperError(
+                    "the gripper was closed before the motion began",
+                    device=self._device(),
+                    command=handle.name,
+                )
+            if handle._ended():  # the handle holds the reason; this error is discarded
+                raise CommandFailed("ended before it was sent", device=self._device(), command=handle.name)
+
+    def current(self) -> MotionHandle[Any] | None:
+        """The motion whose thread calls this (a backend call checking it may go on), if any."""
+        me = threading.current_thread()
+        with self._lock:
+            return next((h for h in self.handles if h._thread is me), None)
+
+    def take_all(self) -> list[MotionHandle[Any]]:
+        """Forget every handle (the gripper closes); the caller holds the lock."""
+        handles, self.handles = self.handles, []
+        return handles
+
+    def _wait(self, handle: MotionHandle[T], bound: float) -> T:
+        try:
+            return handle.wait(bound)
+        except BaseException as exc:
+            if handle.done():
+                raise  # the motion's own outcome
+            # Ctrl-C, a signal handler's exception, or the bound running out: stop the gripper first, so a
+            # script that is interrupted does not leave the jaws closing on whatever is between them.
+            by = "Ctrl-C" if isinstance(exc, KeyboardInterrupt) else type(exc).__name__
+            failure = self.abort(by, handle, bounded=True)
+            if failure is not None:
+                exc.add_note(f"{self._device()}: stopping the gripper after {by} failed: {failure}")
+            raise
+
+    def abort(
+        self,
+        by: str,
+        only: MotionHandle[Any] | None = None,
+        *,
+        bounded: bool = False,
+        device_stop: Callable[[], None] | None = None,
+    ) -> BaseException | None:
+        """Mark motions aborted by ``by``, stop the device, settle them; returns a bounded stop's error.
+
+        Without ``only`` the device is stopped even when no motion runs (``stop()`` always stops)."""
+        device = self._device()
+        with self._lock:
+            targets = [only] if only is not None else list(self.handles)
+            marked = [
+                h
+                for h in targets
+                if h._mark_aborted(CommandFailed(f"aborted by {by}", device=device, command=h.name))
+            ]
+        stop = device_stop or self._stop
+        try:
+            if only is not None and not marked:
+                return None  # that motion had already ended: nothing to stop
+            if bounded:
+                return self._bounded(stop, by)
+            stop()
+            return None
+        finally:
+            for h in marked:
+                h._settle_aborted()
+
+    def _bounded(self, fn: Callable[[], None], why: str) -> BaseException | None:
+        """Run ``fn`` in its own thread and wait a bounded time: a stop after Ctrl-C must never hang, and a
+        second Ctrl-C ends the wait (the stop goes on in its thread) instead of interrupting an exchange."""
+        outcome: list[BaseException | None] = []
+
+        def run() -> None:
+            try:
+                fn()
+                outcome.append(None)
+            except BaseException as exc:
+                outcome.append(exc)
+
+        thread = threading.Thread(target=run, name=f"grippers-stop-after-{why}", daemon=True)
+        thread.start()
+        limit = self._settle_time()
+        try:
+            thread.join(limit)
+        except BaseException as exc:
+            return exc
+        if not outcome:
+            return GripperTimeout(f"no answer within {limit:g} s", device=self._device(), command="stop")
+        return outcome[0]

@@ -94,3 +94,16 @@ def test_a_huge_motion_timeout_or_wait_is_no_overflow(wsg: grippers.Gripper) -> 
     handle = wsg.move(0.05, wait=False)
     assert isinstance(handle, MotionHandle)
     assert handle.wait(1e10).width == pytest.approx(0.05, abs=0.002)
+
+
+def test_stream_get_takes_any_timeout_without_overflow(wsg: grippers.Gripper) -> None:
+    with wsg.stream(rate_hz=100) as stream:
+        assert stream.get(timeout=1e10).width >= 0
+        with pytest.raises(LimitError, match="timeout"):
+            stream.get(timeout=float("nan"))
+
+
+def test_a_huge_msg_motion_timeout_is_no_overflow() -> None:
+    with grippers.open("sim://msg-150?time_scale=200") as g:
+        g.home(timeout=1e10)
+        assert g.move(0.05, timeout=1e12).width == pytest.approx(0.05, abs=0.002)
