@@ -225,3 +225,35 @@ def test_msg_driver_clamps_current_to_the_profile_limit(msg_can_sim, can_channel
         with pytest.raises(LimitError):
             client.current(-1)
     assert uart.model.current_setpoint == 700
+
+
+# ------------------------------------------------------------------------- a lowered limit is never dropped
+
+
+def test_a_lowered_user_limit_holds_on_every_path_to_a_profile(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Issue 13 item 8: a user's file named like a built-in, lowering its force, is used by every lookup: by
+    name, by alias, sim://, profile=, and a WSG opened by URL (profile from the device type). A 60 N grasp
+    is refused before anything is sent, and the device never sees more than 25 N."""
+    text = (ROOT / "profiles" / "wsg50.toml").read_text(encoding="utf-8")
+    text = "\n".join(line for line in text.splitlines() if not line.startswith("aliases"))
+    (tmp_path / "my-wsg.toml").write_text(
+        text.replace("[wsg]", "[safety]\nmax_force_n = 25.0\n\n[wsg]"), encoding="utf-8"
+    )
+    (tmp_path / "zz-broken.toml").write_text("not toml", encoding="utf-8")  # an unrelated bad file
+    monkeypatch.setenv("GRIPPERS_PROFILE_PATH", str(tmp_path))
+    monkeypatch.setenv("XDG_CONFIG_HOME", str(tmp_path / "none"))
+    for name in ("wsg50", "WSG 50", "wsg-50"):
+        assert grippers.load_profile(name).limits().max_force == 25.0
+    with grippers.open("sim://wsg50?time_scale=50") as sim:
+        assert sim.limits.max_force == 25.0
+        url = sim.simulator.url
+        with grippers.open(url) as by_url, grippers.open(url, profile="WSG 50") as named:
+            for g in (sim, by_url, named):
+                assert g.limits.max_force == 25.0, g
+                with pytest.raises(LimitError, match="force 60 N is outside"):
+                    g.grasp(0.04, force=60)
+            by_url.home()
+            by_url.grasp(0.04)  # the default force (40 N in the built-in) is clamped to the lowered limit
+            assert sim.simulator.model.force_limit <= 25.0
