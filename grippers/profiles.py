@@ -611,8 +611,22 @@ def list_profiles(*, strict: bool = False) -> list[ProfileBase]:
     for _file, problem in scan.problems:
         if strict:
             raise ProfileError(problem)
-        log.warning("skipping a profile that does not validate: %s", problem)
+        _warn_once(problem)
     return scan.profiles
+
+
+_warned: dict[str, None] = {}
+
+
+def _warn_once(problem: str) -> None:
+    """Log a skipped file once per problem, not at every open() of a gripper found by its device type."""
+    with _cache_lock:
+        if problem in _warned:
+            return
+        _warned[problem] = None
+        while len(_warned) > CACHE_ENTRIES:
+            del _warned[next(iter(_warned))]
+    log.warning("skipping a profile that does not validate: %s", problem)
 
 
 def _looks_like_path(name: str) -> bool:
