@@ -430,7 +430,7 @@ class Gripper(ABC):
         t = self._timeout(timeout, "grasp", self._motion_timeout(self.limits.stroke, s))
         return self._run_motion(
             "grasp",
-            lambda: self._grasp_from_outside(w, s, f, t),
+            lambda: self._grasp_with_room(w, s, f, t),
             wait,
             timeout=2 * t,
             what=f" {w * 1000:g} mm",
@@ -442,7 +442,7 @@ class Gripper(ABC):
         """Whether a grasp opens onto the part (MSG ``maps.inside_grip``); others grip from outside."""
         return bool(getattr(getattr(self.profile, "maps", None), "inside_grip", False))
 
-    def _grasp_from_outside(self, width: float, speed: float, force: float, timeout: float) -> GraspResult:
+    def _grasp_with_room(self, width: float, speed: float, force: float, timeout: float) -> GraspResult:
         try:
             now = self._state().width
         except GripperError as exc:  # the grasp itself will report a device that does not answer

@@ -1,4 +1,5 @@
-"""Motion handles: one motion's outcome, settled once, whichever thread decides it.
+"""Motion handles (one motion's outcome, settled once, whichever thread decides it) and the supervisor that
+applies the one rule for motions to a gripper.
 
 A motion ends in one of three ways: the backend's call returns or raises (the device's own outcome), or the
 motion is ended early in this process (a newer motion supersedes it; ``stop()``, ``fast_stop()``,
@@ -6,14 +7,21 @@ motion is ended early in this process (a newer motion supersedes it; ``stop()``,
 result of a motion that was sent after it: an aborted motion's backend call may still return a width or
 a detection value, but by then it describes another command's work and is discarded.
 
-The rule the :class:`~grippers.gripper.Gripper` applies, the same for every family (README "Motions"):
+The rule the :class:`~grippers.gripper.Gripper` applies, the same for every family (README, "Motions end
+honestly"):
 
 * a motion started while another runs **supersedes** it: the older call or ``wait()`` raises
   :class:`CommandFailed` "superseded by …" at once, the device is stopped (the WSG refuses a new motion
   while one runs, E_ALREADY_RUNNING, WSG manual 4.0.x §3.2.2) and the newer motion is sent once the older
   call has ended;
-* ``stop()``, ``fast_stop()``, ``cancel()`` and Ctrl-C make the running motion raise
-  :class:`CommandFailed` "aborted by …".
+* ``stop()``, ``fast_stop()`` and ``cancel()`` make the running motion raise :class:`CommandFailed`
+  "aborted by …";
+* Ctrl-C (any exception) in a blocking motion call stops the gripper (bounded) before the exception leaves
+  the call.
+
+Errors a backend raises for ends it detects on the device (a stop from another program, an e-stop) pass
+through unchanged; when this process ended the motion, its "superseded"/"aborted" error wins and the
+backend's error becomes its ``__cause__``.
 """
 
 from __future__ import annotations
