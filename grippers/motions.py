@@ -230,28 +230,37 @@ class MotionSupervisor:
             self._check_open(name)
             handle: MotionHandle[T] = MotionHandle(name, device=device)
             handle._cancel = lambda: self.abort("cancel()", handle)
-            previous = [h for h in self.handles if h._busy()]
+            me = threading.current_thread()  # a done callback starting a motion must not wait for itself
+            previous = [h for h in self.handles if h._busy() and h._thread is not me]
             for h in previous:
                 error = CommandFailed(f"superseded by {name}{what}", device=device, command=h.name)
                 if h._mark_aborted(error):
                     superseded.append(h)
             self.handles = [*previous, handle]
-            handle._start(lambda: self._body(handle, call, previous))
+            stop_first = bool(superseded)  # an older motion still ran: stop it on the device first
+            handle._start(lambda: self._body(handle, call, previous, stop_first))
         for h in superseded:  # outside the lock: done callbacks may call back into the gripper
             h._settle_aborted()
         if not wait:
             return handle
         return self._wait(handle, timeout + 2 * self._settle_time() + 1.0)
 
-    def _body(self, handle: MotionHandle[T], call: Callable[[], T], previous: list[MotionHandle[Any]]) -> T:
-        running = [h for h in previous if h._busy()]
-        if running:
-            # Stop the device, then let the older calls end (their replies, their polls) before sending:
-            # two motion calls at once would share one device and muddle each other's replies.
+    def _body(
+        self,
+        handle: MotionHandle[T],
+        call: Callable[[], T],
+        previous: list[MotionHandle[Any]],
+        stop_first: bool,
+    ) -> T:
+        # Stop the device, then let the older calls end (their replies, their polls) before sending: two
+        # motion calls at once would share one device and muddle each other's replies.
+        if stop_first:
             try:
                 self._supersede()
             except Exception as exc:
                 log.debug("%s: stopping the superseded motion failed: %s", self._device(), exc)
+        running = [h for h in previous if h._busy()]
+        if running:
             deadline = time.monotonic() + self._settle_time()
             for h in running:
                 h.join(max(0.0, deadline - time.monotonic()))
