@@ -18,7 +18,8 @@ T = TypeVar("T")
 
 # The range of every setting that has one, checked where it is taken, so a backend never hands a socket or a
 # timer a value it cannot take (``local_port=70000`` was an OverflowError from bind(), ``timeout=1e10`` one
-# from the clock). Names are the query parameters of docs/cli.md; CAN ids are standard 11-bit identifiers.
+# from the clock). Names are the query parameters the backends take (the URL grammar is in grippers/urls.py);
+# CAN ids are standard 11-bit identifiers, MSG nodes 0..15 (docs/protocols.md §2).
 RANGES: dict[str, tuple[float, float]] = {
     "local_port": (0, 65535),
     "port": (1, 65535),

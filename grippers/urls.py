@@ -10,6 +10,8 @@
 
 The scheme is ``FAMILY+TRANSPORT``, so a third-party backend brings its own family name. Query parameters
 become settings that win over the profile's fields (keyword overrides to :func:`grippers.open` win over both).
+Numeric settings are range-checked where a backend takes them (``grippers/settings.py``, ``RANGES``): a port
+of 70000 or a timeout of 1e10 s is a :class:`URLError` at open, before anything is sent.
 A serial port may itself be a pyserial URL (``wsg+serial://socket://host:4000``, ``wsg+serial://loop://``);
 a plain device path is written with its leading slash (``wsg+serial:///dev/ttyUSB0``).
 """
