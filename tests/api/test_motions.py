@@ -30,10 +30,15 @@ TARGETS = {
     "msg-pty": "sim://msg-150?time_scale=8&transport=pty",
 }
 BOTH = ["wsg-tcp", "msg-can"]
+EVERY_TRANSPORT = {
+    **TARGETS,
+    "wsg-pty": "sim://wsg50?time_scale=4&transport=pty",
+    "wsg-can": "sim://wsg50?time_scale=4&transport=can",
+}
 
 
 def _open(key: str, **query: Any) -> grippers.Gripper:
-    url = TARGETS[key] + "".join(f"&{k}={v}" for k, v in query.items())
+    url = EVERY_TRANSPORT[key] + "".join(f"&{k}={v}" for k, v in query.items())
     g = grippers.open(url)
     g.home()
     return g
@@ -130,7 +135,7 @@ def test_stop_aborts_a_blocking_call_in_another_thread(key: str) -> None:
         assert "aborted by stop()" in str(outcome[0])
 
 
-@pytest.mark.parametrize("key", list(TARGETS))
+@pytest.mark.parametrize("key", list(EVERY_TRANSPORT))
 def test_ctrl_c_during_a_blocking_motion_stops_the_gripper_first(key: str) -> None:
     with _open(key) as g:
         lo, hi = g.limits.min_width, g.limits.max_width
