@@ -164,8 +164,69 @@ COMMANDS: dict[str, CommandSpec] = dict(
         _spec("Gripinfo", "I am a gripper", False, has_value=False, lines=11, doc="gripper status, 11 lines"),
         _spec("Info", "Hardware version: ", False, has_value=False, lines=0, doc="driver information"),
         _spec("Clear", "Clear errors", False, has_value=False, doc="clear all errors, mode idle"),
+        _spec("Idle", "Idle", False, has_value=False, doc="driver mode idle (communication.cpp)"),
     ]
 )
+
+
+# The names the firmware's parser passes on (public STEPFOC firmware, SerialPacketParser.cpp ``parse``): one
+# list for "#NAME ARG", one for "#NAME". A line whose name is not in its list is dropped without an answer;
+# a listed name that communication.cpp does not dispatch is answered "Unknown command" (PROTOCOL-NOTES §2,
+# "Firmware behaviour a client must survive").
+PARSER_NAMES_WITH_ARG = frozenset(
+    (
+        "Iq", "Id", "Uq", "Ud", "V", "Vlim", "P", "PD", "Kpp", "Kpv", "Kpiq", "Kpid", "Kiv", "Kiiq",
+        "Kiid", "KP", "KD", "PDV", "PDI", "R", "L", "Kt", "KV", "flux", "zz", "Cal", "Save", "Reset",
+        "Ilim", "Dir", "Temp", "Magnet", "Term", "Mode", "Vbus", "Vmin", "Vmax", "Error", "Clear",
+        "Default", "SIN", "SPWM", "Iabc", "Close", "Cbw", "Resv", "Calpwr", "Openv", "Opens", "Vp",
+        "Calibrated", "Param", "PP", "Openloop", "LED", "Cyc", "Cyca", "CANID", "SERNUM", "Info",
+        "Vlimit", "Phase", "Activate", "Gripper", "Gripcal", "Grippos", "Gripvel", "Gripcur", "Gripact",
+        "Gripstop", "Gripinfo", "Rstint", "Pullconfig", "Tlim", "Brake", "HALL", "Coast", "Calangle",
+        "Offset", "Iqoffset", "microstep", "stepinterval", "gosteps"
+    )
+)
+PARSER_NAMES_BARE = frozenset(
+    (
+        "Iq", "Id", "Uq", "Ud", "V", "P", "Vlim", "PD", "Kpp", "Kpv", "Kpiq", "Kpid", "Kiv", "Kiiq",
+        "Kiid", "KP", "KD", "PDV", "PDI", "R", "L", "Kt", "flux", "KV", "Idle", "Cal", "Save", "Reset",
+        "Ilim", "Dir", "Temp", "Magnet", "Term", "Mode", "Vbus", "Vmin", "Vmax", "Error", "Clear",
+        "Default", "SIN", "SPWM", "Iabc", "EN", "PWM", "Cbw", "Resv", "Calpwr", "Openv", "Opens", "Vp",
+        "Close", "Calibrated", "Param", "PP", "Openloop", "LED", "Cyc", "Cyca", "CANID", "SERNUM",
+        "Info", "Vlimit", "Phase", "Activate", "Gripper", "Gripcal", "Grippos", "Gripvel", "Gripcur",
+        "Gripact", "Gripstop", "Gripinfo", "Rstint", "Pullconfig", "Tlim", "Brake", "HALL", "Coast",
+        "Calangle", "Offset", "Iqoffset", "microstep", "stepinterval", "gosteps"
+    )
+)
+
+
+def parser_knows(req: Request) -> bool:
+    """Whether the firmware's parser passes ``req`` on to the command dispatch (else: no answer at all)."""
+    names = PARSER_NAMES_BARE if req.argument is None else PARSER_NAMES_WITH_ARG
+    return req.name in names
+
+
+# ``#Mode`` prints the driver mode as text (communication.cpp); mode 11 (gripper) has no line and gets NO
+# answer, so a client reads silence as "neither idle nor calibrating".
+MODE_LINES: dict[int, str] = {
+    0: "Idle mode ",
+    1: "Position control ",
+    2: "Speed control ",
+    3: "Current control ",
+    4: "PD control ",
+    5: "Open loop",
+    6: "Gripper mode",
+    7: "Gripper calib mode",
+}
+MODE_IDLE, MODE_CALIBRATE = 0, 7
+
+
+def parse_mode(line: str) -> int | None:
+    """The driver mode a ``#Mode`` answer line names, or None for any other line."""
+    text = line.rstrip()
+    for mode, label in MODE_LINES.items():
+        if text == label.rstrip():
+            return mode
+    return None
 
 
 def spec(name: str) -> CommandSpec:
@@ -649,9 +710,10 @@ def encode_lines(lines: Iterable[str]) -> bytes:
 
 
 __all__ = [
-    "BAUDRATE", "COMMANDS", "GRIPINFO_FIELDS", "GRIPINFO_FIRST_LINE", "INFO_HEADER", "INFO_STATUS",
-    "MAX_COMMAND_CHARS", "UNKNOWN_COMMAND", "Answer", "CommandReceiver", "CommandSpec", "GripInfo",
-    "GripInfoAssembler", "InfoAssembler", "Line", "LineSplitter", "LineTooLong", "Rejected", "Request",
-    "SplitEvent", "UartInfo", "atoi", "encode_lines", "format_command", "is_unknown_command", "parse_answer",
-    "parse_gripinfo", "parse_info", "render_gripinfo", "render_info", "spec",
+    "Answer", "BAUDRATE", "COMMANDS", "CommandReceiver", "CommandSpec", "GRIPINFO_FIELDS",
+    "GRIPINFO_FIRST_LINE", "GripInfo", "GripInfoAssembler", "INFO_HEADER", "INFO_STATUS", "InfoAssembler",
+    "Line", "LineSplitter", "LineTooLong", "MAX_COMMAND_CHARS", "MODE_LINES", "PARSER_NAMES_BARE",
+    "PARSER_NAMES_WITH_ARG", "Rejected", "Request", "SplitEvent", "UNKNOWN_COMMAND", "UartInfo", "atoi",
+    "encode_lines", "format_command", "is_unknown_command", "parse_answer", "parse_gripinfo", "parse_info",
+    "parse_mode", "parser_knows", "render_gripinfo", "render_info", "spec"
 ]
