@@ -11,9 +11,10 @@ indistinguishable from the reply to the next request with the same key. For 60 t
 fresh status of the node); for remote requests it returns the same kind of value.
 
 Two devices with one node id answer every request twice. The reader counts, per (node, command), the requests
-seen on the bus (its own and other hosts') against the replies; a reply nobody asked for marks the node as
-duplicated and every later request to it raises :class:`ProtocolError` naming the node, instead of returning
-the states of two devices in turn.
+seen on the bus (its own and other hosts') against the replies; a reply nobody asked for that arrives within
+:data:`DUPLICATE_WINDOW_S` of the reply to one of this client's requests marks the node as duplicated, and every later request to it
+raises :class:`ProtocolError` naming the node, instead of returning the states of two devices in turn. (An
+unsolicited frame at any other time is only ignored: a bus tool may send anything.)
 """
 
 from __future__ import annotations
@@ -64,6 +65,7 @@ __all__ = ["CalibrationWatch", "StepfocBus", "StepfocNode", "open_node", "parse_
 log = logging.getLogger(__name__)
 
 _READ_POLL_S = 0.05  # the reader's longest block, so close() returns promptly
+DUPLICATE_WINDOW_S = 0.05  # two nodes with one id answer one request within microseconds of each other
 
 # End of a RE-calibration, read from the 60 frames (PROTOCOL-NOTES §2 "Firmware behaviour a client must
 # survive": the calibrated bit stays set, so the jaws tell): they leave the closed stop, travel to the open
@@ -189,6 +191,7 @@ class StepfocBus:
         self._lock = threading.Lock()
         self._waiters: dict[tuple[int, int], _Waiter] = {}
         self._expected: dict[tuple[int, int], int] = {}  # requests seen minus replies seen, per key
+        self._answered: dict[tuple[int, int], float] = {}  # monotonic time of the last expected reply
         self._request_locks: dict[tuple[int, int], threading.Lock] = {}
         self._states: dict[int, _NodeState] = {}
         self._listeners: list[Callable[[can.Message], None]] = []
@@ -258,9 +261,12 @@ class StepfocBus:
             waiter = self._waiters.get(key)
             if command != Cmd.HEARTBEAT:
                 left = self._expected.get(key, 0)
+                now = time.monotonic()
                 if left > 0:
                     self._expected[key] = left - 1
-                elif state.duplicate is None:
+                    if waiter is not None and not waiter.done:
+                        self._answered[key] = now  # the reply to OUR request: a second one would be a twin
+                elif state.duplicate is None and now - self._answered.get(key, -1e9) < DUPLICATE_WINDOW_S:
                     state.duplicate = (
                         f"two devices answer as node {node}: a second {spec.name} reply arrived for one "
                         "request (give every gripper on the bus its own node id)"
