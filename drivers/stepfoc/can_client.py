@@ -12,9 +12,9 @@ fresh status of the node); for remote requests it returns the same kind of value
 
 Two devices with one node id answer every request twice. The reader counts, per (node, command), the requests
 seen on the bus (its own and other hosts') against the replies; a reply nobody asked for that arrives within
-:data:`DUPLICATE_WINDOW_S` of the reply to one of this client's requests marks the node as duplicated, and every later request to it
-raises :class:`ProtocolError` naming the node, instead of returning the states of two devices in turn. (An
-unsolicited frame at any other time is only ignored: a bus tool may send anything.)
+:data:`DUPLICATE_WINDOW_S` of the reply to one of this client's requests marks the node as duplicated, and
+every later request to it raises :class:`ProtocolError` naming the node, instead of returning the states of
+two devices in turn. (An unsolicited frame at any other time is only ignored: a bus tool may send anything.)
 """
 
 from __future__ import annotations

@@ -322,7 +322,10 @@ class StepfocUart:
                 if is_unknown_command(line.text):
                     raise NotSupported("the device answered 'Unknown command'", device=self.device,
                                        command=command)
-                result = handle(line.text)
+                try:
+                    result = handle(line.text)
+                except ProtocolError as exc:  # a recognised answer with an impossible value
+                    raise ProtocolError(exc.message, device=self.device, command=command) from None
                 if not isinstance(result, _Pending):
                     self.discarded += skipped
                     return result

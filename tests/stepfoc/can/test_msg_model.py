@@ -205,7 +205,7 @@ def test_estop_command_0_then_clear() -> None:
     m = calibrated()
     m.handle_frame(pack_id(0, Cmd.ESTOP), b"", False, 60.0)
     st = m.status(60.0)
-    assert st.error_bit and not st.estop_error and m.error_state().estop  # the driver's error, not the 60 flag
+    assert st.error_bit and not st.estop_error and m.error_state().estop  # the driver's, not the 60 flag
     m.handle_frame(pack_id(0, Cmd.CLEAR_ERROR), b"", False, 61.0)
     m.advance(61.5)
     assert not m.status(61.5).error_bit and not m.error_state().estop
