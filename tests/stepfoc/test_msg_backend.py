@@ -97,6 +97,22 @@ def test_calibration_watch_needs_the_jaws_to_leave_and_come_back() -> None:
         assert not server.model.calibrating and node.poll().position == 255
 
 
+def test_the_client_never_repeats_a_motion_61_byte_for_byte() -> None:
+    channel = f"msg-backend-{uuid.uuid4().hex[:8]}"
+    with serve_can([MsgModel(node=0)], f"can://virtual/{channel}", time_scale=50.0) as server, StepfocBus(
+        interface="virtual", channel=channel
+    ) as bus:
+        node = bus.node(0)
+        node.calibrate(timeout=5.0)
+        node.move(100, 200, timeout=5.0)
+        before = server.model._last_command
+        node.calibrate(timeout=5.0)  # the node keeps those bytes over the calibration
+        node.command(100, 200)
+        assert server.model._last_command != before  # so the at-position latch was reset ...
+        st = node.wait_motion(timeout=5.0)
+        assert abs(st.position - 100) <= 1 and server.model.opening_mm < 70  # ... and the jaws really moved
+
+
 # ------------------------------------------------------------------------------ e-stop from anywhere (§2)
 
 
