@@ -243,3 +243,25 @@ def test_info_warns_when_the_model_is_assumed() -> None:
             assert any("msg-150 assumed" in w and "pass a profile" in w for w in warnings)
         with grippers.open(url, profile="msg-200") as g:
             assert "warnings" not in g.info().extra
+
+
+@pytest.mark.parametrize("transport", TRANSPORTS)
+def test_stop_from_a_keyboard_interrupt_handler_stops_the_gripper(transport: str) -> None:
+    import _thread
+
+    with sim(transport) as g:
+        g.home()
+        model = g.simulator.model
+        for delay in (0.05, 0.11, 0.17):  # Ctrl-C at different moments of the wait loop
+            threading.Timer(delay, _thread.interrupt_main).start()
+            try:
+                g.move(0.09 if model.opening_mm < 45 else 0.0, 0.002)
+            except KeyboardInterrupt:
+                g.stop()  # what the base class does before the exception leaves the call
+            else:
+                pytest.fail("the motion finished before the interrupt")
+            with g.simulator.lock if transport == "pty" else threading.Lock():
+                at = model.opening_mm
+            time.sleep(0.1)
+            assert model.opening_mm == pytest.approx(at, abs=0.05)  # stopped, not still travelling
+        assert g.move(0.05).width == pytest.approx(0.05, abs=0.001)  # and the link is usable
