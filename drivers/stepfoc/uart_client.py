@@ -173,7 +173,10 @@ class StepfocUart:
         """False while the driver is in calibration mode; True once it idles at the closed stop with the
         calibrated bit set; CommandFailed when the calibration ended any other way (aborted by a motion
         command, an error, an idle, or the firmware's calibration time-out)."""
-        mode = self.mode()
+        try:
+            mode = self.mode()
+        except NotSupported:  # a firmware without #Mode: only a first calibration can be told
+            return bool(self.gripinfo().calibrated)
         if mode == MODE_CALIBRATE:
             return False
         if mode != MODE_IDLE:
