@@ -283,6 +283,7 @@ class MsgGripper(Gripper):
         # Motion bookkeeping at the device level: every motion this backend starts (and every stop) takes a
         # new number; a wait whose number is no longer the current one ends with the recorded cause.
         self._motion_lock = threading.Lock()
+        self._send_lock = threading.RLock()  # a motion's number and its frames go out together
         self._motion_id = 0
         self._motion_cause = ""
         if link.has_temperature:
@@ -417,8 +418,9 @@ class MsgGripper(Gripper):
     def _go_and_wait(
         self, command: str, position: int, speed: float, current_ma: int, timeout: float
     ) -> _Status:
-        motion = self._begin(f"superseded by a newer motion before it ended ({command})")
-        self._link.go(position, self._speed_byte(speed), current_ma)
+        with self._send_lock:  # a stop() cannot land between the number and the frames and be undone
+            motion = self._begin(f"superseded by a newer motion before it ended ({command})")
+            self._link.go(position, self._speed_byte(speed), current_ma)
         # The immediate reply to a new command still carries the previous detection value (PROTOCOL-NOTES
         # §2), so a fresh poll decides; detection 0 means moving. The client never repeats a 61 byte for byte,
         # so the firmware's at-position latch cannot report 3 for a motion that has not arrived.
@@ -426,9 +428,10 @@ class MsgGripper(Gripper):
         return self._wait(command, motion, timeout, _arrived, stall_s=stall)
 
     def _home(self, timeout: float) -> None:
-        motion = self._begin("superseded by a newer motion before it ended (home)")
-        self._mode, self._held = "home", False
-        self._link.calibrate()
+        with self._send_lock:
+            motion = self._begin("superseded by a newer motion before it ended (home)")
+            self._mode, self._held = "home", False
+            self._link.calibrate()
         # Polls only (empty 61 / UART gets): a 5-byte 61 would abort the calibration (PROTOCOL-NOTES §2).
         self._wait("home", motion, timeout, self._link.calibration_done)
         self._mode = "idle"
@@ -492,12 +495,13 @@ class MsgGripper(Gripper):
     def _stop(self) -> None:
         # Safe from another thread and from a KeyboardInterrupt handler: the waiting motion learns of the
         # stop from the motion number (no lock held while sending), and the link serialises its frames.
-        self._begin("aborted by stop()")
-        self._link.halt()
+        with self._send_lock:
+            self._begin("aborted by stop()")
+            self._link.halt()
         self._mode = "idle"
 
     def _fast_stop(self) -> None:
-        self._begin("aborted by fast_stop()")
+        self._begin("aborted by fast_stop()")  # no lock: an e-stop never waits for anything
         self._link.estop()
 
     def _acknowledge(self) -> None:
