@@ -242,14 +242,18 @@ def test_fuzz_msg_model_follows_the_firmware_rules(steps, part: bool, fuzz_count
             idle_since_stop = False
         elif command in (Cmd.CLEAR_ERROR, Cmd.IDLE, Cmd.ESTOP):
             idle_since_stop = True
+        elif command == Cmd.GRIPPER_CALIBRATE and m.calibrating:
+            idle_since_stop = False  # calibration moves the jaws
         if command == Cmd.ESTOP:
             # only the driver's e-stop error: the 60 frame's flag is what it was
             assert m.error_state().estop and m.status(t).estop_error == flag_before
-        ticks = m.ticks
+        ticks, calibrating = m.ticks, m.calibrating
         m.advance(t + 1.0)
         t += 1.0
-        if idle_since_stop and not m.calibrating:
+        if idle_since_stop and not calibrating:
             assert m.ticks == ticks  # after 0, 1 or 12 nothing moves until a new 5-byte 61
+        if calibrating and not m.calibrating:
+            idle_since_stop = True  # the end of a calibration idles the driver too
         if ever_calibrated:
             assert m.calibrated  # no command here clears it (only reset and the calibration time-out)
         ever_calibrated = ever_calibrated or m.calibrated
