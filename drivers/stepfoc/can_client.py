@@ -9,6 +9,12 @@ commands of one node, run concurrently from different threads.
 Known limit of the protocol, not of this client: a status reply that arrives after its request timed out is
 indistinguishable from the reply to the next request with the same key. For 60 that is harmless (any 60 is a
 fresh status of the node); for remote requests it returns the same kind of value.
+
+Two devices with one node id answer every request twice. The reader counts, per (node, command), the requests
+seen on the bus (its own and other hosts') against the replies; a reply nobody asked for that arrives within
+:data:`DUPLICATE_WINDOW_S` of the reply to one of this client's requests marks the node as duplicated, and
+every later request to it raises :class:`ProtocolError` naming the node, instead of returning the states of
+two devices in turn. (An unsolicited frame at any other time is only ignored: a bus tool may send anything.)
 """
 
 from __future__ import annotations
@@ -54,11 +60,46 @@ from .can_protocol import (
     unpack_id,
 )
 
-__all__ = ["StepfocBus", "StepfocNode", "open_node", "parse_url"]
+__all__ = ["CalibrationWatch", "StepfocBus", "StepfocNode", "open_node", "parse_url"]
 
 log = logging.getLogger(__name__)
 
 _READ_POLL_S = 0.05  # the reader's longest block, so close() returns promptly
+DUPLICATE_WINDOW_S = 0.05  # two nodes with one id answer one request within microseconds of each other
+
+# End of a RE-calibration, read from the 60 frames (PROTOCOL-NOTES §2 "Firmware behaviour a client must
+# survive": the calibrated bit stays set, so the jaws tell): they leave the closed stop, travel to the open
+# stop and back, and the driver idles at the closed stop (position 255, motor current ~0 after Brake_Coast).
+CAL_LEFT_CLOSED = 245  # a position below this: the calibration is under way
+CAL_AT_CLOSED = 250  # at or above: back at the closed stop
+CAL_IDLE_CURRENT_MA = 300  # below half the calibration current (600 mA): no longer pushing on the stop
+CAL_SETTLED_POLLS = 2  # consecutive polls that must agree
+
+
+class CalibrationWatch:
+    """Tells from successive 60 frames when a calibration the host started has ended. Sans-IO.
+
+    A first calibration ends when the calibrated bit goes to 1. A recalibration leaves that bit set the whole
+    time (firmware ``Calibrate_gripper``), so its end is read from the jaws, see the constants above. A
+    calibrated bit that drops during a recalibration is the firmware's calibration time-out.
+    """
+
+    def __init__(self, was_calibrated: bool) -> None:
+        self.was_calibrated = was_calibrated
+        self.left_closed = False
+        self.settled = 0
+
+    def update(self, st: GripperStatus) -> bool | str:
+        """True when done, False while running, a reason (str) when the calibration failed."""
+        if not self.was_calibrated:
+            return bool(st.calibrated)
+        if not st.calibrated:
+            return "the calibrated bit dropped (the firmware's calibration time-out)"
+        if st.position < CAL_LEFT_CLOSED:
+            self.left_closed = True
+        at_rest = st.position >= CAL_AT_CLOSED and abs(st.current_ma) < CAL_IDLE_CURRENT_MA
+        self.settled = self.settled + 1 if (self.left_closed and at_rest) else 0
+        return self.settled >= CAL_SETTLED_POLLS
 
 
 def parse_url(url: str) -> tuple[str, str, dict[str, str]]:
@@ -114,6 +155,7 @@ class _NodeState:
 
     error_bit: bool = False
     status: GripperStatus | None = None
+    duplicate: str | None = None  # why this node id is taken to be answered by two devices
     heartbeat: float | None = None  # time.monotonic() of the last heartbeat
     heartbeat_cond: threading.Condition = field(default_factory=threading.Condition)
 
@@ -148,6 +190,8 @@ class StepfocBus:
         self.bus = bus
         self._lock = threading.Lock()
         self._waiters: dict[tuple[int, int], _Waiter] = {}
+        self._expected: dict[tuple[int, int], int] = {}  # requests seen minus replies seen, per key
+        self._answered: dict[tuple[int, int], float] = {}  # monotonic time of the last expected reply
         self._request_locks: dict[tuple[int, int], threading.Lock] = {}
         self._states: dict[int, _NodeState] = {}
         self._listeners: list[Callable[[can.Message], None]] = []
@@ -198,19 +242,36 @@ class StepfocBus:
                 listener(msg)
             except Exception:  # noqa: BLE001, S110 - a monitor callback must not kill the reader
                 pass
-        if msg.is_error_frame or msg.is_extended_id or msg.is_remote_frame or msg.arbitration_id > 0x7FF:
-            # remote frames are requests from hosts, never answers; an 11-bit id above 0x7FF is not a frame
-            # of this protocol (virtual and multicast buses carry whatever a program sends)
+        if msg.is_error_frame or msg.is_extended_id or msg.arbitration_id > 0x7FF:
+            # an 11-bit id above 0x7FF is not a frame of this protocol (virtual and multicast buses carry
+            # whatever a program sends)
             return
         node, command, error = unpack_id(msg.arbitration_id)
         spec = COMMANDS.get(command)
-        if spec is None or spec.direction is Direction.HOST_TO_NODE:
-            return  # another host's command on the same bus
+        if msg.is_remote_frame or spec is None or spec.direction is Direction.HOST_TO_NODE:
+            # another host's request: its reply is expected too, and must not count as a second device
+            if spec is not None and (command == Cmd.GRIPPER_COMMAND or (msg.is_remote_frame and spec.remote)):
+                with self._lock:
+                    self._expected[(node, command)] = self._expected.get((node, command), 0) + 1
+            return
         state = self._state(node)
         state.error_bit = error
         key = (node, Cmd.GRIPPER_COMMAND if command == Cmd.GRIPPER_STATUS else command)
         with self._lock:
             waiter = self._waiters.get(key)
+            if command != Cmd.HEARTBEAT:
+                left = self._expected.get(key, 0)
+                now = time.monotonic()
+                if left > 0:
+                    self._expected[key] = left - 1
+                    if waiter is not None and not waiter.done:
+                        self._answered[key] = now  # the reply to OUR request: a second one would be a twin
+                elif state.duplicate is None and now - self._answered.get(key, -1e9) < DUPLICATE_WINDOW_S:
+                    state.duplicate = (
+                        f"two devices answer as node {node}: a second {spec.name} reply arrived for one "
+                        "request (give every gripper on the bus its own node id)"
+                    )
+                    log.warning("%s: %s", self.device, state.duplicate)
         try:
             decoded = decode_frame(msg.arbitration_id, msg.data, False)
         except ProtocolError as exc:
@@ -284,10 +345,15 @@ class StepfocBus:
                 device=device,
                 command=name,
             )
+        waiter: _Waiter | None = None
         try:
+            duplicate = self._state(node).duplicate
+            if duplicate is not None:
+                raise ProtocolError(duplicate, device=device, command=name)
             waiter = _Waiter()
             with self._lock:
                 self._waiters[key] = waiter
+                self._expected[key] = self._expected.get(key, 0) + 1
             self.send_frame(frame, device=device, command=name, timeout=max(0.0, deadline - time.monotonic()))
             if not waiter.wait(max(0.0, deadline - time.monotonic())):
                 self._check_open(device, name)
@@ -298,7 +364,7 @@ class StepfocBus:
             return waiter.message
         finally:
             with self._lock:
-                if self._waiters.get(key) is waiter:
+                if waiter is not None and self._waiters.get(key) is waiter:
                     del self._waiters[key]
             lock.release()
 
@@ -363,7 +429,7 @@ class StepfocNode:
         self._node = node
         self.current_limit_ma = int(current_limit_ma)
         self.timeout = timeout
-        self.last_command: GripperCommand | None = None
+        self.last_command: GripperCommand | None = None  # the last 5-byte 61 this handle sent
         self._owns_bus = owns_bus
 
     # ------------------------------------------------------------------------------------------ basics
@@ -462,10 +528,43 @@ class StepfocNode:
         )
 
     def send_command(self, cmd: GripperCommand, *, timeout: float | None = None) -> GripperStatus:
-        """Send an already built 61 command (no clamping here beyond the byte layout)."""
+        """Send an already built 61 command (no clamping here beyond the byte layout).
+
+        A motion command (action set) is never sent byte-identical to the previous 61 of this handle: the
+        firmware treats such a frame as "same command" and keeps its at-position latch, so after a
+        calibration, a clear error or a stop from elsewhere the node would report detection 3 at once while
+        the jaws still travel (PROTOCOL-NOTES §2, "Firmware behaviour a client must survive"). The current
+        limit is moved by 1 mA instead, which changes nothing a user can measure."""
+        last = self.last_command
+        if cmd.action and last is not None and encode_command(cmd) == encode_command(last):
+            step = -1 if cmd.current_ma > 0 else 1
+            cmd = GripperCommand(
+                cmd.position, cmd.speed, cmd.current_ma + step, cmd.activate, True, cmd.estop, cmd.release
+            )
         data = encode_command(cmd)
         self.last_command = cmd
         return self._status_request(data, timeout, "command")
+
+    def fault(self, st: GripperStatus, timeout: float | None = None) -> str | None:
+        """Why the node reports an error, or None. The 60 frame names the gripper's estop, watchdog and
+        temperature errors; an e-stop by command 0 (another host, a bus tool) only sets the identifier's error
+        bit, so frame 26 is asked for the driver's cause (PROTOCOL-NOTES §2). Names: ``estop`` for either
+        e-stop, ``watchdog``, ``temperature``, ``encoder``, ``vbus``, ``driver``, ``velocity``, ``current``;
+        ``error`` when the driver names no cause."""
+        if st.estop_error:
+            return "estop"
+        names = [n for n, on in (("watchdog", st.timeout_error), ("temperature", st.temperature_error)) if on]
+        if not st.error_bit and not names:
+            return None
+        try:
+            es = self.error_state(timeout)
+        except GripperTimeout:
+            es = None
+        if es is not None:
+            if es.estop:
+                return "estop"
+            names += [n for n in es.active() if n not in names]
+        return ",".join(names) or "error"
 
     def wait_motion(self, *, timeout: float = 10.0, poll_interval: float = 0.01) -> GripperStatus:
         """Poll until detection is not MOVING. Call after :meth:`command`: the poll that follows a command
@@ -473,10 +572,18 @@ class StepfocNode:
         deadline = time.monotonic() + timeout
         while True:
             st = self.poll(timeout=min(self.timeout, max(0.01, deadline - time.monotonic())))
-            if st.estop_error or st.timeout_error or st.temperature_error:
+            cause = self.fault(st)
+            if cause is not None:
                 raise CommandFailed(
-                    f"motion stopped by an error: {_errors(st)}",
-                    status_name=_errors(st),
+                    f"motion aborted by a device error: {cause}",
+                    status_name=cause,
+                    device=self.device,
+                    command="move",
+                )
+            if not (st.activated and st.action):
+                raise CommandFailed(
+                    "motion aborted: the action bit was cleared (a stop, maybe from another host)",
+                    status_name="aborted",
                     device=self.device,
                     command="move",
                 )
@@ -510,75 +617,97 @@ class StepfocNode:
                 device=self.device,
                 command="move",
             )
-        if st.estop_error or st.timeout_error or st.temperature_error:
+        cause = self.fault(st)
+        if cause is not None:
             raise CommandFailed(
-                f"error active: {_errors(st)}", status_name=_errors(st), device=self.device, command="move"
+                f"error active: {cause}", status_name=cause, device=self.device, command="move"
             )
         return self.wait_motion(timeout=timeout, poll_interval=poll_interval) if wait else st
 
     def calibrate(
         self, *, wait: bool = True, timeout: float = 30.0, poll_interval: float = 0.05
     ) -> GripperStatus | None:
-        """Send 62 and (``wait``) poll with empty 61 frames, which do not abort it, until calibrated.
+        """Send 62 and (``wait``) poll with empty 61 frames, which do not abort it, until it has ended.
+
+        On a gripper that is already calibrated the calibrated bit stays set throughout, so the end is read
+        from the jaws (:class:`CalibrationWatch`). ``last_command`` is kept: the node keeps the last 61's
+        bytes over a calibration, and :meth:`send_command` makes the next motion differ from them.
         ``timeout`` is wall time; calibration takes seconds on the device."""
-        self.send(Cmd.GRIPPER_CALIBRATE)
-        self.last_command = None  # the node forgets it too: the next command always runs
+        watch = self.start_calibration()
         if not wait:
             return None
         deadline = time.monotonic() + timeout
         while True:
             st = self.poll(timeout=min(self.timeout, max(0.01, deadline - time.monotonic())))
-            if st.estop_error or st.timeout_error or st.temperature_error:
+            cause = self.fault(st)
+            if cause is not None:
                 raise CommandFailed(
-                    f"calibration refused or stopped: {_errors(st)}",
-                    status_name=_errors(st),
+                    f"calibration refused or stopped: {cause}",
+                    status_name=cause,
                     device=self.device,
                     command="calibrate",
                 )
-            if st.calibrated:
+            done = watch.update(st)
+            if isinstance(done, str):
+                raise CommandFailed(
+                    f"calibration failed: {done}",
+                    status_name="failed",
+                    device=self.device,
+                    command="calibrate",
+                )
+            if done:
                 return st
             if time.monotonic() >= deadline:
                 raise GripperTimeout(
-                    f"not calibrated after {timeout:g} s", device=self.device, command="calibrate"
+                    f"calibration not finished after {timeout:g} s (position {st.position})",
+                    device=self.device,
+                    command="calibrate",
                 )
             time.sleep(poll_interval)
+
+    def start_calibration(self, timeout: float | None = None) -> CalibrationWatch:
+        """Send 62 after one poll that says whether this is a first calibration; returns the watch that
+        recognises its end from the following polls (for callers that run their own wait loop)."""
+        before = self.poll(timeout)
+        self.send(Cmd.GRIPPER_CALIBRATE)
+        return CalibrationWatch(before.calibrated)
 
     def estop(self) -> None:
         """Command 0: the node stops and reports the estop error until :meth:`clear_error`."""
         self.send(Cmd.ESTOP)
 
     def clear_error(self, *, resume: bool = False, timeout: float | None = None) -> GripperStatus:
-        """Clear errors so that they stay cleared.
+        """Clear errors so that they stay cleared, in the order the firmware needs.
 
-        Command 1 alone is not enough: the firmware keeps acting on the last 61 frame, and if that one had the
-        estop bit the error comes back (PROTOCOL-NOTES §2, command 1). The notes suggest 1 and then a 61 with
-        estop 0, but that order races the firmware's control loop (the error may return between the frames).
-        So this sends the 61 FIRST: estop 0, the last command's position, speed, current and activate bit, and
-        action 0 so that clearing never restarts a motion by itself (``resume=True`` keeps the last action
-        bit); then 1. The returned status is a fresh poll; CommandFailed if an error is still active."""
+        Command 1 alone is not enough: if the stored 61 had the estop bit the error comes back at the next
+        control step (PROTOCOL-NOTES §2, command 1). So a 61 goes FIRST: estop 0, the last command's position,
+        speed, current and activate bit, action 0; then 1, which clears every error and idles the driver
+        (firmware): nothing moves until the next 5-byte 61. ``resume=True`` then re-sends the last motion
+        command (made to differ from the one before, see :meth:`send_command`), which is all the firmware
+        allows: the motion restarts from where the jaws are. The returned status is a fresh poll;
+        CommandFailed if an error is still active."""
         last = self.last_command
         if last is None:
             st = self.poll(timeout)
             cmd = GripperCommand(st.position, 0, 0, activate=False, action=False, estop=False)
         else:
-            cmd = GripperCommand(
-                last.position,
-                last.speed,
-                last.current_ma,
-                last.activate,
-                last.action if resume else False,
-                False,
-            )
+            cmd = GripperCommand(last.position, last.speed, last.current_ma, last.activate, False, False)
         self.send_command(cmd, timeout=timeout)
         self.send(Cmd.CLEAR_ERROR)
         st = self.poll(timeout)
-        if st.estop_error or st.timeout_error or st.temperature_error:
+        cause = self.fault(st, timeout)
+        if cause is not None:
             raise CommandFailed(
-                f"error still active after clearing: {_errors(st)}",
-                status_name=_errors(st),
+                f"error still active after clearing: {cause}",
+                status_name=cause,
                 device=self.device,
                 command="clear_error",
             )
+        if resume and last is not None and last.action:
+            self.send_command(GripperCommand(
+                last.position, last.speed, last.current_ma, last.activate, True, False, last.release
+            ), timeout=timeout)
+            st = self.poll(timeout)
         return st
 
     def idle(self) -> None:
@@ -674,11 +803,6 @@ class StepfocNode:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
-
-
-def _errors(st: GripperStatus) -> str:
-    names = [n for n in ("estop_error", "timeout_error", "temperature_error") if getattr(st, n)]
-    return ",".join(names) or "none"
 
 
 def open_node(

@@ -386,8 +386,15 @@ def _empty_layout() -> Layout:
     return Layout(0, lambda _v: b"", lambda _d: None, lambda _v: "")
 
 
-def _scalar(fmt: str, unit: str, label: str) -> Layout:
+def _scalar(fmt: str, unit: str, label: str, valid: tuple[int, int] | None = None) -> Layout:
+    """``valid``: the physically possible values; a reply outside them is a ProtocolError, not a reading."""
     s = struct.Struct(fmt)
+
+    def dec(d: bytes) -> int:
+        value = s.unpack(d)[0]
+        if valid is not None and not valid[0] <= value <= valid[1]:
+            raise ProtocolError(f"{label} {value}{unit} outside {valid[0]}..{valid[1]}{unit}")
+        return value
 
     def enc(v: int) -> bytes:
         try:
@@ -395,7 +402,7 @@ def _scalar(fmt: str, unit: str, label: str) -> Layout:
         except struct.error:
             raise LimitError(f"{label} {v!r} does not fit {fmt!r}") from None
 
-    return Layout(s.size, enc, lambda d: s.unpack(d)[0], lambda v: f"{label}={v}{unit}")
+    return Layout(s.size, enc, dec, lambda v: f"{label}={v}{unit}")
 
 
 def _record(fmt: str, cls: type, label: str, convert: Callable[[Any], tuple] | None = None) -> Layout:
@@ -485,6 +492,8 @@ class CommandSpec:
 
 
 _E = _empty_layout()
+_TEMPERATURE = _scalar(">h", "C", "temperature", (-273, 32767))  # below absolute zero is no reading
+_VOLTAGE = _scalar(">h", "mV", "voltage", (0, 32767))  # a supply voltage is not negative
 _H, _N, _R = Direction.HOST_TO_NODE, Direction.NODE_TO_HOST, Direction.REMOTE
 
 # PROTOCOL-NOTES §2 (table and the 60/61 layouts); MSG document for 60, 61, 62, 11, 13, 14, 1
@@ -502,8 +511,8 @@ COMMANDS: dict[int, CommandSpec] = {
         CommandSpec(Cmd.SAVE_CONFIG, "save_config", _H, (_E,), "no reply"),
         CommandSpec(Cmd.RESET, "reset", _H, (_E,), "reboot, no reply"),
         CommandSpec(Cmd.WATCHDOG, "watchdog", _H, (_WATCHDOG_LAYOUT,), "u32 ms + action byte"),
-        CommandSpec(Cmd.TEMPERATURE, "temperature", _R, (_scalar(">h", "C", "temperature"),), "i16 degC"),
-        CommandSpec(Cmd.BUS_VOLTAGE, "bus_voltage", _R, (_scalar(">h", "mV", "voltage"),), "i16 mV"),
+        CommandSpec(Cmd.TEMPERATURE, "temperature", _R, (_TEMPERATURE,), "i16 degC"),
+        CommandSpec(Cmd.BUS_VOLTAGE, "bus_voltage", _R, (_VOLTAGE,), "i16 mV"),
         CommandSpec(
             Cmd.DEVICE_INFO,
             "device_info",

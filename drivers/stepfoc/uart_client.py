@@ -18,6 +18,7 @@ from typing import TypeVar
 import serial
 
 from ..errors import (
+    CommandFailed,
     ConnectionLost,
     GripperError,
     GripperTimeout,
@@ -29,6 +30,8 @@ from .uart_protocol import (
     BAUDRATE,
     COMMANDS,
     MAX_CURRENT_MA,
+    MODE_CALIBRATE,
+    MODE_IDLE,
     Answer,
     GripInfo,
     GripInfoAssembler,
@@ -38,7 +41,10 @@ from .uart_protocol import (
     UartInfo,
     format_command,
     is_unknown_command,
+    parse_mode,
 )
+
+CAL_AT_CLOSED = 250  # a calibration ends with the jaws at the closed stop (position 255, PROTOCOL-NOTES §2)
 
 T = TypeVar("T")
 
@@ -58,6 +64,11 @@ class _Pending:
 
 
 _PENDING = _Pending()
+
+
+def _mode_line(line: str) -> int | _Pending:
+    mode = parse_mode(line)
+    return _PENDING if mode is None else mode
 
 
 class StepfocUart:
@@ -134,22 +145,53 @@ class StepfocUart:
         return self._value("Gripper", self._bit("Gripper", mode), timeout)
 
     def calibrate(self, *, wait: bool = False, timeout: float | None = None, poll: float = 0.05) -> None:
-        """Start calibration (``#Gripcal``); with ``wait`` poll ``#Gripinfo`` until the calibrated bit is set.
+        """Start calibration (``#Gripcal``); with ``wait`` poll until it has really ended.
 
-        Calibration takes seconds (PROTOCOL-NOTES §2 CAN); ``timeout`` bounds the whole wait (default 30 s)
-        when waiting, else the answer line.
+        The calibrated bit stays set while a calibrated gripper recalibrates (PROTOCOL-NOTES §2, "Firmware
+        behaviour a client must survive"), so the end is read from ``#Mode`` (:meth:`calibration_ended`).
+        ``timeout`` bounds the whole wait (default 30 s) when waiting, else the answer line.
         """
         self._exchange("Gripcal", None, self._single("Gripcal"), None if wait else timeout)
         if not wait:
             return
         deadline = time.monotonic() + (30.0 if timeout is None else timeout)
-        while True:
-            if self.gripinfo().calibrated:
-                return
+        while not self.calibration_ended():
             if time.monotonic() >= deadline:
-                raise GripperTimeout("not calibrated before the timeout", device=self.device,
+                raise GripperTimeout("calibration not finished before the timeout", device=self.device,
                                      command="Gripcal")
             time.sleep(poll)
+
+    def mode(self, *, timeout: float | None = None) -> int | None:
+        """The driver mode ``#Mode`` prints (0 idle, 7 calibrating, …); None when it prints nothing, which
+        the firmware does in gripper mode (11) (communication.cpp)."""
+        try:
+            return self._exchange("Mode", None, _mode_line, timeout)
+        except GripperTimeout:
+            return None
+
+    def calibration_ended(self, *, command: str = "Gripcal") -> bool:
+        """False while the driver is in calibration mode; True once it idles at the closed stop with the
+        calibrated bit set; CommandFailed when the calibration ended any other way (aborted by a motion
+        command, an error, an idle, or the firmware's calibration time-out)."""
+        try:
+            mode = self.mode()
+        except NotSupported:  # a firmware without #Mode: only a first calibration can be told
+            return bool(self.gripinfo().calibrated)
+        if mode == MODE_CALIBRATE:
+            return False
+        if mode != MODE_IDLE:
+            raise CommandFailed("calibration aborted: the driver left calibration mode (a motion command?)",
+                                status_name="aborted", device=self.device, command=command)
+        info = self.gripinfo()
+        position = self.position()
+        if info.estop:
+            raise CommandFailed("calibration aborted by the e-stop", status_name="fast_stop",
+                                device=self.device, command=command)
+        if not info.calibrated or position < CAL_AT_CLOSED:
+            raise CommandFailed(
+                f"calibration aborted or failed: calibrated {int(info.calibrated)}, position {position}",
+                status_name="aborted", device=self.device, command=command)
+        return True
 
     def position(self, setpoint: int | None = None, *, timeout: float | None = None) -> int:
         """The ACTUAL position byte; with ``setpoint`` also activates and starts the motion (firmware)."""
@@ -283,7 +325,10 @@ class StepfocUart:
                 if is_unknown_command(line.text):
                     raise NotSupported("the device answered 'Unknown command'", device=self.device,
                                        command=command)
-                result = handle(line.text)
+                try:
+                    result = handle(line.text)
+                except ProtocolError as exc:  # a recognised answer with an impossible value
+                    raise ProtocolError(exc.message, device=self.device, command=command) from None
                 if not isinstance(result, _Pending):
                     self.discarded += skipped
                     return result

@@ -62,6 +62,13 @@ def format_float(value: float, digits: int = 5) -> str:
     return f"{value:.{digits}f}"
 
 
+def check_range(value: float, valid: tuple[float, float], what: str, line: str) -> None:
+    """ProtocolError naming the line when ``value`` is outside its protocol range ``valid`` (inclusive)."""
+    lo, hi = valid
+    if not lo <= value <= hi:  # NaN fails this too
+        raise ProtocolError(f"{what} {value} outside {lo}..{hi} in the line {line.rstrip()[:80]!r}")
+
+
 def atoi(text: str) -> int:
     """C ``atoi`` as the firmware applies it to an argument: leading number or 0, never an error.
 
@@ -120,7 +127,10 @@ class CommandSpec:
     doc: str = ""
 
     def parse(self, line: str) -> Answer | None:
-        """This command's answer in ``line``, or None when the line is something else (garbage, other)."""
+        """This command's answer in ``line``, or None when the line is something else (garbage, other).
+
+        A line that is this answer but carries a number outside the command's range (a position of 300, a
+        bit of 7) is a ProtocolError naming the line: it is not noise to skip, and not a value to use."""
         if self.lines != 1:
             return None
         if not self.has_value:
@@ -129,9 +139,12 @@ class CommandSpec:
         if text is None:
             return None
         try:
-            return Answer(self.name, parse_int(text))
+            number = parse_int(text)
         except ValueError:
             return None
+        if self.arg_range is not None:
+            check_range(number, self.arg_range, self.name, line)
+        return Answer(self.name, number)
 
     def render(self, value: int | None = None) -> str:
         """The answer line the firmware prints (without the line end)."""
@@ -164,8 +177,69 @@ COMMANDS: dict[str, CommandSpec] = dict(
         _spec("Gripinfo", "I am a gripper", False, has_value=False, lines=11, doc="gripper status, 11 lines"),
         _spec("Info", "Hardware version: ", False, has_value=False, lines=0, doc="driver information"),
         _spec("Clear", "Clear errors", False, has_value=False, doc="clear all errors, mode idle"),
+        _spec("Idle", "Idle", False, has_value=False, doc="driver mode idle (communication.cpp)"),
     ]
 )
+
+
+# The names the firmware's parser passes on (public STEPFOC firmware, SerialPacketParser.cpp ``parse``): one
+# list for "#NAME ARG", one for "#NAME". A line whose name is not in its list is dropped without an answer;
+# a listed name that communication.cpp does not dispatch is answered "Unknown command" (PROTOCOL-NOTES §2,
+# "Firmware behaviour a client must survive").
+PARSER_NAMES_WITH_ARG = frozenset(
+    (
+        "Iq", "Id", "Uq", "Ud", "V", "Vlim", "P", "PD", "Kpp", "Kpv", "Kpiq", "Kpid", "Kiv", "Kiiq",
+        "Kiid", "KP", "KD", "PDV", "PDI", "R", "L", "Kt", "KV", "flux", "zz", "Cal", "Save", "Reset",
+        "Ilim", "Dir", "Temp", "Magnet", "Term", "Mode", "Vbus", "Vmin", "Vmax", "Error", "Clear",
+        "Default", "SIN", "SPWM", "Iabc", "Close", "Cbw", "Resv", "Calpwr", "Openv", "Opens", "Vp",
+        "Calibrated", "Param", "PP", "Openloop", "LED", "Cyc", "Cyca", "CANID", "SERNUM", "Info",
+        "Vlimit", "Phase", "Activate", "Gripper", "Gripcal", "Grippos", "Gripvel", "Gripcur", "Gripact",
+        "Gripstop", "Gripinfo", "Rstint", "Pullconfig", "Tlim", "Brake", "HALL", "Coast", "Calangle",
+        "Offset", "Iqoffset", "microstep", "stepinterval", "gosteps"
+    )
+)
+PARSER_NAMES_BARE = frozenset(
+    (
+        "Iq", "Id", "Uq", "Ud", "V", "P", "Vlim", "PD", "Kpp", "Kpv", "Kpiq", "Kpid", "Kiv", "Kiiq",
+        "Kiid", "KP", "KD", "PDV", "PDI", "R", "L", "Kt", "flux", "KV", "Idle", "Cal", "Save", "Reset",
+        "Ilim", "Dir", "Temp", "Magnet", "Term", "Mode", "Vbus", "Vmin", "Vmax", "Error", "Clear",
+        "Default", "SIN", "SPWM", "Iabc", "EN", "PWM", "Cbw", "Resv", "Calpwr", "Openv", "Opens", "Vp",
+        "Close", "Calibrated", "Param", "PP", "Openloop", "LED", "Cyc", "Cyca", "CANID", "SERNUM",
+        "Info", "Vlimit", "Phase", "Activate", "Gripper", "Gripcal", "Grippos", "Gripvel", "Gripcur",
+        "Gripact", "Gripstop", "Gripinfo", "Rstint", "Pullconfig", "Tlim", "Brake", "HALL", "Coast",
+        "Calangle", "Offset", "Iqoffset", "microstep", "stepinterval", "gosteps"
+    )
+)
+
+
+def parser_knows(req: Request) -> bool:
+    """Whether the firmware's parser passes ``req`` on to the command dispatch (else: no answer at all)."""
+    names = PARSER_NAMES_BARE if req.argument is None else PARSER_NAMES_WITH_ARG
+    return req.name in names
+
+
+# ``#Mode`` prints the driver mode as text (communication.cpp); mode 11 (gripper) has no line and gets NO
+# answer, so a client reads silence as "neither idle nor calibrating".
+MODE_LINES: dict[int, str] = {
+    0: "Idle mode ",
+    1: "Position control ",
+    2: "Speed control ",
+    3: "Current control ",
+    4: "PD control ",
+    5: "Open loop",
+    6: "Gripper mode",
+    7: "Gripper calib mode",
+}
+MODE_IDLE, MODE_CALIBRATE = 0, 7
+
+
+def parse_mode(line: str) -> int | None:
+    """The driver mode a ``#Mode`` answer line names, or None for any other line."""
+    text = line.rstrip()
+    for mode, label in MODE_LINES.items():
+        if text == label.rstrip():
+            return mode
+    return None
 
 
 def spec(name: str) -> CommandSpec:
@@ -332,6 +406,21 @@ GRIPINFO_FIELDS: tuple[tuple[str, str], ...] = (
     ("max_closed_position", "Gripper max closed position: "),
 )
 _BOOL_FIELDS = frozenset({"calibrated", "activated", "estop", "action"})
+_I32 = (-(2**31), 2**31 - 1)
+# Protocol ranges of the Gripinfo values (PROTOCOL-NOTES §2: bytes 0..255, current 0..2800 mA, detection 0..3,
+# flags 0/1; the calibrated end stops are encoder ticks, C ints in the firmware)
+GRIPINFO_RANGES: dict[str, tuple[int, int]] = {
+    "calibrated": (0, 1),
+    "activated": (0, 1),
+    "position_setpoint": (0, 255),
+    "speed_setpoint": (0, 255),
+    "current_setpoint": (0, MAX_CURRENT_MA),
+    "estop": (0, 1),
+    "action": (0, 1),
+    "detection": (0, 3),
+    "max_open_position": _I32,
+    "max_closed_position": _I32,
+}
 
 
 def _gripinfo_first(line: str) -> bool | None:
@@ -390,6 +479,7 @@ class GripInfoAssembler:
                 except ValueError:
                     number = None
             if number is not None:
+                check_range(number, GRIPINFO_RANGES[name], f"Gripinfo {name}", line)
                 self._values[name] = _gripinfo_value(name, number)
                 self._index += 1
                 if self._index == len(GRIPINFO_FIELDS):
@@ -451,6 +541,17 @@ class UartInfo:
     kv: float | None = None
     unknown_lines: tuple[str, ...] = field(default=())
 
+
+# The identification values are the bytes of CAN frame 25 and the 4-bit node id (PROTOCOL-NOTES §2)
+INFO_RANGES: dict[str, tuple[float, float]] = {
+    "hardware_version": (0, 255),
+    "batch_date": (0, 255),
+    "software_version": (0, 255),
+    "can_id": (0, 15),
+    "temperature_c": (-273.15, 1000.0),
+    "vbus_mv": (0, 1_000_000),
+    "pole_pairs": (0, 1000),
+}
 
 # (field, line prefix) of the identification lines, in order (PROTOCOL-NOTES §2 UART)
 INFO_HEADER: tuple[tuple[str, str], ...] = (
@@ -535,6 +636,7 @@ class InfoAssembler:
                 self.discarded += self._index + 1
                 self._values, self._index = {}, 0
                 return
+            check_range(number, INFO_RANGES[name], f"Info {name}", line)
             self._values[name] = number
             self._index += 1
             return
@@ -554,9 +656,12 @@ class InfoAssembler:
             if raw is None:
                 continue
             try:
-                self._values[st.field] = st.parse(raw)
+                value = st.parse(raw)
             except ValueError:
                 break
+            valid = INFO_RANGES.get(st.field, (-1e30, 1e30))  # floats: finite and of a sane size
+            check_range(value, valid, f"Info {st.field}", line)
+            self._values[st.field] = value
             if st.field == "temperature_c":
                 self._values["thermistor_enabled"] = True
             return
@@ -649,9 +754,10 @@ def encode_lines(lines: Iterable[str]) -> bytes:
 
 
 __all__ = [
-    "BAUDRATE", "COMMANDS", "GRIPINFO_FIELDS", "GRIPINFO_FIRST_LINE", "INFO_HEADER", "INFO_STATUS",
-    "MAX_COMMAND_CHARS", "UNKNOWN_COMMAND", "Answer", "CommandReceiver", "CommandSpec", "GripInfo",
-    "GripInfoAssembler", "InfoAssembler", "Line", "LineSplitter", "LineTooLong", "Rejected", "Request",
-    "SplitEvent", "UartInfo", "atoi", "encode_lines", "format_command", "is_unknown_command", "parse_answer",
-    "parse_gripinfo", "parse_info", "render_gripinfo", "render_info", "spec",
+    "Answer", "BAUDRATE", "COMMANDS", "CommandReceiver", "CommandSpec", "GRIPINFO_FIELDS",
+    "GRIPINFO_FIRST_LINE", "GripInfo", "GripInfoAssembler", "INFO_HEADER", "INFO_STATUS", "InfoAssembler",
+    "Line", "LineSplitter", "LineTooLong", "MAX_COMMAND_CHARS", "MODE_LINES", "PARSER_NAMES_BARE",
+    "PARSER_NAMES_WITH_ARG", "Rejected", "Request", "SplitEvent", "UNKNOWN_COMMAND", "UartInfo", "atoi",
+    "encode_lines", "format_command", "is_unknown_command", "parse_answer", "parse_gripinfo", "parse_info",
+    "parse_mode", "parser_knows", "render_gripinfo", "render_info", "spec"
 ]

@@ -24,6 +24,12 @@ from ..urls import ConnectionURL
 
 DEFAULT_PROFILE = "msg-150"  # the MSG cannot report its rail length: profile= chooses another
 POLL_PERIOD = 0.01  # s between status polls while waiting for a motion; a CAN round trip is ~0.2 ms
+# A motion that reports "moving" while the jaws stand still has ended without its target: the driver was idled
+# (clear error, idle, watchdog from elsewhere; the 60 frame cannot show the driver mode) or it pushes below
+# the firmware's contact current. Stalled for this long (and at least STALL_BYTES_TIME position steps at the
+# commanded speed), the wait ends with "aborted".
+STALL_MIN_S = 0.5
+STALL_BYTES_TIME = 4
 
 
 @dataclass(frozen=True, slots=True)
@@ -38,6 +44,10 @@ class _Status:
     action: bool
     estop: bool
     faults: tuple[str, ...]
+
+
+def _arrived(st: _Status) -> bool:
+    return st.detection != Detection.MOVING
 
 
 class _Link:
@@ -55,7 +65,16 @@ class _Link:
     def go(self, position: int, speed: int, current_ma: int, *, action: bool = True) -> None:
         raise NotImplementedError
 
+    def halt(self) -> None:
+        """Stop the motion where it is (no stop command exists: action bit cleared / deactivated)."""
+        raise NotImplementedError
+
     def calibrate(self) -> None:
+        """Start a calibration; :meth:`calibration_done` then tells its end."""
+        raise NotImplementedError
+
+    def calibration_done(self, st: _Status) -> bool:
+        """True once the calibration started by :meth:`calibrate` has ended; CommandFailed if it failed."""
         raise NotImplementedError
 
     def estop(self) -> None:
@@ -71,16 +90,11 @@ class _Link:
         raise NotImplementedError
 
 
-def _from_can(st: GripperStatus) -> _Status:
-    faults = []
-    if st.estop_error:
-        faults.append("fast_stop")
-    if st.temperature_error:
-        faults.append("temperature")
-    if st.timeout_error:
-        faults.append("timeout")
-    if getattr(st, "error_bit", False) and not faults:
-        faults.append("error")
+def _from_can(st: GripperStatus, cause: str | None) -> _Status:
+    """``cause``: the node's fault names (StepfocNode.fault: the 60 flags, else frame 26 for the error)."""
+    names = [] if cause is None else cause.split(",")
+    estop = "estop" in names
+    faults = tuple("fast_stop" if n == "estop" else "timeout" if n == "watchdog" else n for n in names)
     return _Status(
         st.position,
         st.current_ma,
@@ -88,8 +102,8 @@ def _from_can(st: GripperStatus) -> _Status:
         st.calibrated,
         st.activated,
         st.action,
-        st.estop_error,
-        tuple(faults),
+        estop,
+        faults,
     )
 
 
@@ -118,10 +132,19 @@ class _CanLink(_Link):
             raise
 
     def status(self) -> _Status:
-        return _from_can(self.driver.poll())
+        st = self.driver.poll()
+        return _from_can(st, self.driver.fault(st))
 
     def go(self, position: int, speed: int, current_ma: int, *, action: bool = True) -> None:
         self.driver.command(position, speed, current_ma, activate=True, action=action, estop=False)
+
+    def halt(self) -> None:
+        # The firmware has no stop command: a 61 with the action bit cleared halts the motion where it is
+        # (Gripper_mode's "idle or disabled" branch), whatever its position byte says.
+        last = self.driver.last_command
+        position = last.position if last is not None else self.driver.poll().position
+        speed = last.speed if last is not None else 0
+        self.driver.command(position, speed, None, activate=True, action=False, estop=False)
 
     has_temperature = True
 
@@ -129,7 +152,21 @@ class _CanLink(_Link):
         return float(self.driver.temperature())
 
     def calibrate(self) -> None:
-        self.driver.calibrate(wait=False)
+        self._watch = self.driver.start_calibration()
+
+    def calibration_done(self, st: _Status) -> bool:
+        from grippers.drivers.stepfoc.can_client import CalibrationWatch
+
+        watch: CalibrationWatch = self._watch
+        done = watch.update(
+            GripperStatus(st.position, st.current_ma or 0, st.activated, st.action, st.detection,
+                          False, False, False, st.calibrated)
+        )
+        if isinstance(done, str):
+            raise CommandFailed(
+                f"calibration failed: {done}", status_name="failed", device=self.driver.device, command="home"
+            )
+        return done
 
     def estop(self) -> None:
         self.driver.estop()
@@ -190,6 +227,10 @@ class _UartLink(_Link):
             faults,
         )
 
+    def halt(self) -> None:
+        with self._go_lock:
+            self.driver.activate(0)  # the UART has no action bit: deactivating is its only way to stop
+
     def go(self, position: int, speed: int, current_ma: int, *, action: bool = True) -> None:
         # Three text commands make one motion: a stop() from another thread must not land between them and
         # be undone by the final Grippos, so the sequence holds a lock.
@@ -204,6 +245,9 @@ class _UartLink(_Link):
 
     def calibrate(self) -> None:
         self.driver.calibrate()
+
+    def calibration_done(self, st: _Status) -> bool:
+        return self.driver.calibration_ended(command="home")
 
     def estop(self) -> None:
         self.driver.estop(1)
@@ -230,9 +274,18 @@ class _UartLink(_Link):
 class MsgGripper(Gripper):
     capabilities = frozenset({Capability.CURRENT_CONTROL, Capability.CALIBRATION})
 
-    def __init__(self, link: _Link, profile: MsgProfile, url: str, *, timeout: float) -> None:
+    def __init__(
+        self, link: _Link, profile: MsgProfile, url: str, *, timeout: float, profile_assumed: bool = False
+    ) -> None:
         super().__init__(profile, url, timeout=timeout)
         self._link = link
+        self._profile_assumed = profile_assumed
+        # Motion bookkeeping at the device level: every motion this backend starts (and every stop) takes a
+        # new number; a wait whose number is no longer the current one ends with the recorded cause.
+        self._motion_lock = threading.Lock()
+        self._send_lock = threading.RLock()  # a motion's number and its frames go out together
+        self._motion_id = 0
+        self._motion_cause = ""
         if link.has_temperature:
             self.capabilities = self.capabilities | {Capability.TEMPERATURE}
         self._maps = profile.maps
@@ -283,47 +336,104 @@ class MsgGripper(Gripper):
 
     # -- motion ----------------------------------------------------------------------------------------
 
-    def _wait(self, command: str, timeout: float, done: Any) -> _Status:
+    def _begin(self, cause: str) -> int:
+        """A new motion (or stop) from this backend: the waits of older ones end with ``cause``."""
+        with self._motion_lock:
+            self._motion_id += 1
+            self._motion_cause = cause
+            return self._motion_id
+
+    def _check_current(self, motion: int, command: str) -> None:
+        with self._motion_lock:
+            if motion == self._motion_id:
+                return
+            cause = self._motion_cause
+        raise CommandFailed(f"{command} {cause}", status_name="aborted", device=self.name, command=command)
+
+    def _check_device(self, st: _Status, command: str) -> None:
+        if st.estop:
+            from ..gripper import FastStopActive
+
+            self._fast_stopped = True
+            raise FastStopActive(
+                f"{command} aborted: e-stop active on the gripper", device=self.name, command=command
+            )
+        if st.faults:  # a watchdog or temperature error idles the driver; waiting would only time out
+            raise CommandFailed(
+                f"{command} aborted by a device error: {', '.join(st.faults)}",
+                status_name=",".join(st.faults),
+                device=self.name,
+                command=command,
+            )
+
+    def _wait(
+        self, command: str, motion: int, timeout: float, done: Any, *, stall_s: float | None = None
+    ) -> _Status:
+        """Poll until ``done(status)``. Ends early, never reporting success, when this backend started a
+        newer motion or a stop, the device shows an e-stop or an error, the action or activate bit was
+        cleared by someone else, or (``stall_s``) the jaws stood still for that long while "moving"."""
         deadline = time.monotonic() + timeout
+        still_since: float | None = None
+        last_position: int | None = None
         while True:
             if self._closed:  # close() from another thread: do not poll a closed link until the deadline
                 raise ConnectionLost(
                     "the gripper was closed during the motion", device=self.name, command=command
                 )
+            self._check_current(motion, command)
             st = self._link.status()
-            if st.estop:
-                from ..gripper import FastStopActive
-
-                self._fast_stopped = True
-                raise FastStopActive("e-stop raised during the motion", device=self.name, command=command)
-            if st.faults:  # a timeout or temperature error stops the motor; waiting would only time out
-                raise CommandFailed(
-                    f"motion stopped by a device error: {', '.join(st.faults)}",
-                    status_name=",".join(st.faults),
-                    device=self.name,
-                    command=command,
-                )
+            self._check_current(motion, command)  # a stop sent while this poll ran
+            self._check_device(st, command)
             if done(st):
                 return st
-            if time.monotonic() >= deadline:
+            now = time.monotonic()
+            if stall_s is not None:
+                if not (st.activated and st.action):
+                    raise CommandFailed(
+                        f"{command} aborted: the gripper's action bit was cleared (a stop from another "
+                        f"program?) at {self._width_of(st.position) * 1000:.1f} mm",
+                        status_name="aborted",
+                        device=self.name,
+                        command=command,
+                    )
+                if st.position != last_position or (st.current_ma is not None and abs(st.current_ma) > 20):
+                    last_position, still_since = st.position, now
+                elif still_since is not None and now - still_since >= stall_s:
+                    raise CommandFailed(
+                        f"{command} aborted: the jaws stopped at {self._width_of(st.position) * 1000:.1f} mm "
+                        "without reaching the target (the driver was idled or the motion stalled)",
+                        status_name="aborted",
+                        device=self.name,
+                        command=command,
+                    )
+            if now >= deadline:
                 raise GripperTimeout(f"not done after {timeout:g} s", device=self.name, command=command)
             time.sleep(POLL_PERIOD)
+
+    def _stall_s(self, speed: float) -> float:
+        m = self._maps
+        per_byte = (m.open_width_mm - m.closed_width_mm) / 1000 / 255 / max(speed, 1e-6)
+        return max(STALL_MIN_S, STALL_BYTES_TIME * per_byte)
 
     def _go_and_wait(
         self, command: str, position: int, speed: float, current_ma: int, timeout: float
     ) -> _Status:
-        self._link.go(position, self._speed_byte(speed), current_ma)
+        with self._send_lock:  # a stop() cannot land between the number and the frames and be undone
+            motion = self._begin(f"superseded by a newer motion before it ended ({command})")
+            self._link.go(position, self._speed_byte(speed), current_ma)
         # The immediate reply to a new command still carries the previous detection value (PROTOCOL-NOTES
-        # §2), so a fresh poll decides; detection 0 means moving. A motion stopped by stop()/cancel() (action
-        # or activation cleared) keeps detection 0 for good, so that ends the wait too.
-        return self._wait(
-            command, timeout, lambda st: st.detection != Detection.MOVING or not (st.activated and st.action)
-        )
+        # §2), so a fresh poll decides; detection 0 means moving. The client never repeats a 61 byte for byte,
+        # so the firmware's at-position latch cannot report 3 for a motion that has not arrived.
+        stall = self._stall_s(speed)
+        return self._wait(command, motion, timeout, _arrived, stall_s=stall)
 
     def _home(self, timeout: float) -> None:
-        self._link.calibrate()
-        self._mode, self._held = "home", False
-        self._wait("home", timeout, lambda st: st.calibrated)
+        with self._send_lock:
+            motion = self._begin("superseded by a newer motion before it ended (home)")
+            self._mode, self._held = "home", False
+            self._link.calibrate()
+        # Polls only (empty 61 / UART gets): a 5-byte 61 would abort the calibration (PROTOCOL-NOTES §2).
+        self._wait("home", motion, timeout, self._link.calibration_done)
         self._mode = "idle"
 
     def _motion_timeout(self, distance: float, speed: float) -> float:
@@ -342,6 +452,17 @@ class MsgGripper(Gripper):
         travel = m.grasp_travel_mm / 1000
         target = width + travel if m.inside_grip else width - travel
         target = min(max(target, self.limits.min_width), self.limits.max_width)
+        # Jaws already past the part (after a calibration they rest closed): open to the far side first,
+        # or the grasp would start where no part can be met.
+        start = self._width_of(self._link.status().position)
+        past = start > width + travel / 2 if m.inside_grip else start < width - travel / 2
+        if past:
+            approach = width - travel if m.inside_grip else width + travel
+            approach = min(max(approach, self.limits.min_width), self.limits.max_width)
+            self._mode, self._held = "release", False
+            self._go_and_wait(
+                "grasp", self._position_byte(approach), speed, m.default_current_ma, timeout
+            )
         self._mode, self._held = "grasp", False
         current = self._current_ma(force)
         st = self._go_and_wait("grasp", self._position_byte(target), speed, current, timeout)
@@ -356,8 +477,6 @@ class MsgGripper(Gripper):
             GraspState.HOLDING if held else GraspState.NO_PART,
             reason=None
             if held
-            else f"stopped at {self._width_of(st.position) * 1000:.1f} mm before reaching the part"
-            if st.detection == Detection.MOVING
             else f"reached {self._width_of(st.position) * 1000:.1f} mm without meeting a part",
         )
 
@@ -374,12 +493,15 @@ class MsgGripper(Gripper):
         return MotionResult(self._width_of(st.position), GraspState.IDLE)
 
     def _stop(self) -> None:
-        # The firmware has no stop command: clearing the action flag halts the motion where it is.
-        st = self._link.status()
-        self._link.go(st.position, 0, self._maps.default_current_ma, action=False)
+        # Safe from another thread and from a KeyboardInterrupt handler: the waiting motion learns of the
+        # stop from the motion number (no lock held while sending), and the link serialises its frames.
+        with self._send_lock:
+            self._begin("aborted by stop()")
+            self._link.halt()
         self._mode = "idle"
 
     def _fast_stop(self) -> None:
+        self._begin("aborted by fast_stop()")  # no lock: an e-stop never waits for anything
         self._link.estop()
 
     def _acknowledge(self) -> None:
@@ -426,8 +548,16 @@ class MsgGripper(Gripper):
             limits=self.limits,
             url=self.url,
             profile=self.profile.name,
-            extra=ident["extra"],
+            extra=self._extra(ident["extra"]),
         )
+
+    def _extra(self, extra: dict[str, Any]) -> dict[str, Any]:
+        if not self._profile_assumed:
+            return extra
+        warning = (
+            f"model {self.profile.name} assumed (the MSG cannot report its rail length); pass a profile"
+        )
+        return {**extra, "warnings": [*extra.get("warnings", []), warning]}
 
     def _temperature(self) -> float:
         return self._link.temperature()
@@ -441,6 +571,7 @@ class StepfocBackend:
     profile_model = MsgProfile
 
     def open(self, url: ConnectionURL, profile: ProfileBase | None, settings: Settings) -> MsgGripper:
+        assumed = not isinstance(profile, MsgProfile)  # no profile given: the rail length is a guess
         if not isinstance(profile, MsgProfile):
             profile = load_profile(DEFAULT_PROFILE)
         assert isinstance(profile, MsgProfile)
@@ -465,7 +596,7 @@ class StepfocBackend:
             raise URLError(f"{url.url}: the STEPFOC family runs on can or serial, not {url.transport}")
         try:
             link.status()  # is anything there? a silent node raises GripperTimeout naming it
-            return MsgGripper(link, profile, url.url, timeout=timeout)
+            return MsgGripper(link, profile, url.url, timeout=timeout, profile_assumed=assumed)
         except BaseException:
             link.close()
             raise

@@ -15,6 +15,7 @@ from grippers.drivers.stepfoc.can_client import StepfocBus
 from grippers.drivers.stepfoc.can_protocol import Cmd, pack_id
 from grippers.drivers.stepfoc.sim import MsgModel
 from grippers.drivers.stepfoc.uart_client import StepfocUart
+from grippers.gripper import FastStopActive
 
 
 class FailingBus(VirtualBus):
@@ -98,7 +99,7 @@ def test_api_estop_from_another_host_during_a_move(can_channel) -> None:
             other.send(can.Message(arbitration_id=pack_id(0, Cmd.ESTOP), data=b"", is_extended_id=False))
         finally:
             other.shutdown()
-        with pytest.raises(GripperError, match="e-stop raised during the motion"):
+        with pytest.raises(FastStopActive, match="aborted: e-stop"):
             handle.wait(5.0)
         assert g.state().fast_stopped
         with pytest.raises(GripperError, match="fast stop is active"):

@@ -20,7 +20,7 @@ import can
 
 from ...errors import ConnectionLost
 from ...simkit import FaultHooks, FaultKind, SimClock
-from ..can_protocol import DEFAULT_BITRATE, CanFrame
+from ..can_protocol import DEFAULT_BITRATE, MAX_NODE, CanFrame
 from .model import MsgModel
 
 __all__ = ["CanSimServer", "parse_can_url", "serve_can"]
@@ -144,6 +144,8 @@ class CanSimServer:
     def _send(self, frame: CanFrame) -> None:
         if self._closed:
             return
+        if not 0 <= frame.arbitration_id <= 0x7FF:  # the simulator speaks standard frames only
+            raise ValueError(f"identifier 0x{frame.arbitration_id:X} does not fit an 11-bit standard frame")
         msg = can.Message(
             arbitration_id=frame.arbitration_id,
             data=frame.data,
@@ -199,6 +201,9 @@ def serve_can(
     if "node" in params and len(model_list) == 1:
         model_list[0].node = model_list[0].saved_node = int(params["node"])
     nodes = [m.node for m in model_list]
+    bad = [n for n in nodes if not 0 <= n <= MAX_NODE]
+    if bad:  # node << 7 would not fit the 11-bit standard identifier of PROTOCOL-NOTES §2
+        raise ValueError(f"node ids {bad} do not fit an 11-bit standard identifier (0..{MAX_NODE})")
     if len(set(nodes)) != len(nodes):
         raise ValueError(f"two simulated nodes share a node id: {nodes}")
     own = bus is None

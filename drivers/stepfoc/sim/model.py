@@ -12,19 +12,52 @@ and kept in one place so a test can rely on them:
   numbers, as on the device.
 * Position bytes map to ticks with integer truncation in both directions (PROTOCOL-NOTES §2), so a commanded
   128 reads back as 127 while detection says 3.
-* Calibration: open at ``calibration_speed`` with ``calibration_current_ma``, pause ``calibration_pause_s``,
-  close, then calibrated and idle (action cleared) at the closed stop. Parts between the jaws are ignored
-  during calibration (calibrate with empty jaws). Starting calibration forgets the last 61 command, so the
-  first command after it always runs.
+* Driver mode, as the firmware keeps it (public STEPFOC firmware ``src/motor_control.cpp``, loop switch on
+  ``Controller_mode``): IDLE (0, nothing moves), GRIPPER (11, set by every 5-byte 61 and UART ``Grippos N``),
+  CALIBRATE (7, set by 62 / ``Gripcal``). Any active error forces IDLE at the next control step, and command 1
+  (clear error), command 12, the end of a calibration and a watchdog trip also leave the driver IDLE: nothing
+  moves until a new 5-byte 61 arrives (PROTOCOL-NOTES §2, "Firmware behaviour a client must survive").
+* Calibration (``Calibrate_gripper``): open at ``calibration_speed`` with ``calibration_current_ma``, pause
+  ``calibration_pause_s``, close, then calibrated and IDLE at the closed stop. It writes nothing else: the
+  calibrated bit stays set while a calibrated gripper recalibrates, the detection value stays frozen, the
+  activate and action bits keep what the last 61 set, and the last 61's bytes survive it. Parts between the
+  jaws are ignored during calibration (calibrate with empty jaws).
+* "Same command" (``Gripper_mode``): a 5-byte 61 byte-identical to the previous one keeps the at-position
+  latch; a latched gripper travels to the target in position mode (at ``POSITION_MODE_TICKS_S``, not at the
+  speed setpoint) and reports detection 3 all the way.
 * A part (``part_width_mm``, measured as jaw opening) blocks closing for an outside grip (detection 1) or
   opening for an inside grip (``part_grip="inside"``, detection 2). Blocked, the measured current is
   ``blocked_current_ratio`` (95 %) of the limit: negative while closing, positive while opening.
-* E-stop (command 0 or the estop flag of a 61) stops the motor and sets the estop error. Clear error (1)
-  clears the errors, but the firmware keeps acting on the stored 61 command: if that one still has estop set,
-  the error comes back at the next control step (the trap in PROTOCOL-NOTES §2 table, command 1). A 61 without
-  estop does not clear the error by itself, so "61 with estop 0, then 1" is the order that cannot race.
+* E-stop: command 0 sets only the DRIVER's e-stop error (identifier error bit, frame 26's estop bit), not
+  the 60 frame's estop flag; a 61 with its estop bit sets the gripper's estop error (the 60 flag). Clear error
+  (1) clears both, but if the stored 61 still has estop set the error comes back at the next control step
+  (PROTOCOL-NOTES §2 table, command 1), so "61 with estop 0, then 1" is the order that cannot race.
+* The watchdog (15) stores its action byte and never reads it: a trip always sets the timeout error and
+  idles the driver.
+* Frame 26's byte 1 is the motor driver's own state: its FOC calibration (done at the factory, always set
+  here) and its ``Activated`` flag (set only by the UART ``#Activate`` command, never by the gripper), not
+  the gripper's bits of frame 60.
 * Detection is only recomputed by :meth:`advance` for times after the last new command, so the immediate 60
-  reply to a new 61 still carries the previous detection value (PROTOCOL-NOTES §2 "fine points").
+  reply to a new 61 still carries the previous detection value (PROTOCOL-NOTES §2 "fine points"). In GRIPPER
+  mode with the action or activate bit off the firmware reports 0 (its "idle or disabled" branch); in IDLE and
+  during calibration the value is frozen.
+
+Not modelled (what the firmware does and this model does not):
+
+* the calibration time-out (150,000 control ticks: calibrated cleared, driver idle) and a calibration that
+  stalls on a part between the jaws; the static calibration step counters that an aborted calibration leaves
+  half set in the firmware (the next 62 resumes where the aborted one stopped);
+* the PID loops, acceleration, the velocity filter and current noise: motion is at constant speed, the current
+  is a fixed ``moving_current_ma`` while moving and exactly 0 when the driver is idle;
+* a stall below 80 % of the current limit (the firmware reports 0 and keeps pushing; here a part always
+  blocks with detection 1/2);
+* the vbus, encoder, driver, velocity and current errors and the thermistor check (temperature error only
+  when a test sets it);
+* the motor modes (data packs 2-5, UART ``#Iq N``, ``#V``, ``#P``…): their frames are ignored and the UART
+  names are answered with ``unknown_reply``;
+* the firmware's heartbeat goes out with the identifier of command 27 (``Heartbeat_CAN`` in
+  ``communication_CAN.cpp``); this model sends command 9 as PROTOCOL-NOTES §2 and the vendor library say;
+* the watchdog is reset here by every frame addressed to the node, in the firmware only by some commands.
 """
 
 from __future__ import annotations
@@ -56,11 +89,12 @@ from ..can_protocol import (
     unpack_id,
 )
 
-__all__ = ["MsgModel", "Phase", "speed_ticks_per_s"]
+__all__ = ["Mode", "MsgModel", "Phase", "speed_ticks_per_s"]
 
 MIN_SPEED_TICKS = 500.0  # PROTOCOL-NOTES §2: speed byte 0..255 -> about 500..60000 ticks/s
 MAX_SPEED_TICKS = 60000.0
 AT_POSITION_TICKS = 5  # PROTOCOL-NOTES §2: "within about 5 encoder ticks of the target it reports 3"
+POSITION_MODE_TICKS_S = MAX_SPEED_TICKS  # a latched "same command" travels in position mode (assumed: fast)
 
 
 def speed_ticks_per_s(speed: int) -> float:
@@ -81,6 +115,14 @@ class Phase(Enum):
 
 
 _CALIBRATING = (Phase.CAL_OPEN, Phase.CAL_PAUSE, Phase.CAL_CLOSE)
+
+
+class Mode(Enum):
+    """The driver's ``Controller_mode`` values the gripper uses (STEPFOC firmware, motor_control.cpp)."""
+
+    IDLE = 0
+    CALIBRATE = 7
+    GRIPPER = 11
 
 
 @dataclass
@@ -157,11 +199,15 @@ class MsgModel:
         self.speed_setpoint = 0
         self.current_setpoint = 0
         self.detection = Detection.MOVING
-        self.estop_error = False
+        self.estop_error = False  # the gripper's estop error (the 60 frame's flag): a 61 with estop set
+        self.driver_estop = False  # the driver's e-stop error (frame 26, error bit): command 0
         self.timeout_error = False
         self.temperature_error = False
+        self.driver_activated = False  # frame 26 byte 1: the driver's own flag (UART #Activate)
         self.heartbeat_ms = 0
         self.watchdog = Watchdog(0, WatchdogAction.IDLE)
+        self.mode = Mode.IDLE
+        self.at_position = False  # the firmware's At_position latch, reset only by a new (different) 61
         self.phase = Phase.IDLE
         self._velocity = 0.0  # ticks/s, signed (closing > 0)
         self._current = 0
@@ -178,11 +224,11 @@ class MsgModel:
     @property
     def error_active(self) -> bool:
         """Any active error: the driver then sets the error bit of every identifier it sends."""
-        return self.estop_error or self.timeout_error or self.temperature_error
+        return self.estop_error or self.driver_estop or self.timeout_error or self.temperature_error
 
     @property
     def calibrating(self) -> bool:
-        return self.phase in _CALIBRATING
+        return self.mode is Mode.CALIBRATE
 
     @property
     def position(self) -> int:
@@ -239,7 +285,8 @@ class MsgModel:
         self._check_watchdog(now)
         if self.estop and not self.estop_error and now > self._t:
             self.estop_error = True  # the stored command still carries estop: the error comes back
-        if self.error_active and self.phase is not Phase.IDLE:
+        if self.error_active and self.mode is not Mode.IDLE:
+            self.mode = Mode.IDLE  # firmware: any error disables the driver and sets mode 0
             self._stop(Phase.STOPPED)
         t = self._t
         while t < now:
@@ -301,16 +348,18 @@ class MsgModel:
         self._pause_until = self._arrival_time + self.calibration_pause_s
 
     def _cal_closed(self) -> None:
+        # Calibrate_gripper's last step writes the end stops, the calibrated bit and the mode; nothing else
         self.min_position = self._open_stop
         self.max_position = self._closed_stop
         self.calibrated = True
-        self.action = False
+        self.mode = Mode.IDLE
         self._stop(Phase.IDLE)
 
     def _arrived(self) -> None:
         self._velocity = 0.0
         self._current = 0
         self.phase = Phase.HOLD
+        self.at_position = True
         self._hold_detection = Detection.AT_POSITION
 
     def _blocked(self) -> None:
@@ -320,22 +369,29 @@ class MsgModel:
         magnitude = int(limit * self.blocked_current_ratio)
         self._current = -magnitude if closing else magnitude
         self.phase = Phase.HOLD
-        self._hold_detection = Detection.CLOSING_OBJECT if closing else Detection.OPENING_OBJECT
+        if self.at_position:  # latched: the firmware stays in position mode and keeps reporting 3
+            self._hold_detection = Detection.AT_POSITION
+        else:
+            self._hold_detection = Detection.CLOSING_OBJECT if closing else Detection.OPENING_OBJECT
 
     def _update_detection(self) -> None:
-        if self.phase is Phase.MOVING or self.calibrating:
-            self.detection = Detection.MOVING
+        if self.mode is not Mode.GRIPPER:
+            return  # idle or calibrating: Gripper_mode does not run, the value stays what it was
+        if self.phase is Phase.MOVING:
+            self.detection = Detection.AT_POSITION if self.at_position else Detection.MOVING
         elif self.phase is Phase.HOLD:
             self.detection = self._hold_detection
+        else:
+            self.detection = Detection.MOVING  # Gripper_mode's "idle or disabled" branch
 
     def _check_watchdog(self, now: float) -> None:
         ms = self.watchdog.timeout_ms
         if ms and not self._watchdog_fired and now - self._last_rx > ms / 1000.0:
+            # CAN_watchdog: the action byte is stored but never read; the error idles the driver
             self._watchdog_fired = True
             self.timeout_error = True
-            if self.watchdog.action == WatchdogAction.IDLE:
-                self.action = False
-            self._stop(Phase.IDLE if self.watchdog.action == WatchdogAction.IDLE else Phase.STOPPED)
+            self.mode = Mode.IDLE
+            self._stop(Phase.STOPPED)
 
     # ----------------------------------------------------------------------------------- commands
 
@@ -345,15 +401,20 @@ class MsgModel:
         self._watchdog_fired = False
 
     def on_command(self, cmd: GripperCommand, now: float) -> bool:
-        """A 5-byte 61 command. False when it repeats the previous one byte for byte (then ignored)."""
+        """A 5-byte 61 command. False when it repeats the previous one byte for byte ("same command").
+
+        Either way the driver goes to gripper mode (aborting a calibration, leaving idle); only a different
+        command resets the at-position latch (communication_CAN.cpp, IN_GRIPPER_DATA_PACK; Gripper_mode)."""
         self._begin(now)
         raw = encode_command(cmd)
-        if raw == self._last_command:
-            return False  # PROTOCOL-NOTES §2: "same command", motion not restarted
+        same = raw == self._last_command
         self._last_command = raw
-        self._command_time = now
         if self.calibrating:
             self._stop(Phase.IDLE)  # a 5-byte 61 aborts calibration (PROTOCOL-NOTES §2)
+        self.mode = Mode.GRIPPER
+        if not same:
+            self.at_position = False
+            self._command_time = now
         self.position_setpoint = cmd.position
         self.speed_setpoint = cmd.speed
         self.current_setpoint = cmd.current_ma
@@ -364,17 +425,18 @@ class MsgModel:
         if cmd.estop:
             self.estop_error = True
         self._apply(now)
-        return True
+        return not same
 
     def _apply(self, now: float) -> None:
-        """Start or stop motion from the stored setpoints (gripper mode, PROTOCOL-NOTES §2)."""
-        if self.calibrating:
-            return
+        """Start or stop motion from the stored setpoints (Gripper_mode, PROTOCOL-NOTES §2)."""
+        if self.mode is not Mode.GRIPPER:
+            return  # idle or calibrating: the setpoints wait for the next 5-byte 61
         if self.error_active:
+            self.mode = Mode.IDLE
             self._stop(Phase.STOPPED)
             return
         if not (self.gripper_mode and self.calibrated and self.activated and self.action):
-            if self.phase in (Phase.MOVING, Phase.HOLD, Phase.STOPPED):
+            if self.phase is not Phase.IDLE:
                 self._stop(Phase.IDLE)
             return
         target = self.target_ticks()
@@ -383,40 +445,40 @@ class MsgModel:
             self._arrived()
             return
         direction = 1 if target > self._ticks else -1
-        self._set_motion(
-            Phase.MOVING, speed_ticks_per_s(self.speed_setpoint), direction, self.current_setpoint
-        )
+        speed = POSITION_MODE_TICKS_S if self.at_position else speed_ticks_per_s(self.speed_setpoint)
+        self._set_motion(Phase.MOVING, speed, direction, self.current_setpoint)
 
     def start_calibration(self, now: float) -> None:
-        """Command 62 / UART Gripcal."""
+        """Command 62 / UART Gripcal: only switches the driver to calibration mode (PROTOCOL-NOTES §2,
+        "Firmware behaviour"): the calibrated bit, the detection value and the last 61 are left alone."""
         self._begin(now)
         if self.error_active:
-            return
-        self.calibrated = False
-        self._last_command = None
+            return  # the mode is set, but the error puts the driver back to idle before a step runs
+        self.mode = Mode.CALIBRATE
         self._set_motion(Phase.CAL_OPEN, self.calibration_speed, -1, self.calibration_current_ma)
-        self.detection = Detection.MOVING
 
     def emergency_stop(self, now: float) -> None:
-        """Command 0. (Named so because ``estop`` is the stored command's estop bit.)"""
+        """Command 0: the driver's e-stop error only; the 60 frame's estop flag stays as it was."""
         self._begin(now)
-        self.estop_error = True
+        self.driver_estop = True
+        self.mode = Mode.IDLE
         self._stop(Phase.STOPPED)
 
     def clear_error(self, now: float) -> None:
-        """Command 1: clears every error; estop returns at the next step if the stored command has estop."""
+        """Command 1 / UART #Clear: clears every error and idles the driver; nothing moves until a new 5-byte
+        61. The estop error returns at the next step if the stored command still has estop."""
         self._begin(now)
         self.estop_error = False
+        self.driver_estop = False
         self.timeout_error = False
         self.temperature_error = False
-        if self.phase is Phase.STOPPED:
-            self._stop(Phase.IDLE)
-        self._apply(now)
+        self.mode = Mode.IDLE
+        self._stop(Phase.IDLE)
 
     def idle(self, now: float) -> None:
-        """Command 12: motor idle; also ends calibration and motion."""
+        """Command 12 / UART #Idle: driver mode 0; also ends calibration and motion. No bit changes."""
         self._begin(now)
-        self.action = False
+        self.mode = Mode.IDLE
         self._stop(Phase.IDLE)
 
     def set_node(self, node: int, now: float) -> None:
@@ -453,13 +515,17 @@ class MsgModel:
 
     # UART setters (PROTOCOL-NOTES §2 UART): they edit the stored command directly
     def set_position(self, position: int, now: float) -> None:
-        """UART Grippos N: set the setpoint, activate and start the motion."""
+        """UART Grippos N: set the setpoint, activate, reset the at-position latch and go to gripper mode
+        (communication.cpp); the stored 61 bytes are not touched."""
         self._begin(now)
+        if self.calibrating:
+            self._stop(Phase.IDLE)
         self.position_setpoint = position & 0xFF
         self.activated = True
         self.action = True
+        self.at_position = False
+        self.mode = Mode.GRIPPER
         self._command_time = now
-        self._last_command = None
         self._apply(now)
 
     def set_speed(self, speed: int, now: float) -> None:
@@ -483,6 +549,7 @@ class MsgModel:
         self.estop = bool(bit)
         if bit:
             self.estop_error = True
+            self.mode = Mode.IDLE
             self._stop(Phase.STOPPED)
 
     # ----------------------------------------------------------------------------------- reading
@@ -503,12 +570,14 @@ class MsgModel:
         )
 
     def error_state(self) -> ErrorState:
+        """Frame 26 (State_of_Errors_CAN): the DRIVER's flags. The estop bit is command 0's error only (a 61
+        with estop shows as the error bit alone); byte 1 is the motor's FOC calibration and Activated flag."""
         return ErrorState(
             error=self.error_active,
             temperature=self.temperature_error,
-            estop=self.estop_error,
-            calibrated=self.calibrated,
-            activated=self.activated,
+            estop=self.driver_estop,
+            calibrated=True,  # the motor's own calibration, done at the factory
+            activated=self.driver_activated,
             watchdog=self.timeout_error,
         )
 

@@ -15,11 +15,13 @@ import select
 import threading
 import time
 import tty
+from collections import deque
 from collections.abc import Sequence
 
 from ...simkit import FaultHooks, FaultKind, SimClock
 from ..uart_protocol import (
     COMMANDS,
+    MODE_LINES,
     UNKNOWN_COMMAND,
     CommandReceiver,
     GripInfo,
@@ -27,13 +29,15 @@ from ..uart_protocol import (
     UartInfo,
     atoi,
     encode_lines,
+    parser_knows,
     render_gripinfo,
     render_info,
 )
-from .model import MsgModel
+from .model import Mode, MsgModel
 
 _TICK_S = 0.02  # wall seconds between control-loop advances while idle
 _MAX_OUT = 64 * 1024  # bytes held for a client that does not read; beyond that answers are lost, as on a UART
+KEPT_REQUESTS = 256  # the most recent requests kept for tests; a long run must not grow the simulator
 
 # Motor constants the firmware prints in #Info (public firmware, communication.cpp). The notes give no values;
 # these are plausible numbers for a small BLDC so the lines are present and parse, nothing depends on them.
@@ -52,8 +56,10 @@ class UartSimServer:
     """One simulated MSG gripper answering on a pty; see :func:`serve_uart`.
 
     ``lock`` guards the model: hold it when a test changes the model (``place_part``) while the server runs.
-    ``unknown_reply`` is what an unknown command name gets: ``"Unknown command"`` or None for silence (the
-    firmware does either, PROTOCOL-NOTES §2).
+    A name the firmware's parser does not know gets no answer at all; ``unknown_reply`` is what a name gets
+    that the parser passes on but this simulator does not model (the firmware answers those, see the model's
+    "Not modelled" list): ``"Unknown command"`` or None for silence. ``requests`` keeps the last
+    :data:`KEPT_REQUESTS` accepted lines, ``request_count`` counts them all.
     """
 
     def __init__(
@@ -71,7 +77,8 @@ class UartSimServer:
         self.clock = clock or SimClock(time_scale)
         self.unknown_reply = unknown_reply
         self.lock = threading.RLock()
-        self.requests: list[Request] = []  # every accepted command line, for tests
+        self.requests: deque[Request] = deque(maxlen=KEPT_REQUESTS)  # the most recent ones, for tests
+        self.request_count = 0
         self._receiver = CommandReceiver(buffer_size)
         self._out = bytearray()
         self._delayed: list[tuple[float, bytes]] = []
@@ -186,6 +193,7 @@ class UartSimServer:
     def _handle(self, req: Request) -> None:
         with self.lock:
             self.requests.append(req)
+            self.request_count += 1
             now = self.clock.now()
             self.model.advance(now)
             lines = self.answer(req, now)
@@ -219,6 +227,8 @@ class UartSimServer:
         """The lines the firmware prints for ``req`` after applying it to the model (None: no answer)."""
         m = self.model
         name = req.name
+        if not parser_knows(req):
+            return None  # SerialPacketParser drops it: no answer at all (PROTOCOL-NOTES §2)
         # the firmware sets only when an argument is present, converting it with atoi
         has_arg = req.argument is not None
         value = atoi(req.argument) if req.argument is not None else 0
@@ -254,10 +264,14 @@ class UartSimServer:
         if name == "Info":
             return render_info(self.info())
         if name == "Clear":
-            # firmware: clears every error and puts the driver in idle mode
-            m.clear_error(now)
+            m.clear_error(now)  # firmware: clears every error and puts the driver in idle mode
+            return [COMMANDS[name].render()]
+        if name == "Idle" and not has_arg:
             m.idle(now)
             return [COMMANDS[name].render()]
+        if name == "Mode":
+            line = MODE_LINES.get(m.mode.value if isinstance(m.mode, Mode) else int(m.mode))
+            return None if line is None else [line]  # gripper mode (11) prints nothing (communication.cpp)
         return None if self.unknown_reply is None else [self.unknown_reply]
 
     def gripinfo(self) -> GripInfo:

@@ -61,7 +61,7 @@ def test_current_is_clamped_to_the_limit(sim: CanSimServer, canbus: StepfocBus) 
     node = canbus.node(0, current_limit_ma=400)
     node.command(10, 20, 2800)
     assert sim.model.current_setpoint == 400
-    node.command(10, 20)  # default: the limit
+    node.command(11, 20)  # default: the limit
     assert sim.model.current_setpoint == 400
 
 
@@ -132,7 +132,8 @@ def test_estop_during_move(start_sim: Callable[..., CanSimServer], canbus: Stepf
     node.command(0, 0)  # slowest speed: ~42 simulated s for the stroke
     node.estop()
     st = node.poll()
-    assert st.estop_error and st.error_bit and node.last_error_bit
+    # command 0 sets the driver's e-stop error only: the error bit, not the 60 frame's flag; 26 names it
+    assert not st.estop_error and st.error_bit and node.last_error_bit and node.fault(st) == "estop"
     stopped_at = server.model.ticks
     with pytest.raises(CommandFailed, match="estop"):
         node.wait_motion(timeout=1.0)
@@ -156,8 +157,9 @@ def test_clear_error_trap(sim: CanSimServer, canbus: StepfocBus) -> None:
 def test_clear_error_without_known_command(sim: CanSimServer, canbus: StepfocBus) -> None:
     node = canbus.node(0)
     node.estop()
-    assert node.poll().estop_error
-    assert not canbus.node(0).clear_error().estop_error
+    assert node.fault(node.poll()) == "estop"
+    st = canbus.node(0).clear_error()
+    assert not st.estop_error and not st.error_bit
 
 
 def test_send_failure_is_connection_lost(channel: str) -> None:

@@ -131,13 +131,15 @@ def test_immediate_reply_carries_previous_detection() -> None:
     assert m.status(t + 1.001).detection is Detection.MOVING
 
 
-def test_same_command_is_ignored() -> None:
+def test_same_command_leaves_idle_without_a_new_motion() -> None:
     m = calibrated()
     assert m.on_command(go(100), 60.0)
     m.advance(60.01)
     m.idle(60.02)  # stops the motion; the stored command stays the same
-    assert not m.on_command(go(100), 60.03)
     assert m.phase is Phase.IDLE
+    # firmware: every 5-byte 61 sets gripper mode; "same command" only keeps the at-position latch
+    assert not m.on_command(go(100), 60.03)
+    assert m.phase is Phase.MOVING
     assert m.on_command(go(100, speed=254), 60.04)
     assert m.phase is Phase.MOVING
 
@@ -202,10 +204,11 @@ def test_clear_error_trap_error_returns_while_command_has_estop() -> None:
 def test_estop_command_0_then_clear() -> None:
     m = calibrated()
     m.handle_frame(pack_id(0, Cmd.ESTOP), b"", False, 60.0)
-    assert m.status(60.0).estop_error
+    st = m.status(60.0)
+    assert st.error_bit and not st.estop_error and m.error_state().estop  # the driver's, not the 60 flag
     m.handle_frame(pack_id(0, Cmd.CLEAR_ERROR), b"", False, 61.0)
     m.advance(61.5)
-    assert not m.status(61.5).estop_error
+    assert not m.status(61.5).error_bit and not m.error_state().estop
 
 
 def test_wrong_length_61_is_answered_with_60() -> None:
@@ -245,7 +248,8 @@ def test_device_info_error_state_encoder() -> None:
     m.emergency_stop(1.0)
     (es,) = m.handle_frame(pack_id(0, Cmd.ERROR_STATE), b"", True, 1.0)
     state = decode_frame(es.arbitration_id, es.data).value
-    assert state.error and state.estop and not state.calibrated and es.arbitration_id & 1
+    # byte 1 is the driver's own state: its factory FOC calibration, not the gripper's calibrated bit
+    assert state.error and state.estop and state.calibrated and not m.calibrated and es.arbitration_id & 1
     (enc,) = m.handle_frame(pack_id(0, Cmd.ENCODER), b"", True, 1.0)
     assert decode_frame(enc.arbitration_id, enc.data).value.position == m.ticks
 
@@ -296,7 +300,7 @@ def test_idle_stops_motion() -> None:
     m.handle_frame(pack_id(0, Cmd.IDLE), b"", False, 61.0)
     ticks = m.ticks
     m.advance(70.0)
-    assert m.ticks == ticks and not m.action
+    assert m.ticks == ticks and m.action  # idle changes the driver mode only, not the gripper's bits
 
 
 def test_uart_set_position_activates_and_moves() -> None:

@@ -84,8 +84,8 @@ def test_remote_two_nodes_one_bus(remote_sim: Callable[[list[int]], str]) -> Non
         a, b = bus.node(13, timeout=1.0), bus.node(14, timeout=1.0)
         assert a.ping(timeout=2.0) and b.ping(timeout=2.0)
         a.estop()
-        assert a.poll().estop_error and a.last_error_bit
-        assert not b.poll().estop_error and not b.last_error_bit
-        assert not a.clear_error().estop_error
+        assert a.fault(a.poll()) == "estop" and a.last_error_bit
+        assert b.fault(b.poll()) is None and not b.last_error_bit
+        assert not a.clear_error().error_bit
         with pytest.raises(GripperTimeout):
             bus.node(15).poll(timeout=0.2)

@@ -167,13 +167,13 @@ def test_parse_gripinfo() -> None:
     assert render_gripinfo(info) == GRIPINFO_LINES
 
 
-def test_gripinfo_not_a_gripper_and_odd_detection() -> None:
-    odd = "Gripper object detection status: 7"
-    lines = ["I am not a gripper ", *GRIPINFO_LINES[1:8], odd, *GRIPINFO_LINES[9:]]
-    info = parse_gripinfo(lines)
-    assert info.is_gripper is False
-    assert info.detection == 7 and not isinstance(info.detection, Detection)
+def test_gripinfo_not_a_gripper_and_out_of_range_detection() -> None:
+    info = parse_gripinfo(["I am not a gripper ", *GRIPINFO_LINES[1:]])
+    assert info.is_gripper is False and isinstance(info.detection, Detection)
     assert render_gripinfo(info)[0] == "I am not a gripper "
+    odd = "Gripper object detection status: 7"  # issue 13 item 5: a value outside 0..3 is not kept
+    with pytest.raises(ProtocolError, match="detection 7 outside 0..3 in the line 'Gripper object detection"):
+        parse_gripinfo(["I am not a gripper ", *GRIPINFO_LINES[1:8], odd, *GRIPINFO_LINES[9:]])
 
 
 def test_gripinfo_rejects_incomplete_or_disordered() -> None:

@@ -1,0 +1,267 @@
+"""The MSG client and backend against the firmware-faithful simulator (issue 12 §2, §3 for the MSG, §4):
+calibrations that really end, first motions that really move, e-stops from anywhere, motions that end honestly
+(never "done" when stopped, superseded or idled), and the warning when the model is assumed."""
+
+from __future__ import annotations
+
+import threading
+import time
+import uuid
+
+import can
+import pytest
+
+import grippers
+from grippers.drivers.errors import CommandFailed, ProtocolError
+from grippers.drivers.stepfoc.can_client import StepfocBus
+from grippers.drivers.stepfoc.can_protocol import Cmd, GripperCommand, encode_command, pack_id
+from grippers.drivers.stepfoc.sim import MsgModel, serve_can
+from grippers.gripper import FastStopActive
+
+TRANSPORTS = ["can", "pty"]
+
+
+def sim(transport: str, time_scale: float = 20.0, **query: object) -> grippers.Gripper:
+    extra = "".join(f"&{k}={v}" for k, v in query.items())
+    return grippers.open(f"sim://msg-150?time_scale={time_scale}&transport={transport}{extra}")
+
+
+def other_host(g: grippers.Gripper) -> can.BusABC:
+    """Another program on the simulator's CAN bus (a safety controller, a second script)."""
+    return can.Bus(interface="virtual", channel=g.simulator.channel)
+
+
+def send_raw(g: grippers.Gripper, command: int, data: bytes = b"") -> None:
+    bus = other_host(g)
+    try:
+        bus.send(can.Message(arbitration_id=pack_id(0, command), data=data, is_extended_id=False))
+    finally:
+        bus.shutdown()
+
+
+# ------------------------------------------------------------------------------ calibration (§2)
+
+
+@pytest.mark.parametrize("transport", TRANSPORTS)
+def test_home_on_a_calibrated_gripper_waits_for_the_real_end(transport: str) -> None:
+    with sim(transport) as g:
+        g.home()
+        g.move(0.05)
+        model = g.simulator.model
+        g.home()  # the calibrated bit stays set: the old client returned at once
+        assert not model.calibrating
+        assert model.opening_mm == pytest.approx(0.0, abs=0.1)  # calibration ends at the closed stop
+        assert g.state().width == pytest.approx(0.0, abs=0.001)
+
+
+@pytest.mark.parametrize("transport", TRANSPORTS)
+def test_home_sends_no_motion_command_while_calibrating(transport: str) -> None:
+    with sim(transport) as g:
+        g.home()
+        g.move(0.05)
+        model = g.simulator.model
+        calls: list[str] = []
+        for name in ("on_command", "set_position"):
+            original = getattr(model, name)
+
+            def spy(*a: object, _o=original, _n=name, **k: object) -> object:
+                calls.append(_n)
+                return _o(*a, **k)
+
+            setattr(model, name, spy)
+        g.home()
+        assert calls == []
+
+
+@pytest.mark.parametrize("transport", TRANSPORTS)
+def test_the_first_motion_after_a_calibration_really_moves(transport: str) -> None:
+    with sim(transport) as g:
+        g.home()
+        assert g.move(0.05).width == pytest.approx(0.05, abs=0.001)
+        g.home()  # the jaws rest closed; the node kept the last 61's bytes
+        result = g.move(0.05)  # the same motion again: must not be taken for "already there"
+        assert result.width == pytest.approx(0.05, abs=0.001)
+        assert g.simulator.model.opening_mm == pytest.approx(50.0, abs=1.0)
+
+
+def test_calibration_watch_needs_the_jaws_to_leave_and_come_back() -> None:
+    channel = f"msg-backend-{uuid.uuid4().hex[:8]}"
+    with serve_can([MsgModel(node=0)], f"can://virtual/{channel}", time_scale=50.0) as server, StepfocBus(
+        interface="virtual", channel=channel
+    ) as bus:
+        node = bus.node(0)
+        node.calibrate(timeout=5.0)
+        assert server.model.calibrated and not server.model.calibrating
+        node.move(128, 255, timeout=5.0)
+        node.calibrate(timeout=5.0)
+        assert not server.model.calibrating and node.poll().position == 255
+
+
+def test_the_client_never_repeats_a_motion_61_byte_for_byte() -> None:
+    channel = f"msg-backend-{uuid.uuid4().hex[:8]}"
+    with serve_can([MsgModel(node=0)], f"can://virtual/{channel}", time_scale=50.0) as server, StepfocBus(
+        interface="virtual", channel=channel
+    ) as bus:
+        node = bus.node(0)
+        node.calibrate(timeout=5.0)
+        node.move(100, 200, timeout=5.0)
+        before = server.model._last_command
+        node.calibrate(timeout=5.0)  # the node keeps those bytes over the calibration
+        node.command(100, 200)
+        assert server.model._last_command != before  # so the at-position latch was reset ...
+        st = node.wait_motion(timeout=5.0)
+        assert abs(st.position - 100) <= 1 and server.model.opening_mm < 70  # ... and the jaws really moved
+
+
+# ------------------------------------------------------------------------------ e-stop from anywhere (§2)
+
+
+def test_command_0_from_another_host_is_a_fast_stop_and_acknowledge_recovers() -> None:
+    with sim("can") as g:
+        g.home()
+        handle = g.move(0.09, 0.002, wait=False)
+        time.sleep(0.1)
+        send_raw(g, Cmd.ESTOP)
+        with pytest.raises(FastStopActive, match="e-stop"):
+            handle.wait(5.0)
+        assert g.state().fast_stopped
+        g.acknowledge()
+        assert not g.state().faults
+        assert g.move(0.03).width == pytest.approx(0.03, abs=0.001)
+
+
+def test_a_61_with_the_estop_bit_from_another_host_is_a_fast_stop() -> None:
+    with sim("can") as g:
+        g.home()
+        handle = g.move(0.09, 0.002, wait=False)
+        time.sleep(0.1)
+        send_raw(g, Cmd.GRIPPER_COMMAND, encode_command(GripperCommand(0, 0, 100, True, False, True)))
+        with pytest.raises(FastStopActive):
+            handle.wait(5.0)
+        g.acknowledge()  # 61 with estop 0 first, then 1: the error does not come back
+        assert g.move(0.03).width == pytest.approx(0.03, abs=0.001)
+
+
+def test_clear_error_resume_resends_the_motion() -> None:
+    channel = f"msg-backend-{uuid.uuid4().hex[:8]}"
+    with serve_can([MsgModel(node=0)], f"can://virtual/{channel}", time_scale=50.0) as server, StepfocBus(
+        interface="virtual", channel=channel
+    ) as bus:
+        node = bus.node(0)
+        node.calibrate(timeout=5.0)
+        node.command(0, 40)
+        time.sleep(0.05)
+        node.estop()
+        stopped = server.model.ticks
+        node.clear_error(resume=True)
+        st = node.wait_motion(timeout=5.0)
+        assert st.position == 0 and server.model.ticks != stopped
+
+
+def test_two_devices_with_one_node_id_are_an_error_naming_the_node() -> None:
+    channel = f"msg-backend-{uuid.uuid4().hex[:8]}"
+    a = serve_can([MsgModel(node=5)], f"can://virtual/{channel}", time_scale=50.0)
+    b = serve_can([MsgModel(node=5, start_mm=10.0)], f"can://virtual/{channel}", time_scale=50.0)
+    try:
+        with StepfocBus(interface="virtual", channel=channel) as bus:
+            node = bus.node(5)
+            with pytest.raises(ProtocolError, match="two devices answer as node 5"):
+                for _ in range(20):
+                    node.poll()
+                    time.sleep(0.01)
+    finally:
+        a.close()
+        b.close()
+
+
+# ------------------------------------------------------------------------------ honest endings (§3)
+
+
+@pytest.mark.parametrize("transport", TRANSPORTS)
+def test_a_newer_motion_supersedes_the_waiting_one(transport: str) -> None:
+    with sim(transport) as g:
+        g.home()
+        handle = g.move(0.09, 0.002, wait=False)
+        time.sleep(0.1)
+        second = g.move(0.01)
+        assert second.width == pytest.approx(0.01, abs=0.001)
+        with pytest.raises(CommandFailed, match="superseded"):
+            handle.wait(5.0)
+
+
+@pytest.mark.parametrize("transport", TRANSPORTS)
+def test_stop_from_another_thread_aborts_the_blocking_motion(transport: str) -> None:
+    with sim(transport) as g:
+        g.home()
+        threading.Timer(0.15, g.stop).start()
+        with pytest.raises(CommandFailed, match="aborted"):
+            g.move(0.09, 0.002)
+        assert not g.state().moving
+
+
+def test_stop_from_another_program_is_not_reported_as_done() -> None:
+    with sim("can") as g:
+        g.home()
+        handle = g.move(0.09, 0.002, wait=False)
+        time.sleep(0.1)
+        # what `grippers stop URL` from another shell sends: a 61 with the action bit cleared
+        last = g.driver.last_command
+        stop = GripperCommand(last.position, 0, 500, activate=True, action=False, estop=False)
+        send_raw(g, Cmd.GRIPPER_COMMAND, encode_command(stop))
+        with pytest.raises(CommandFailed, match="aborted: the gripper's action bit was cleared"):
+            handle.wait(5.0)
+
+
+@pytest.mark.parametrize("command", [Cmd.IDLE, Cmd.CLEAR_ERROR])
+def test_driver_idled_by_another_host_ends_the_wait_as_aborted(command: int) -> None:
+    with sim("can") as g:
+        g.home()
+        handle = g.move(0.09, 0.002, wait=False)
+        time.sleep(0.1)
+        send_raw(g, command)  # the 60 frame cannot show the driver mode: the jaws stand still
+        with pytest.raises(CommandFailed, match="aborted: the jaws stopped"):
+            handle.wait(5.0)
+
+
+@pytest.mark.parametrize("transport", TRANSPORTS)
+def test_grasp_opens_first_when_the_jaws_rest_inside_the_part(transport: str) -> None:
+    with sim(transport, part_width_mm=40) as g:
+        g.home()  # the jaws rest closed after a calibration
+        result = g.grasp(0.04)
+        assert result.grasped and result.width == pytest.approx(0.04, abs=0.001)
+
+
+# ------------------------------------------------------------------------------ model assumed (§4)
+
+
+def test_info_warns_when_the_model_is_assumed() -> None:
+    channel = f"msg-backend-{uuid.uuid4().hex[:8]}"
+    with serve_can([MsgModel(node=0)], f"can://virtual/{channel}", time_scale=50.0):
+        url = f"stepfoc+can://virtual/{channel}?node=0"
+        with grippers.open(url) as g:
+            warnings = g.info().extra["warnings"]
+            assert any("msg-150 assumed" in w and "pass a profile" in w for w in warnings)
+        with grippers.open(url, profile="msg-200") as g:
+            assert "warnings" not in g.info().extra
+
+
+@pytest.mark.parametrize("transport", TRANSPORTS)
+def test_stop_from_a_keyboard_interrupt_handler_stops_the_gripper(transport: str) -> None:
+    import _thread
+
+    with sim(transport) as g:
+        g.home()
+        model = g.simulator.model
+        for delay in (0.05, 0.11, 0.17):  # Ctrl-C at different moments of the wait loop
+            threading.Timer(delay, _thread.interrupt_main).start()
+            try:
+                g.move(0.09 if model.opening_mm < 45 else 0.0, 0.002)
+            except KeyboardInterrupt:
+                g.stop()  # what the base class does before the exception leaves the call
+            else:
+                pytest.fail("the motion finished before the interrupt")
+            with g.simulator.lock if transport == "pty" else threading.Lock():
+                at = model.opening_mm
+            time.sleep(0.1)
+            assert model.opening_mm == pytest.approx(at, abs=0.05)  # stopped, not still travelling
+        assert g.move(0.05).width == pytest.approx(0.05, abs=0.001)  # and the link is usable

@@ -1,0 +1,112 @@
+"""The MSG UART simulator answers as the STEPFOC firmware does (issue 12 §1, issue 13 item 9), driven by raw
+lines written to the pseudo-terminal (no client code)."""
+
+from __future__ import annotations
+
+import os
+import select
+import time
+from collections.abc import Iterator
+
+import pytest
+
+from grippers.drivers.stepfoc.sim import MsgModel, serve_uart, uart_server
+from grippers.drivers.stepfoc.sim.uart_server import UartSimServer
+
+KEPT_REQUESTS = getattr(uart_server, "KEPT_REQUESTS", 256)
+
+
+class RawPort:
+    def __init__(self, server: UartSimServer) -> None:
+        self.fd = os.open(server.path, os.O_RDWR | os.O_NOCTTY)
+        self.buf = b""
+
+    def ask(self, line: bytes, wait: float = 1.0, quiet: float = 0.0) -> list[str]:
+        """Write ``line``; return the answer lines. ``quiet`` (s): collect until that long passes silent."""
+        os.write(self.fd, line)
+        deadline = time.monotonic() + wait
+        last = time.monotonic()
+        while time.monotonic() < deadline:
+            ready, _, _ = select.select([self.fd], [], [], 0.02)
+            if ready:
+                self.buf += os.read(self.fd, 4096)
+                last = time.monotonic()
+            else:
+                silent = time.monotonic() - last >= quiet
+                complete = self.buf.endswith(b"\r\n")
+                if (complete and (not quiet or silent)) or (quiet and not self.buf and silent):
+                    break
+        lines, self.buf = self.buf.decode("latin-1").split("\r\n")[:-1], b""
+        return lines
+
+    def close(self) -> None:
+        os.close(self.fd)
+
+
+@pytest.fixture
+def port() -> Iterator[tuple[UartSimServer, RawPort]]:
+    server = serve_uart(MsgModel(), "pty", time_scale=100.0)
+    raw = RawPort(server)
+    yield server, raw
+    raw.close()
+    server.close()
+
+
+def test_names_the_parser_does_not_know_get_no_answer(port) -> None:
+    _, raw = port
+    assert raw.ask(b"#Nosuchthing\n", wait=0.3, quiet=0.25) == []  # not even "Unknown command"
+    assert raw.ask(b"#Idle 5\n", wait=0.3, quiet=0.25) == []  # Idle is known bare only
+    assert raw.ask(b"#SIN\n") == ["Unknown command"]  # known to the parser, not dispatched
+    assert raw.ask(b"#Gripper\n") == ["Gripper: 1"]
+
+
+def test_mode_tells_calibration_and_gripper_mode(port) -> None:
+    server, raw = port
+    assert raw.ask(b"#Mode\n") == ["Idle mode "]
+    assert raw.ask(b"#Gripcal\n") == ["Gripper calibration! "]
+    assert raw.ask(b"#Mode\n") == ["Gripper calib mode"]
+    deadline = time.monotonic() + 5
+    while raw.ask(b"#Mode\n") != ["Idle mode "]:
+        assert time.monotonic() < deadline
+        time.sleep(0.02)
+    assert raw.ask(b"#Grippos 100\n")[0].startswith("Gripper current position is: ")
+    assert raw.ask(b"#Mode\n", wait=0.3, quiet=0.25) == []  # gripper mode (11) prints nothing
+
+
+def test_recalibration_keeps_the_calibrated_bit(port) -> None:
+    server, raw = port
+    raw.ask(b"#Gripcal\n")
+    deadline = time.monotonic() + 5
+    while raw.ask(b"#Mode\n") != ["Idle mode "]:
+        assert time.monotonic() < deadline
+    raw.ask(b"#Grippos 100\n")
+    time.sleep(0.2)
+    raw.ask(b"#Gripcal\n")
+    info = raw.ask(b"#Gripinfo\n")
+    assert "Gripper calibrated is: 1" in info and raw.ask(b"#Mode\n") == ["Gripper calib mode"]
+
+
+def test_clear_idles_the_driver(port) -> None:
+    server, raw = port
+    raw.ask(b"#Gripcal\n")
+    deadline = time.monotonic() + 5
+    while raw.ask(b"#Mode\n") != ["Idle mode "]:
+        assert time.monotonic() < deadline
+    raw.ask(b"#Gripvel 0\n")
+    raw.ask(b"#Grippos 0\n")  # slow: ~40 simulated s
+    time.sleep(0.05)
+    assert raw.ask(b"#Clear\n") == ["Clear errors"]
+    stopped = raw.ask(b"#Grippos\n")
+    time.sleep(0.2)
+    assert raw.ask(b"#Grippos\n") == stopped and raw.ask(b"#Mode\n") == ["Idle mode "]
+
+
+def test_requests_are_not_kept_forever(port) -> None:
+    server, raw = port
+    for _ in range(KEPT_REQUESTS + 50):
+        os.write(raw.fd, b"#Gripvel\n")
+    deadline = time.monotonic() + 5
+    while getattr(server, "request_count", len(server.requests)) < KEPT_REQUESTS + 50:
+        assert time.monotonic() < deadline
+        raw.ask(b"", wait=0.05, quiet=0.02)
+    assert len(server.requests) == KEPT_REQUESTS and server.request_count == KEPT_REQUESTS + 50
