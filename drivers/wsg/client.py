@@ -285,13 +285,19 @@ class WsgClient:
         self.firmware: FirmwareVersion | None = None
         self.limits: SystemLimits | None = None
         self.stats: dict[str, int] = dict.fromkeys(
-            ("checksum_errors", "bad_lengths", "discarded_bytes", "stale_replies", "unsolicited", "updates"),
+            ("checksum_errors", "bad_lengths", "discarded_bytes", "stale_replies", "unsolicited", "updates",
+             "lost_replies", "barriers"),
             0,
         )
         self._session = Session(
             verify_checksum=verify_checksum, stale_ttl=stale_ttl, stale_final_ttl=stale_final_ttl
         )
         self._silent_gap = silent_gap
+        # PROTOCOL-NOTES §1 / docs/protocols.md §1: only a serial line ends a packet by a pause. A TCP stream
+        # may pause 40 ms inside a reply (delayed ACK) and CAN frames may be spaced: there the size field and
+        # the parser's per-id bound end a packet, never a gap.
+        self._gap_rule = bool(getattr(transport, "silent_gap", False))
+        self._drain = getattr(transport, "recv_nowait", None)
         lock = threading.RLock()
         self._lock = lock  # the hot path enters the lock directly (Condition.__enter__ is Python code)
         self._cond = threading.Condition(lock)  # callers wait here for their replies
@@ -496,7 +502,7 @@ class WsgClient:
             if data:
                 self._last_rx = now
                 events = session.receive(data, now)
-            elif session.parser.buffered and now - self._last_rx >= self._silent_gap:
+            elif self._gap_rule and session.parser.buffered and now - self._last_rx >= self._silent_gap:
                 events = session.reset_parser(now)
             else:
                 events = []
@@ -585,25 +591,35 @@ class WsgClient:
             raise GripperError("commands cannot be issued from a subscription callback (reader thread)",
                                device=self.device, command=command_name(cmd))
         session = self._session
-        with self._lock:
-            while True:
-                if self._lost is not None or self._closing or self._closed:
-                    self._usable(command_name(cmd), internal)
-                now = time.monotonic()
-                opened = session.open(cmd, payload, now)
-                if opened is not None:
-                    exchange, raw = opened
-                    self._callers += 1  # released by the _wait(begun=True) that follows
-                    lead = not (self._reading or self._subs or self._closing)
-                    if lead:
-                        self._reading = True
-                    break
-                if deadline - now <= 0:
-                    raise GripperTimeout(
-                        "a previous exchange of this command is still outstanding (one per command id)",
-                        device=self.device, command=command_name(cmd),
-                    )
-                self._sleep(min(deadline - now, _POLL))
+        while True:
+            with self._lock:
+                barrier = False
+                while True:
+                    if self._lost is not None or self._closing or self._closed:
+                        self._usable(command_name(cmd), internal)
+                    if self._drain is not None and not self._reading and not self._subs:
+                        self._drain_line()
+                    now = time.monotonic()
+                    opened = session.open(cmd, payload, now)
+                    if opened is not None:
+                        exchange, raw = opened
+                        self._callers += 1  # released by the _wait(begun=True) that follows
+                        lead = not (self._reading or self._subs or self._closing)
+                        if lead:
+                            self._reading = True
+                        break
+                    if deadline - now <= 0:
+                        raise GripperTimeout(
+                            "a previous exchange of this command is still outstanding (one per command id)",
+                            device=self.device, command=command_name(cmd),
+                        )
+                    if session.needs_barrier(cmd, now):
+                        barrier = True
+                        break
+                    self._sleep(min(deadline - now, _POLL))
+            if not barrier:
+                break
+            self._barrier(cmd, deadline, internal)
         try:
             self._transport.send(raw)
         except BaseException as exc:
@@ -630,20 +646,62 @@ class WsgClient:
         finally:
             self._sleepers -= 1
 
+    def _drain_line(self) -> None:
+        """Match what already arrived before a new request is registered (lock held, nobody reading).
+
+        Why: a packet nobody waits for (a duplicated reply, a reply whose marker a proof removed) must be
+        consumed and counted now; read after the new request went out it would look like that request's
+        reply. One non-blocking read: the line is idle, so it nearly always returns nothing.
+        """
+        assert self._drain is not None
+        try:
+            data = self._drain()
+        except ConnectionLost:
+            return  # the next read reports it to everybody
+        if data:
+            self._reading = True
+            self._absorb(data)
+
+    def _barrier(self, cmd: int, deadline: float, internal: bool) -> None:
+        """Prove a stale reply of ``cmd`` lost: a LOOP with a fresh nonce, answered after anything sent
+        before it (the device answers in order). GripperTimeout when even that gets no reply."""
+        self.stats["barriers"] += 1
+        nonce = self._session.barrier_payload()
+        wait = max(deadline - time.monotonic(), 0.001)
+        try:
+            packet = self._exchange(Cmd.LOOP, nonce, wait, internal)
+        except GripperTimeout:
+            raise GripperTimeout(
+                "a previous exchange of this command is still outstanding (one per command id) and the "
+                "device did not answer the LOOP that would prove its reply lost",
+                device=self.device, command=command_name(cmd),
+            ) from None
+        if packet.status:
+            log.debug("%s: barrier LOOP answered %s", self.device, Status.describe(packet.status))
+
+    def _relock(self) -> BaseException | None:
+        """Take the lock after a read even if Ctrl-C interrupts the wait for it; returns the interrupt.
+
+        Why: bytes just read must be matched, and the reading role handed back, whatever happens; an
+        interrupted acquire would lose both (and every later caller would wait for a reader that is gone).
+        """
+        interrupt: BaseException | None = None
+        while True:
+            try:
+                self._lock.acquire()
+                return interrupt
+            except BaseException as exc:  # noqa: BLE001 - KeyboardInterrupt: re-raised by the caller
+                interrupt = interrupt or exc
+
     def _read_own_reply(self, exchange: Exchange, wait: float) -> Packet | None:
         """The first read of a caller that took the reading role in :meth:`_begin` (nothing can have arrived
         before): when the bytes are exactly its final reply, which they nearly always are on TCP and UDP, the
         exchange is done here without the general matching. Otherwise they are matched as usual and None
         sends the caller on to :meth:`_wait`, still counted as a caller.
         """
+        data, interrupt = self._receive_guarded(wait if wait < _POLL else _POLL)
         try:
-            data = self._receive(wait if wait < _POLL else _POLL)
-        except BaseException:  # KeyboardInterrupt: the caller is gone
-            with self._lock:
-                self._leave()
-            raise
-        with self._lock:
-            if data:
+            if data and interrupt is None:
                 packet = self._session.take_reply(exchange, data)
                 if packet is not None:
                     self._reading = False  # (no _last_rx: it matters only while the parser holds bytes)
@@ -652,7 +710,33 @@ class WsgClient:
                     self._leave()
                     return packet
             self._absorb(data)
+            if interrupt is not None:
+                self._interrupted(exchange)
+                self._leave()
+                raise interrupt
+        finally:
+            self._lock.release()
         return None
+
+    def _receive_guarded(self, timeout: float) -> tuple[bytes | None, BaseException | None]:
+        """:meth:`_receive` for a caller holding the reading role; returns WITH the lock held, plus a
+        Ctrl-C that came meanwhile (bytes that were read are matched before it is re-raised)."""
+        data: bytes | None = None
+        interrupt: BaseException | None = None
+        try:
+            data = self._receive(timeout)
+        except BaseException as exc:  # noqa: BLE001 - KeyboardInterrupt: _receive released the role
+            interrupt = exc
+        later = self._relock()
+        return data, interrupt or later
+
+    def _interrupted(self, exchange: Exchange) -> None:
+        """A caller waiting for ``exchange`` was interrupted (lock held): abandon it as a timeout does, so
+        its late reply is swallowed and its command id is free again (issue: Ctrl-C wedged the id)."""
+        if not exchange.finished:
+            self._session.abandon(exchange, time.monotonic())
+            self._cond.notify_all()
+            self._bg.notify()  # the late reply: the reader thread reads it when nobody else does
 
     def _absorb(self, data: bytes | None) -> None:
         """Match bytes a caller read (lock held); updates among them go to the reader thread's callbacks
@@ -676,6 +760,12 @@ class WsgClient:
                 self._callers += 1
             try:
                 return self._await(exchange, deadline, final, abandon, waited)
+            except GripperError:
+                raise
+            except BaseException:  # KeyboardInterrupt, SystemExit: the caller stops waiting
+                if abandon:
+                    self._interrupted(exchange)
+                raise
             finally:
                 self._leave()
 
@@ -703,11 +793,10 @@ class WsgClient:
             # Nobody is reading and no subscription needs the reader thread: read for ourselves.
             self._reading = True
             self._lock.release()
-            try:
-                data = self._receive(min(deadline - now, _POLL))
-            finally:
-                self._lock.acquire()
+            data, interrupt = self._receive_guarded(min(deadline - now, _POLL))
             self._absorb(data)
+            if interrupt is not None:
+                raise interrupt
 
     def _raise_failed(self, exchange: Exchange) -> NoReturn:
         name = command_name(exchange.command)
