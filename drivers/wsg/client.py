@@ -344,9 +344,9 @@ class WsgClient:
     def can(cls, *, bus: BusABC | None = None, interface: str | None = None,
             channel: str | int | None = None, bitrate: int | None = None,
             send_id: int = DEFAULT_CAN_SEND_ID, recv_id: int = DEFAULT_CAN_RECV_ID,
-            **kw: Any) -> WsgClient:
+            extended_id: bool | None = None, **kw: Any) -> WsgClient:
         transport = CanTransport(bus, interface=interface, channel=channel, bitrate=bitrate,
-                                 send_id=send_id, recv_id=recv_id)
+                                 send_id=send_id, recv_id=recv_id, extended_id=extended_id)
         return cls(transport, **kw)
 
     @classmethod
@@ -378,7 +378,9 @@ class WsgClient:
         if scheme == "can":
             return cls.can(interface=parts.netloc or None, channel=parts.path.lstrip("/") or None,
                            bitrate=num("bitrate", None), send_id=num("send_id", DEFAULT_CAN_SEND_ID) or 0,
-                           recv_id=num("recv_id", DEFAULT_CAN_RECV_ID) or 0, **kw)
+                           recv_id=num("recv_id", DEFAULT_CAN_RECV_ID) or 0,
+                           extended_id=(query["extended"].lower() in ("1", "true", "yes")
+                                        if "extended" in query else None), **kw)
         raise LimitError(f"unsupported WSG URL {url!r} (tcp, udp, serial or can)")
 
     # -------------------------------------------------------------------------------------------- lifetime
