@@ -622,6 +622,8 @@ class WsgClient:
             if not barrier:
                 break
             self._barrier(cmd, deadline, internal)
+        if session.lost_replies:
+            self.stats["lost_replies"] = session.lost_replies
         try:
             self._transport.send(raw)
         except BaseException as exc:

@@ -213,6 +213,8 @@ class SimServer:
                     due = time.monotonic() + fault.seconds
                     heapq.heappush(self._delayed, (due, next(self._seq), link, data))
                     continue
+                elif fault.kind is FaultKind.DUPLICATE:
+                    self._send(link, data)
                 # ERROR_BIT is a STEPFOC fault; a WSG packet goes out unchanged.
             self._send(link, data)
 
