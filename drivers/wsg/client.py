@@ -703,7 +703,15 @@ class WsgClient:
         exchange is done here without the general matching. Otherwise they are matched as usual and None
         sends the caller on to :meth:`_wait`, still counted as a caller.
         """
-        data, interrupt = self._receive_guarded(wait if wait < _POLL else _POLL)
+        interrupt: BaseException | None = None
+        try:
+            data = self._receive(wait if wait < _POLL else _POLL)
+        except BaseException as exc:  # noqa: BLE001 - KeyboardInterrupt: _receive released the role
+            data, interrupt = None, exc
+        try:
+            self._lock.acquire()
+        except BaseException as exc:  # noqa: BLE001 - interrupted while waiting for the lock
+            interrupt = interrupt or self._relock() or exc
         try:
             if data and interrupt is None:
                 packet = self._session.take_reply(exchange, data)

@@ -9,9 +9,11 @@ reads.
 from __future__ import annotations
 
 import math
+import select
 import socket
 import struct
 import threading
+from collections.abc import Callable
 from typing import Protocol
 
 import can
@@ -106,6 +108,7 @@ class TcpTransport:
         _blocking_with_timeouts(self._sock)
         self._timeout: float | None = None
         self._send_lock = threading.Lock()
+        self._poll = _poller(self._sock)
 
     def send(self, data: bytes) -> None:
         try:
@@ -130,6 +133,8 @@ class TcpTransport:
         return data
 
     def recv_nowait(self) -> bytes:
+        if not self._poll(0):  # the usual answer, and 4x cheaper than a recv that raises EAGAIN
+            return b""
         try:
             data = self._sock.recv(65536, socket.MSG_DONTWAIT)
         except BlockingIOError:
@@ -174,6 +179,7 @@ class UdpTransport:
             self._sock = socket.socket(family, socket.SOCK_DGRAM)
             self._sock.bind((local_host, local_port))
             _blocking_with_timeouts(self._sock)
+            self._poll = _poller(self._sock)
         except OSError as exc:
             raise ConnectionLost(f"cannot open UDP {host}:{port} (local port {local_port}): {exc}",
                                  device=f"udp://{host}:{port}") from None
@@ -202,6 +208,8 @@ class UdpTransport:
         return data if source[0] == self._peer[0] else b""
 
     def recv_nowait(self) -> bytes:
+        if not self._poll(0):
+            return b""
         chunks = []
         for _ in range(_DRAIN_READS):
             try:
@@ -216,6 +224,13 @@ class UdpTransport:
 
     def close(self) -> None:
         self._sock.close()
+
+
+def _poller(sock: socket.socket) -> Callable[[int], list]:
+    """``poll(0)`` on ``sock``: whether anything (data, EOF, an error) is waiting, without raising."""
+    poller = select.poll()
+    poller.register(sock, select.POLLIN)
+    return poller.poll
 
 
 def _route_source(family: int, peer: tuple) -> str:
