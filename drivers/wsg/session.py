@@ -27,7 +27,8 @@ that id space, and this module decides which is which:
   reply still expires by time (``stale_final_ttl``): a final reply keeps no order with other replies.
 * **LOOP** (06h) echoes its data, so its reply is recognised by content: a LOOP packet whose data is not the
   waiting request's is a late or duplicated echo (swallowed and counted), and a LOOP request never waits for
-  a LOOP marker. That makes a LOOP with a unique nonce the barrier that proves other replies lost.
+  a LOOP marker. That makes a LOOP with a unique nonce the barrier that proves other replies lost. STOP and
+  FAST STOP never wait for their markers either: a stop must go out at once (see ``_NEVER_HELD``).
 * **Duplicates.** A packet of an id nobody waits for is :class:`Unsolicited` (counted by the client, never
   kept for a later request). The client reads what already arrived before it registers a new request, so a
   duplicate that came in between two requests of one id is consumed, not taken as the second one's reply.
@@ -187,7 +188,7 @@ class Session:
         """Whether a request for ``command`` must wait: an exchange or a stale marker holds its slot."""
         if command in self._active:
             return True
-        if not self._stale or command == _LOOP:  # LOOP replies are told apart by content
+        if not self._stale or command in _NEVER_HELD:
             return False
         stale = self._stale.get(command)
         if stale is None:
@@ -203,7 +204,7 @@ class Session:
         """Whether ``command`` waits for a marker that only a proof can remove (its ``stale_ttl`` is over and
         no later reply has come): the client then sends a LOOP nonce (:meth:`barrier_payload`)."""
         stale = self._stale.get(command) if self._stale else None
-        return (stale is not None and command != _LOOP and not stale.expects_final
+        return (stale is not None and command not in _NEVER_HELD and not stale.expects_final
                 and not stale.proved_lost and stale.expires <= now)
 
     def barrier_payload(self) -> bytes:
@@ -424,6 +425,10 @@ class Session:
 
 _PENDING = int(Status.E_CMD_PENDING)
 _LOOP = int(Cmd.LOOP)
+# Ids a stale marker never holds back: LOOP (its replies are told apart by content) and the stops, which must
+# go out at once even after an earlier stop was interrupted. A stop's marker still takes the first stop reply
+# that comes (the device answers in order, so that is the earlier stop's), the new exchange the next one.
+_NEVER_HELD = frozenset({_LOOP, int(Cmd.STOP), int(Cmd.FAST_STOP)})
 
 
 def _echoes(exchange: Exchange, payload: bytes) -> bool:

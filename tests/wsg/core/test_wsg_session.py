@@ -315,3 +315,15 @@ def test_take_reply_completes_only_an_exact_final_reply() -> None:
     s.receive(b"\xaa\xaa", now=0.0)  # the parser holds the start of a preamble: the bytes belong together
     q, _ = s.send(0x45, encode_request(0x45), now=0.0)
     assert s.take_reply(q, reply(0x45, force=3.0)) is None
+
+
+def test_a_stop_never_waits_for_the_marker_of_an_interrupted_stop() -> None:
+    s = Session(stale_ttl=5.0)
+    first, _ = s.send(0x22, b"", now=0.0)
+    s.abandon(first, now=0.1)  # Ctrl-C while waiting for the STOP's reply
+    assert not s.is_busy(0x22, 0.2) and not s.needs_barrier(0x22, 10.0)
+    second, _ = s.send(0x22, b"", now=0.2)
+    events = s.receive(reply(0x22) + reply(0x22), now=0.3)
+    assert kinds(events) == ["StaleReply", "Completed"]  # in order: the first stop's reply, then its own
+    assert events[0].exchange is first and events[1].exchange is second
+    assert not s.is_busy(0x20, 0.3)
