@@ -100,6 +100,14 @@ def _finite(name: str, value: float, command: str, device: str) -> float:
     return value
 
 
+def _never(_timeout: float) -> bool:
+    return False
+
+
+def _always(_timeout: float) -> bool:
+    return True
+
+
 # The payload of a plain state query (auto update off), encoded once.
 _PLAIN_QUERY: dict[int, bytes] = {cmd: encode_request(cmd) for cmd in AUTO_UPDATE_COMMANDS}
 
@@ -298,6 +306,13 @@ class WsgClient:
         # the parser's per-id bound end a packet, never a gap.
         self._gap_rule = bool(getattr(transport, "silent_gap", False))
         self._drain = getattr(transport, "recv_nowait", None)
+        # Whether anything may have arrived: a poll() bound method where the transport has one, so the drain
+        # before each request costs one call into C when nothing did, which is nearly always
+        # (docs/performance.md, target 2); without recv_nowait there is nothing to drain with.
+        ready = getattr(transport, "ready", None)
+        if self._drain is None:
+            ready = _never
+        self._ready: Callable[[int], Any] = ready if ready is not None else _always
         lock = threading.RLock()
         self._lock = lock  # the hot path enters the lock directly (Condition.__enter__ is Python code)
         self._cond = threading.Condition(lock)  # callers wait here for their replies
@@ -593,37 +608,22 @@ class WsgClient:
             raise GripperError("commands cannot be issued from a subscription callback (reader thread)",
                                device=self.device, command=command_name(cmd))
         session = self._session
-        while True:
-            with self._lock:
-                barrier = False
-                while True:
-                    if self._lost is not None or self._closing or self._closed:
-                        self._usable(command_name(cmd), internal)
-                    if self._drain is not None and not self._reading and not self._subs:
-                        self._drain_line()
-                    now = time.monotonic()
-                    opened = session.open(cmd, payload, now)
-                    if opened is not None:
-                        exchange, raw = opened
-                        self._callers += 1  # released by the _wait(begun=True) that follows
-                        lead = not (self._reading or self._subs or self._closing)
-                        if lead:
-                            self._reading = True
-                        break
-                    if deadline - now <= 0:
-                        raise GripperTimeout(
-                            "a previous exchange of this command is still outstanding (one per command id)",
-                            device=self.device, command=command_name(cmd),
-                        )
-                    if session.needs_barrier(cmd, now):
-                        barrier = True
-                        break
-                    self._sleep(min(deadline - now, _POLL))
-            if not barrier:
-                break
-            self._barrier(cmd, deadline, internal)
-        if session.lost_replies:
-            self.stats["lost_replies"] = session.lost_replies
+        with self._lock:
+            while True:
+                if self._lost is not None or self._closing or self._closed:
+                    self._usable(command_name(cmd), internal)
+                if not self._reading and not self._subs and self._ready(0):
+                    self._drain_line()
+                now = time.monotonic()
+                opened = session.open(cmd, payload, now)
+                if opened is not None:
+                    exchange, raw = opened
+                    self._callers += 1  # released by the _wait(begun=True) that follows
+                    lead = not (self._reading or self._subs or self._closing)
+                    if lead:
+                        self._reading = True
+                    break
+                self._wait_for_slot(cmd, now, deadline, internal)
         try:
             self._transport.send(raw)
         except BaseException as exc:
@@ -650,6 +650,27 @@ class WsgClient:
         finally:
             self._sleepers -= 1
 
+    def _wait_for_slot(self, cmd: int, now: float, deadline: float, internal: bool) -> None:
+        """The slot of ``cmd`` is held (lock held): wait a little, or run the barrier that proves a stale
+        reply lost (with the lock released); GripperTimeout at the deadline."""
+        if deadline - now <= 0:
+            raise GripperTimeout(
+                "a previous exchange of this command is still outstanding (one per command id)",
+                device=self.device, command=command_name(cmd),
+            )
+        session = self._session
+        if not session.needs_barrier(cmd, now):
+            self._sleep(min(deadline - now, _POLL))
+            return
+        self._lock.release()  # _begin holds it once (its own ``with``)
+        try:
+            self._barrier(cmd, deadline, internal)
+        finally:
+            interrupt = self._relock()
+        self.stats["lost_replies"] = session.lost_replies
+        if interrupt is not None:
+            raise interrupt
+
     def _drain_line(self) -> None:
         """Match what already arrived before a new request is registered (lock held, nobody reading).
 
@@ -657,9 +678,8 @@ class WsgClient:
         consumed and counted now; read after the new request went out it would look like that request's
         reply. One non-blocking read: the line is idle, so it nearly always returns nothing.
         """
-        assert self._drain is not None
         try:
-            data = self._drain()
+            data = self._drain()  # type: ignore[misc] - _ready is _never without it
         except ConnectionLost:
             return  # the next read reports it to everybody
         if data:

@@ -84,6 +84,8 @@ class Transport(Protocol):
         """What has already arrived, without waiting (b"" for nothing)."""
         ...
 
+    # Optional, where it is cheaper than recv_nowait: ``ready(0)`` is true when something may have arrived.
+
     def close(self) -> None: ...
 
 
@@ -108,7 +110,7 @@ class TcpTransport:
         _blocking_with_timeouts(self._sock)
         self._timeout: float | None = None
         self._send_lock = threading.Lock()
-        self._poll = _poller(self._sock)
+        self._poll = self.ready = _poller(self._sock)
 
     def send(self, data: bytes) -> None:
         try:
@@ -179,7 +181,7 @@ class UdpTransport:
             self._sock = socket.socket(family, socket.SOCK_DGRAM)
             self._sock.bind((local_host, local_port))
             _blocking_with_timeouts(self._sock)
-            self._poll = _poller(self._sock)
+            self._poll = self.ready = _poller(self._sock)
         except OSError as exc:
             raise ConnectionLost(f"cannot open UDP {host}:{port} (local port {local_port}): {exc}",
                                  device=f"udp://{host}:{port}") from None
