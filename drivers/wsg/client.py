@@ -624,6 +624,8 @@ class WsgClient:
                         self._reading = True
                     break
                 self._wait_for_slot(cmd, now, deadline, internal)
+            if session.lost_replies:
+                self.stats["lost_replies"] = session.lost_replies
         try:
             self._transport.send(raw)
         except BaseException as exc:
@@ -667,7 +669,6 @@ class WsgClient:
             self._barrier(cmd, deadline, internal)
         finally:
             interrupt = self._relock()
-        self.stats["lost_replies"] = session.lost_replies
         if interrupt is not None:
             raise interrupt
 
