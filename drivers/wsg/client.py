@@ -624,8 +624,6 @@ class WsgClient:
                         self._reading = True
                     break
                 self._wait_for_slot(cmd, now, deadline, internal)
-            if session.lost_replies:
-                self.stats["lost_replies"] = session.lost_replies
         try:
             self._transport.send(raw)
         except BaseException as exc:
@@ -669,6 +667,8 @@ class WsgClient:
             self._barrier(cmd, deadline, internal)
         finally:
             interrupt = self._relock()
+        session.is_busy(cmd, time.monotonic())  # drops the marker the barrier proved lost
+        self.stats["lost_replies"] = session.lost_replies
         if interrupt is not None:
             raise interrupt
 
@@ -729,10 +729,9 @@ class WsgClient:
             data = self._receive(wait if wait < _POLL else _POLL)
         except BaseException as exc:  # noqa: BLE001 - KeyboardInterrupt: _receive released the role
             data, interrupt = None, exc
-        try:
-            self._lock.acquire()
-        except BaseException as exc:  # noqa: BLE001 - interrupted while waiting for the lock
-            interrupt = interrupt or self._relock() or exc
+        lock = self._lock
+        if not lock.acquire(False):  # a non-blocking try cannot be interrupted; the wait for it can
+            interrupt = self._relock() or interrupt
         try:
             if data and interrupt is None:
                 packet = self._session.take_reply(exchange, data)
@@ -748,7 +747,7 @@ class WsgClient:
                 self._leave()
                 raise interrupt
         finally:
-            self._lock.release()
+            lock.release()
         return None
 
     def _receive_guarded(self, timeout: float) -> tuple[bytes | None, BaseException | None]:
