@@ -318,6 +318,8 @@ class Session:
         if self.parser.buffered or exchange.state is not ExchangeState.SENT:
             return None
         cmd = exchange.command
+        if self._stale and cmd in self._stale and cmd != _LOOP:
+            return None  # a STOP sent past its own marker: the marker takes the first reply (receive())
         head = _SUCCESS_HEADS.get(cmd)
         if head is not None and len(data) == head[2] and data[:_SUCCESS_HEAD_SIZE] == head[0]:
             # Everything up to the data was known before the reply came: only the data's checksum is left.

@@ -177,9 +177,12 @@ class UdpTransport:
             # The gripper's address decides the family, so wsg+udp://[::1] works as well as IPv4.
             family, _, _, _, self._peer = socket.getaddrinfo(host, port, 0, socket.SOCK_DGRAM)[0]
             if local_host is None:
-                local_host = _route_source(family, self._peer)
+                local: tuple = _route_source(family, self._peer)
+                local = (local[0], local_port, *local[2:])  # IPv6 keeps its flow info and scope id
+            else:
+                local = (local_host, local_port)
             self._sock = socket.socket(family, socket.SOCK_DGRAM)
-            self._sock.bind((local_host, local_port))
+            self._sock.bind(local)
             _blocking_with_timeouts(self._sock)
             self._poll = self.ready = _poller(self._sock)
         except OSError as exc:
@@ -235,15 +238,15 @@ def _poller(sock: socket.socket) -> Callable[[int], list]:
     return poller.poll
 
 
-def _route_source(family: int, peer: tuple) -> str:
-    """The local address the kernel would send from to reach ``peer``.
+def _route_source(family: int, peer: tuple) -> tuple:
+    """The local socket address the kernel would send from to reach ``peer`` (IPv6: with its scope id).
 
     A connect() on a datagram socket only looks the route up: no packet leaves the machine.
     """
     probe = socket.socket(family, socket.SOCK_DGRAM)
     try:
         probe.connect(peer)
-        return probe.getsockname()[0]
+        return probe.getsockname()
     finally:
         probe.close()
 
