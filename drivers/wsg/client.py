@@ -327,7 +327,11 @@ class WsgClient:
         self._closing = False
         self._closed = False
         self._stop = threading.Event()
-        self._reading = False  # one thread at a time is inside transport.recv
+        # One thread at a time is inside transport.recv: 0/False for nobody, else the holder (a caller's
+        # thread id, or True for the reader thread).
+        self._reading: int | bool = False
+        # Bytes (or a failure) a caller read but has not matched yet: matched by whoever handles its Ctrl-C.
+        self._held_read: tuple[bytes | None, BaseException | None] | None = None
         self._callers = 0  # callers between sending a request and leaving _wait: they read for themselves
         self._last_rx = time.monotonic()
         # Updates a caller happened to read, handed to the reader thread that runs subscription callbacks.
@@ -604,29 +608,39 @@ class WsgClient:
         subscription needs the reader thread, taking it in the same critical section as the send saves the
         lock round trip before the read, which is a good part of a round trip's cost (docs/performance.md).
         """
-        if get_ident() == self._reader_ident:
+        me = get_ident()
+        if me == self._reader_ident:
             raise GripperError("commands cannot be issued from a subscription callback (reader thread)",
                                device=self.device, command=command_name(cmd))
         session = self._session
-        with self._lock:
-            while True:
-                if self._lost is not None or self._closing or self._closed:
-                    self._usable(command_name(cmd), internal)
-                if not self._reading and not self._subs and self._ready(0):
-                    self._drain_line()
-                now = time.monotonic()
-                opened = session.open(cmd, payload, now)
-                if opened is not None:
-                    exchange, raw = opened
-                    self._callers += 1  # released by the _wait(begun=True) that follows
-                    lead = not (self._reading or self._subs or self._closing)
-                    if lead:
-                        self._reading = True
-                    break
-                self._wait_for_slot(cmd, now, deadline, internal)
+        exchange: Exchange | None = None
+        lead = False
         try:
+            with self._lock:
+                while True:
+                    if self._lost is not None or self._closing or self._closed:
+                        self._usable(command_name(cmd), internal)
+                    if not self._reading and not self._subs and self._ready(0):
+                        self._drain_line()
+                    now = time.monotonic()
+                    before = session.seq
+                    try:
+                        opened = session.open(cmd, payload, now)
+                    except BaseException:  # Ctrl-C right after open(): its result is lost, not the slot
+                        session.withdraw(cmd, before)
+                        raise
+                    if opened is not None:
+                        exchange, raw = opened
+                        self._callers += 1  # released by the _wait(begun=True) that follows
+                        lead = not (self._reading or self._subs or self._closing)
+                        if lead:
+                            self._reading = me  # the role's owner: a rescue after Ctrl-C hands it back
+                        break
+                    self._wait_for_slot(cmd, now, deadline, internal)
             self._transport.send(raw)
         except BaseException as exc:
+            if exchange is None:
+                raise
             with self._lock:
                 self._callers -= 1
                 if lead:  # never leave the reading role taken by a caller that is gone
@@ -684,8 +698,7 @@ class WsgClient:
         except ConnectionLost:
             return  # the next read reports it to everybody
         if data:
-            self._reading = True
-            self._absorb(data)
+            self._absorb(data)  # nobody reads (checked by the caller) and the lock is held
 
     def _barrier(self, cmd: int, deadline: float, internal: bool) -> None:
         """Prove a stale reply of ``cmd`` lost: a LOOP with a fresh nonce, answered after anything sent
@@ -724,43 +737,88 @@ class WsgClient:
         exchange is done here without the general matching. Otherwise they are matched as usual and None
         sends the caller on to :meth:`_wait`, still counted as a caller.
         """
+        lock = self._lock
+        data: bytes | None = None
+        lost: BaseException | None = None
         interrupt: BaseException | None = None
         try:
-            data = self._receive(wait if wait < _POLL else _POLL)
-        except BaseException as exc:  # noqa: BLE001 - KeyboardInterrupt: _receive released the role
-            data, interrupt = None, exc
-        lock = self._lock
-        if not lock.acquire(False):  # a non-blocking try cannot be interrupted; the wait for it can
-            interrupt = self._relock() or interrupt
+            data = self._transport.recv(wait if wait < _POLL else _POLL)
+        except Exception as exc:  # noqa: BLE001 - the line failed: _settle_read reports it
+            lost = exc
+        except BaseException as exc:  # noqa: BLE001 - KeyboardInterrupt: re-raised below
+            interrupt = exc
+        while True:  # the lock back whatever happens: Ctrl-C may interrupt the wait for it
+            try:
+                lock.acquire()
+                break
+            except BaseException as exc:  # noqa: BLE001
+                interrupt = interrupt or exc
+                if lock._is_owned():  # type: ignore[attr-defined] - interrupted after it was taken
+                    break
         try:
+            self._held_read = (data, lost)
             if data and interrupt is None:
                 packet = self._session.take_reply(exchange, data)
                 if packet is not None:
+                    self._held_read = None
                     self._reading = False  # (no _last_rx: it matters only while the parser holds bytes)
                     if self._sleepers:
                         self._cond.notify_all()  # the reading role is free
                     self._leave()
                     return packet
-            self._absorb(data)
+            self._settle_read()
             if interrupt is not None:
-                self._interrupted(exchange)
-                self._leave()
                 raise interrupt
+        except BaseException:
+            self._settle_read()
+            self._interrupted(exchange)
+            self._leave()
+            raise
         finally:
             lock.release()
         return None
 
-    def _receive_guarded(self, timeout: float) -> tuple[bytes | None, BaseException | None]:
-        """:meth:`_receive` for a caller holding the reading role; returns WITH the lock held, plus a
-        Ctrl-C that came meanwhile (bytes that were read are matched before it is re-raised)."""
-        data: bytes | None = None
-        interrupt: BaseException | None = None
+    def _settle_read(self) -> None:
+        """Match what a caller read (``_held_read``) and hand the reading role back (lock held)."""
+        held = self._held_read
+        if held is None:
+            return
+        self._held_read = None
+        data, lost = held
+        if lost is not None:
+            self._reading = False
+            self._cond.notify_all()
+            if not self._stop.is_set():
+                error = lost if isinstance(lost, ConnectionLost) else ConnectionLost(
+                    f"reader failed: {lost!r}", device=self.device)
+                self._connection_lost(error)  # fails every exchange (the lock is re-entrant)
+            return
+        if data is None:  # interrupted before anything was read
+            self._reading = False
+            self._cond.notify_all()
+            return
+        self._absorb(data)  # _process hands the role back
+
+    def _rescue(self, exchange: Exchange) -> None:
+        """Ctrl-C (any BaseException) reached a command between its steps: whatever step it hit, match what
+        was read, give the reading role back if this thread holds it and abandon the exchange as a timeout
+        does, so no command id and no reader stays taken (issue 13 item 1)."""
+        lock = self._lock
+        while True:
+            try:
+                lock.acquire()
+                break
+            except BaseException:  # noqa: BLE001 - a second Ctrl-C: the first one is being raised
+                if lock._is_owned():  # type: ignore[attr-defined]
+                    break
         try:
-            data = self._receive(timeout)
-        except BaseException as exc:  # noqa: BLE001 - KeyboardInterrupt: _receive released the role
-            interrupt = exc
-        later = self._relock()
-        return data, interrupt or later
+            self._settle_read()
+            if self._reading == get_ident():
+                self._reading = False
+                self._cond.notify_all()
+            self._interrupted(exchange)
+        finally:
+            lock.release()
 
     def _interrupted(self, exchange: Exchange) -> None:
         """A caller waiting for ``exchange`` was interrupted (lock held): abandon it as a timeout does, so
@@ -795,6 +853,10 @@ class WsgClient:
             except GripperError:
                 raise
             except BaseException:  # KeyboardInterrupt, SystemExit: the caller stops waiting
+                self._settle_read()
+                if self._reading == get_ident():
+                    self._reading = False
+                    self._cond.notify_all()
                 if abandon:
                     self._interrupted(exchange)
                 raise
@@ -823,10 +885,28 @@ class WsgClient:
                 self._sleep(deadline - now)
                 continue
             # Nobody is reading and no subscription needs the reader thread: read for ourselves.
-            self._reading = True
-            self._lock.release()
-            data, interrupt = self._receive_guarded(min(deadline - now, _POLL))
-            self._absorb(data)
+            self._reading = get_ident()
+            lock = self._lock
+            data: bytes | None = None
+            lost: BaseException | None = None
+            interrupt: BaseException | None = None
+            try:
+                lock.release()
+                data = self._transport.recv(min(deadline - now, _POLL))
+            except Exception as exc:  # noqa: BLE001 - the line failed: _settle_read reports it
+                lost = exc
+            except BaseException as exc:  # noqa: BLE001 - KeyboardInterrupt: re-raised below
+                interrupt = exc
+            while True:  # the lock back whatever happens: Ctrl-C may interrupt the wait for it
+                try:
+                    lock.acquire()
+                    break
+                except BaseException as exc:  # noqa: BLE001
+                    interrupt = interrupt or exc
+                    if lock._is_owned():  # type: ignore[attr-defined]
+                        break
+            self._held_read = (data, lost)
+            self._settle_read()
             if interrupt is not None:
                 raise interrupt
 
@@ -873,9 +953,15 @@ class WsgClient:
         """Send a request and return its final reply (past E_CMD_PENDING) within ``wait`` seconds."""
         deadline = time.monotonic() + wait
         exchange, lead = self._begin(cmd, payload, deadline, internal=internal)
-        if lead and (packet := self._read_own_reply(exchange, wait)) is not None:
-            return packet
-        return self._wait(exchange, deadline, final=True, waited=wait, begun=True)
+        try:
+            if lead and (packet := self._read_own_reply(exchange, wait)) is not None:
+                return packet
+            return self._wait(exchange, deadline, final=True, waited=wait, begun=True)
+        except GripperError:
+            raise
+        except BaseException:
+            self._rescue(exchange)
+            raise
 
     def _motion(self, cmd: int, wait: bool, timeout: float | None, **fields: Any) -> Pending | None:
         self._check_supported(cmd)
@@ -885,15 +971,28 @@ class WsgClient:
         deadline = start + total
         ack_wait = min(total, self.timeout)
         exchange, lead = self._begin(cmd, payload, start + ack_wait)
-        first = self._read_own_reply(exchange, ack_wait) if lead else None
-        if first is None:
-            first = self._wait(exchange, start + ack_wait, final=False, waited=ack_wait, begun=True)
+        try:
+            first = self._read_own_reply(exchange, ack_wait) if lead else None
+            if first is None:
+                first = self._wait(exchange, start + ack_wait, final=False, waited=ack_wait, begun=True)
+        except GripperError:
+            raise
+        except BaseException:
+            self._rescue(exchange)
+            raise
         if first.status != Status.E_CMD_PENDING:  # answered at once (an immediate error, or done)
             self._check(cmd, first)
             return None if wait else Pending(self, exchange)
         if not wait:
             return Pending(self, exchange)
-        self._check(cmd, self._wait(exchange, deadline, final=True, waited=total))
+        try:
+            final = self._wait(exchange, deadline, final=True, waited=total)
+        except GripperError:
+            raise
+        except BaseException:
+            self._rescue(exchange)
+            raise
+        self._check(cmd, final)
         return None
 
     def request(self, cmd: int, payload: bytes = b"", *, timeout: float | None = None,

@@ -174,7 +174,7 @@ class Session:
         self._active: dict[int, Exchange] = {}
         self._stale: dict[int, _Stale] = {}
         self._subscribed: set[int] = set()
-        self._seq = 0
+        self.seq = 0  # requests opened so far on this connection (the last one's Exchange.seq)
         #: Markers dropped because a later reply proved theirs lost (the client reports it in its stats).
         self.lost_replies = 0
         self.parser = PacketParser(verify_checksum=verify_checksum, max_payload=max_payload,
@@ -209,7 +209,7 @@ class Session:
 
     def barrier_payload(self) -> bytes:
         """A LOOP payload no earlier LOOP of this connection carried (its reply is recognised by content)."""
-        return b"sync" + (self._seq + 1).to_bytes(8, "little")
+        return b"sync" + (self.seq + 1).to_bytes(8, "little")
 
     def send(
         self, command: int, payload: bytes = b"", *, now: float
@@ -224,7 +224,7 @@ class Session:
         """:meth:`send` when the slot is free, else None: is_busy and send in one step for the client."""
         if command in self._active or (self._stale and self.is_busy(command, now)):
             return None
-        self._seq += 1
+        self.seq += 1
         payload = bytes(payload)
         key = (command, payload)
         raw = self._packets.get(key)
@@ -232,9 +232,17 @@ class Session:
             raw = encode_packet(command, payload)
             if len(payload) <= 8 and len(self._packets) < 256:  # bounded: motions carry varying floats
                 self._packets[key] = raw
-        exchange = Exchange(command, payload, now, self._seq)
+        exchange = Exchange(command, payload, now, self.seq)
         self._active[command] = exchange
         return exchange, raw
+
+    def withdraw(self, command: int, seq_before: int) -> None:
+        """Forget an exchange of ``command`` opened after ``seq_before`` that was never sent (the caller was
+        interrupted between :meth:`open` and the send): nothing can answer it, so no marker is left."""
+        exchange = self._active.get(command)
+        if exchange is not None and exchange.seq > seq_before:
+            del self._active[command]
+            exchange.state = ExchangeState.FAILED
 
     def abandon(self, exchange: Exchange, now: float) -> None:
         """The caller stopped waiting (timeout): leave a stale marker that swallows the late reply."""
