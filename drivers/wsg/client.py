@@ -10,6 +10,13 @@ its reply reads the line itself when nobody else does, so a plain request costs 
 round-trip benchmark, docs/performance.md); other waiters are woken when their reply goes by. A background
 thread reads only when nobody waits but bytes may still come: subscriptions (their callbacks always run on
 it), a pending motion's final reply, a half-received packet, or a late reply to swallow.
+
+Ctrl-C (issue 13 item 1): a KeyboardInterrupt can arrive between any two steps of an exchange, also right
+after bytes were read or while the lock is being taken back. Every step therefore leaves a trace the handler
+can finish from: the reading role records its owner, bytes read wait in ``_held_read`` until matched, and the
+call sites (``_exchange``, ``_motion``) rescue the exchange: what was read is matched, the role is handed
+back and the exchange is abandoned as on a timeout (its late reply is swallowed, its id freed). A STOP can
+then go out at once from the handler.
 """
 
 from __future__ import annotations
