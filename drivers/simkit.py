@@ -38,6 +38,7 @@ class FaultKind(Enum):
     CORRUPT = "corrupt"  # one byte of the reply is flipped (WSG: a checksum byte; CAN: a data byte)
     TRUNCATE = "truncate"  # only the first half of the reply is sent
     ERROR_BIT = "error_bit"  # STEPFOC: the reply's identifier carries the error bit
+    DUPLICATE = "duplicate"  # the reply is sent twice (a network or proxy that repeats a packet)
 
 
 @dataclass(frozen=True, slots=True)
@@ -70,6 +71,9 @@ class FaultHooks:
 
     def delay_replies(self, seconds: float, count: int = 1) -> None:
         self._push(Fault(FaultKind.DELAY, seconds), count)
+
+    def duplicate_replies(self, count: int = 1) -> None:
+        self._push(Fault(FaultKind.DUPLICATE), count)
 
     def corrupt_replies(self, count: int = 1) -> None:
         self._push(Fault(FaultKind.CORRUPT), count)

@@ -10,6 +10,13 @@ its reply reads the line itself when nobody else does, so a plain request costs 
 round-trip benchmark, docs/performance.md); other waiters are woken when their reply goes by. A background
 thread reads only when nobody waits but bytes may still come: subscriptions (their callbacks always run on
 it), a pending motion's final reply, a half-received packet, or a late reply to swallow.
+
+Ctrl-C (issue 13 item 1): a KeyboardInterrupt can arrive between any two steps of an exchange, also right
+after bytes were read or while the lock is being taken back. Every step therefore leaves a trace the handler
+can finish from: the reading role records its owner, bytes read wait in ``_held_read`` until matched, and the
+call sites (``_exchange``, ``_motion``) rescue the exchange: what was read is matched, the role is handed
+back and the exchange is abandoned as on a timeout (its late reply is swallowed, its id freed). A STOP can
+then go out at once from the handler.
 """
 
 from __future__ import annotations
@@ -98,6 +105,14 @@ def _finite(name: str, value: float, command: str, device: str) -> float:
     if not math.isfinite(value):
         raise LimitError(f"{name} must be finite, not {value!r}", device=device, command=command)
     return value
+
+
+def _never(_timeout: float) -> bool:
+    return False
+
+
+def _always(_timeout: float) -> bool:
+    return True
 
 
 # The payload of a plain state query (auto update off), encoded once.
@@ -285,13 +300,26 @@ class WsgClient:
         self.firmware: FirmwareVersion | None = None
         self.limits: SystemLimits | None = None
         self.stats: dict[str, int] = dict.fromkeys(
-            ("checksum_errors", "bad_lengths", "discarded_bytes", "stale_replies", "unsolicited", "updates"),
+            ("checksum_errors", "bad_lengths", "discarded_bytes", "stale_replies", "unsolicited", "updates",
+             "lost_replies", "barriers"),
             0,
         )
         self._session = Session(
             verify_checksum=verify_checksum, stale_ttl=stale_ttl, stale_final_ttl=stale_final_ttl
         )
         self._silent_gap = silent_gap
+        # PROTOCOL-NOTES §1 / docs/protocols.md §1: only a serial line ends a packet by a pause. A TCP stream
+        # may pause 40 ms inside a reply (delayed ACK) and CAN frames may be spaced: there the size field and
+        # the parser's per-id bound end a packet, never a gap.
+        self._gap_rule = bool(getattr(transport, "silent_gap", False))
+        self._drain = getattr(transport, "recv_nowait", None)
+        # Whether anything may have arrived: a poll() bound method where the transport has one, so the drain
+        # before each request costs one call into C when nothing did, which is nearly always
+        # (docs/performance.md, target 2); without recv_nowait there is nothing to drain with.
+        ready = getattr(transport, "ready", None)
+        if self._drain is None:
+            ready = _never
+        self._ready: Callable[[int], Any] = ready if ready is not None else _always
         lock = threading.RLock()
         self._lock = lock  # the hot path enters the lock directly (Condition.__enter__ is Python code)
         self._cond = threading.Condition(lock)  # callers wait here for their replies
@@ -306,7 +334,11 @@ class WsgClient:
         self._closing = False
         self._closed = False
         self._stop = threading.Event()
-        self._reading = False  # one thread at a time is inside transport.recv
+        # One thread at a time is inside transport.recv: 0/False for nobody, else the holder (a caller's
+        # thread id, or True for the reader thread).
+        self._reading: int | bool = False
+        # Bytes (or a failure) a caller read but has not matched yet: matched by whoever handles its Ctrl-C.
+        self._held_read: tuple[bytes | None, BaseException | None] | None = None
         self._callers = 0  # callers between sending a request and leaving _wait: they read for themselves
         self._last_rx = time.monotonic()
         # Updates a caller happened to read, handed to the reader thread that runs subscription callbacks.
@@ -338,9 +370,9 @@ class WsgClient:
     def can(cls, *, bus: BusABC | None = None, interface: str | None = None,
             channel: str | int | None = None, bitrate: int | None = None,
             send_id: int = DEFAULT_CAN_SEND_ID, recv_id: int = DEFAULT_CAN_RECV_ID,
-            **kw: Any) -> WsgClient:
+            extended_id: bool | None = None, **kw: Any) -> WsgClient:
         transport = CanTransport(bus, interface=interface, channel=channel, bitrate=bitrate,
-                                 send_id=send_id, recv_id=recv_id)
+                                 send_id=send_id, recv_id=recv_id, extended_id=extended_id)
         return cls(transport, **kw)
 
     @classmethod
@@ -372,7 +404,9 @@ class WsgClient:
         if scheme == "can":
             return cls.can(interface=parts.netloc or None, channel=parts.path.lstrip("/") or None,
                            bitrate=num("bitrate", None), send_id=num("send_id", DEFAULT_CAN_SEND_ID) or 0,
-                           recv_id=num("recv_id", DEFAULT_CAN_RECV_ID) or 0, **kw)
+                           recv_id=num("recv_id", DEFAULT_CAN_RECV_ID) or 0,
+                           extended_id=(query["extended"].lower() in ("1", "true", "yes")
+                                        if "extended" in query else None), **kw)
         raise LimitError(f"unsupported WSG URL {url!r} (tcp, udp, serial or can)")
 
     # -------------------------------------------------------------------------------------------- lifetime
@@ -496,7 +530,7 @@ class WsgClient:
             if data:
                 self._last_rx = now
                 events = session.receive(data, now)
-            elif session.parser.buffered and now - self._last_rx >= self._silent_gap:
+            elif self._gap_rule and session.parser.buffered and now - self._last_rx >= self._silent_gap:
                 events = session.reset_parser(now)
             else:
                 events = []
@@ -581,32 +615,39 @@ class WsgClient:
         subscription needs the reader thread, taking it in the same critical section as the send saves the
         lock round trip before the read, which is a good part of a round trip's cost (docs/performance.md).
         """
-        if get_ident() == self._reader_ident:
+        me = get_ident()
+        if me == self._reader_ident:
             raise GripperError("commands cannot be issued from a subscription callback (reader thread)",
                                device=self.device, command=command_name(cmd))
         session = self._session
-        with self._lock:
-            while True:
-                if self._lost is not None or self._closing or self._closed:
-                    self._usable(command_name(cmd), internal)
-                now = time.monotonic()
-                opened = session.open(cmd, payload, now)
-                if opened is not None:
-                    exchange, raw = opened
-                    self._callers += 1  # released by the _wait(begun=True) that follows
-                    lead = not (self._reading or self._subs or self._closing)
-                    if lead:
-                        self._reading = True
-                    break
-                if deadline - now <= 0:
-                    raise GripperTimeout(
-                        "a previous exchange of this command is still outstanding (one per command id)",
-                        device=self.device, command=command_name(cmd),
-                    )
-                self._sleep(min(deadline - now, _POLL))
+        exchange: Exchange | None = None
+        lead = False
         try:
+            with self._lock:
+                while True:
+                    if self._lost is not None or self._closing or self._closed:
+                        self._usable(command_name(cmd), internal)
+                    if not self._reading and not self._subs and self._ready(0):
+                        self._drain_line()
+                    now = time.monotonic()
+                    before = session.seq
+                    try:
+                        opened = session.open(cmd, payload, now)
+                    except BaseException:  # Ctrl-C right after open(): its result is lost, not the slot
+                        session.withdraw(cmd, before)
+                        raise
+                    if opened is not None:
+                        exchange, raw = opened
+                        self._callers += 1  # released by the _wait(begun=True) that follows
+                        lead = not (self._reading or self._subs or self._closing)
+                        if lead:
+                            self._reading = me  # the role's owner: a rescue after Ctrl-C hands it back
+                        break
+                    self._wait_for_slot(cmd, now, deadline, internal)
             self._transport.send(raw)
         except BaseException as exc:
+            if exchange is None:
+                raise
             with self._lock:
                 self._callers -= 1
                 if lead:  # never leave the reading role taken by a caller that is gone
@@ -630,29 +671,169 @@ class WsgClient:
         finally:
             self._sleepers -= 1
 
+    def _wait_for_slot(self, cmd: int, now: float, deadline: float, internal: bool) -> None:
+        """The slot of ``cmd`` is held (lock held): wait a little, or run the barrier that proves a stale
+        reply lost (with the lock released); GripperTimeout at the deadline."""
+        if deadline - now <= 0:
+            raise GripperTimeout(
+                "a previous exchange of this command is still outstanding (one per command id)",
+                device=self.device, command=command_name(cmd),
+            )
+        session = self._session
+        if not session.needs_barrier(cmd, now):
+            self._sleep(min(deadline - now, _POLL))
+            return
+        self._lock.release()  # _begin holds it once (its own ``with``)
+        try:
+            self._barrier(cmd, deadline, internal)
+        finally:
+            interrupt = self._relock()
+        session.is_busy(cmd, time.monotonic())  # drops the marker the barrier proved lost
+        self.stats["lost_replies"] = session.lost_replies
+        if interrupt is not None:
+            raise interrupt
+
+    def _drain_line(self) -> None:
+        """Match what already arrived before a new request is registered (lock held, nobody reading).
+
+        Why: a packet nobody waits for (a duplicated reply, a reply whose marker a proof removed) must be
+        consumed and counted now; read after the new request went out it would look like that request's
+        reply. One non-blocking read: the line is idle, so it nearly always returns nothing.
+        """
+        try:
+            data = self._drain()  # type: ignore[misc] - _ready is _never without it
+        except ConnectionLost:
+            return  # the next read reports it to everybody
+        if data:
+            self._absorb(data)  # nobody reads (checked by the caller) and the lock is held
+
+    def _barrier(self, cmd: int, deadline: float, internal: bool) -> None:
+        """Prove a stale reply of ``cmd`` lost: a LOOP with a fresh nonce, answered after anything sent
+        before it (the device answers in order). GripperTimeout when even that gets no reply."""
+        self.stats["barriers"] += 1
+        nonce = self._session.barrier_payload()
+        wait = max(deadline - time.monotonic(), 0.001)
+        try:
+            packet = self._exchange(Cmd.LOOP, nonce, wait, internal)
+        except GripperTimeout:
+            raise GripperTimeout(
+                "a previous exchange of this command is still outstanding (one per command id) and the "
+                "device did not answer the LOOP that would prove its reply lost",
+                device=self.device, command=command_name(cmd),
+            ) from None
+        if packet.status:
+            log.debug("%s: barrier LOOP answered %s", self.device, Status.describe(packet.status))
+
+    def _relock(self) -> BaseException | None:
+        """Take the lock after a read even if Ctrl-C interrupts the wait for it; returns the interrupt.
+
+        Why: bytes just read must be matched, and the reading role handed back, whatever happens; an
+        interrupted acquire would lose both (and every later caller would wait for a reader that is gone).
+        """
+        interrupt: BaseException | None = None
+        while True:
+            try:
+                self._lock.acquire()
+                return interrupt
+            except BaseException as exc:  # noqa: BLE001 - KeyboardInterrupt: re-raised by the caller
+                interrupt = interrupt or exc
+
     def _read_own_reply(self, exchange: Exchange, wait: float) -> Packet | None:
         """The first read of a caller that took the reading role in :meth:`_begin` (nothing can have arrived
         before): when the bytes are exactly its final reply, which they nearly always are on TCP and UDP, the
         exchange is done here without the general matching. Otherwise they are matched as usual and None
         sends the caller on to :meth:`_wait`, still counted as a caller.
         """
+        lock = self._lock
+        data: bytes | None = None
+        lost: BaseException | None = None
+        interrupt: BaseException | None = None
         try:
-            data = self._receive(wait if wait < _POLL else _POLL)
-        except BaseException:  # KeyboardInterrupt: the caller is gone
-            with self._lock:
-                self._leave()
-            raise
-        with self._lock:
-            if data:
+            data = self._transport.recv(wait if wait < _POLL else _POLL)
+        except Exception as exc:  # noqa: BLE001 - the line failed: _settle_read reports it
+            lost = exc
+        except BaseException as exc:  # noqa: BLE001 - KeyboardInterrupt: re-raised below
+            interrupt = exc
+        while True:  # the lock back whatever happens: Ctrl-C may interrupt the wait for it
+            try:
+                lock.acquire()
+                break
+            except BaseException as exc:  # noqa: BLE001
+                interrupt = interrupt or exc
+                if lock._is_owned():  # type: ignore[attr-defined] - interrupted after it was taken
+                    break
+        try:
+            self._held_read = (data, lost)
+            if data and interrupt is None:
                 packet = self._session.take_reply(exchange, data)
                 if packet is not None:
+                    self._held_read = None
                     self._reading = False  # (no _last_rx: it matters only while the parser holds bytes)
                     if self._sleepers:
                         self._cond.notify_all()  # the reading role is free
                     self._leave()
                     return packet
-            self._absorb(data)
+            self._settle_read()
+            if interrupt is not None:
+                raise interrupt
+        except BaseException:
+            self._settle_read()
+            self._interrupted(exchange)
+            self._leave()
+            raise
+        finally:
+            lock.release()
         return None
+
+    def _settle_read(self) -> None:
+        """Match what a caller read (``_held_read``) and hand the reading role back (lock held)."""
+        held = self._held_read
+        if held is None:
+            return
+        self._held_read = None
+        data, lost = held
+        if lost is not None:
+            self._reading = False
+            self._cond.notify_all()
+            if not self._stop.is_set():
+                error = lost if isinstance(lost, ConnectionLost) else ConnectionLost(
+                    f"reader failed: {lost!r}", device=self.device)
+                self._connection_lost(error)  # fails every exchange (the lock is re-entrant)
+            return
+        if data is None:  # interrupted before anything was read
+            self._reading = False
+            self._cond.notify_all()
+            return
+        self._absorb(data)  # _process hands the role back
+
+    def _rescue(self, exchange: Exchange) -> None:
+        """Ctrl-C (any BaseException) reached a command between its steps: whatever step it hit, match what
+        was read, give the reading role back if this thread holds it and abandon the exchange as a timeout
+        does, so no command id and no reader stays taken (issue 13 item 1)."""
+        lock = self._lock
+        while True:
+            try:
+                lock.acquire()
+                break
+            except BaseException:  # noqa: BLE001 - a second Ctrl-C: the first one is being raised
+                if lock._is_owned():  # type: ignore[attr-defined]
+                    break
+        try:
+            self._settle_read()
+            if self._reading == get_ident():
+                self._reading = False
+                self._cond.notify_all()
+            self._interrupted(exchange)
+        finally:
+            lock.release()
+
+    def _interrupted(self, exchange: Exchange) -> None:
+        """A caller waiting for ``exchange`` was interrupted (lock held): abandon it as a timeout does, so
+        its late reply is swallowed and its command id is free again (issue: Ctrl-C wedged the id)."""
+        if not exchange.finished:
+            self._session.abandon(exchange, time.monotonic())
+            self._cond.notify_all()
+            self._bg.notify()  # the late reply: the reader thread reads it when nobody else does
 
     def _absorb(self, data: bytes | None) -> None:
         """Match bytes a caller read (lock held); updates among them go to the reader thread's callbacks
@@ -676,6 +857,16 @@ class WsgClient:
                 self._callers += 1
             try:
                 return self._await(exchange, deadline, final, abandon, waited)
+            except GripperError:
+                raise
+            except BaseException:  # KeyboardInterrupt, SystemExit: the caller stops waiting
+                self._settle_read()
+                if self._reading == get_ident():
+                    self._reading = False
+                    self._cond.notify_all()
+                if abandon:
+                    self._interrupted(exchange)
+                raise
             finally:
                 self._leave()
 
@@ -701,13 +892,30 @@ class WsgClient:
                 self._sleep(deadline - now)
                 continue
             # Nobody is reading and no subscription needs the reader thread: read for ourselves.
-            self._reading = True
-            self._lock.release()
+            self._reading = get_ident()
+            lock = self._lock
+            data: bytes | None = None
+            lost: BaseException | None = None
+            interrupt: BaseException | None = None
             try:
-                data = self._receive(min(deadline - now, _POLL))
-            finally:
-                self._lock.acquire()
-            self._absorb(data)
+                lock.release()
+                data = self._transport.recv(min(deadline - now, _POLL))
+            except Exception as exc:  # noqa: BLE001 - the line failed: _settle_read reports it
+                lost = exc
+            except BaseException as exc:  # noqa: BLE001 - KeyboardInterrupt: re-raised below
+                interrupt = exc
+            while True:  # the lock back whatever happens: Ctrl-C may interrupt the wait for it
+                try:
+                    lock.acquire()
+                    break
+                except BaseException as exc:  # noqa: BLE001
+                    interrupt = interrupt or exc
+                    if lock._is_owned():  # type: ignore[attr-defined]
+                        break
+            self._held_read = (data, lost)
+            self._settle_read()
+            if interrupt is not None:
+                raise interrupt
 
     def _raise_failed(self, exchange: Exchange) -> NoReturn:
         name = command_name(exchange.command)
@@ -752,9 +960,15 @@ class WsgClient:
         """Send a request and return its final reply (past E_CMD_PENDING) within ``wait`` seconds."""
         deadline = time.monotonic() + wait
         exchange, lead = self._begin(cmd, payload, deadline, internal=internal)
-        if lead and (packet := self._read_own_reply(exchange, wait)) is not None:
-            return packet
-        return self._wait(exchange, deadline, final=True, waited=wait, begun=True)
+        try:
+            if lead and (packet := self._read_own_reply(exchange, wait)) is not None:
+                return packet
+            return self._wait(exchange, deadline, final=True, waited=wait, begun=True)
+        except GripperError:
+            raise
+        except BaseException:
+            self._rescue(exchange)
+            raise
 
     def _motion(self, cmd: int, wait: bool, timeout: float | None, **fields: Any) -> Pending | None:
         self._check_supported(cmd)
@@ -764,15 +978,28 @@ class WsgClient:
         deadline = start + total
         ack_wait = min(total, self.timeout)
         exchange, lead = self._begin(cmd, payload, start + ack_wait)
-        first = self._read_own_reply(exchange, ack_wait) if lead else None
-        if first is None:
-            first = self._wait(exchange, start + ack_wait, final=False, waited=ack_wait, begun=True)
+        try:
+            first = self._read_own_reply(exchange, ack_wait) if lead else None
+            if first is None:
+                first = self._wait(exchange, start + ack_wait, final=False, waited=ack_wait, begun=True)
+        except GripperError:
+            raise
+        except BaseException:
+            self._rescue(exchange)
+            raise
         if first.status != Status.E_CMD_PENDING:  # answered at once (an immediate error, or done)
             self._check(cmd, first)
             return None if wait else Pending(self, exchange)
         if not wait:
             return Pending(self, exchange)
-        self._check(cmd, self._wait(exchange, deadline, final=True, waited=total))
+        try:
+            final = self._wait(exchange, deadline, final=True, waited=total)
+        except GripperError:
+            raise
+        except BaseException:
+            self._rescue(exchange)
+            raise
+        self._check(cmd, final)
         return None
 
     def request(self, cmd: int, payload: bytes = b"", *, timeout: float | None = None,

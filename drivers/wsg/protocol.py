@@ -8,6 +8,7 @@ back as typed events next to the packets instead of exceptions.
 from __future__ import annotations
 
 import struct
+from collections.abc import Callable
 from dataclasses import dataclass
 from enum import IntEnum
 
@@ -207,12 +208,17 @@ class PacketParser:
     gap (what the device itself does) gives those bytes back to the scan.
     """
 
-    __slots__ = ("_buf", "_max_payload", "_pending", "_verify")
+    __slots__ = ("_buf", "_max_payload", "_max_size", "_pending", "_verify")
 
-    def __init__(self, verify_checksum: bool = True, max_payload: int = MAX_PAYLOAD) -> None:
+    def __init__(self, verify_checksum: bool = True, max_payload: int = MAX_PAYLOAD,
+                 max_size: Callable[[int], int] | None = None) -> None:
         self._buf = bytearray()
         self._verify = verify_checksum
         self._max_payload = max_payload
+        # Per command id: the largest payload a packet of that id can carry now (docs/protocols.md §1).
+        # On a stream without silent gaps (TCP, CAN) this is what bounds how long a false header with a
+        # plausible size can hold back the packets behind it.
+        self._max_size = max_size
         self._pending: list[Packet | ParseEvent] = []
 
     @property
@@ -269,6 +275,7 @@ class PacketParser:
         find = buf.find
         verify = self._verify
         max_payload = self._max_payload
+        max_size = self._max_size
         table = CRC_TABLE
         while True:
             start = find(PREAMBLE, pos)
@@ -294,8 +301,9 @@ class PacketParser:
                 break  # header incomplete (or the 0xAA run may still go on)
             command = buf[start + 3]
             size = buf[start + 4] | (buf[start + 5] << 8)
-            if size > max_payload:
-                out.append(BadLength(command, size, max_payload, bytes(buf[start:start + HEADER_SIZE])))
+            limit = max_payload if max_size is None else min(max_payload, max_size(command))
+            if size > limit:
+                out.append(BadLength(command, size, limit, bytes(buf[start:start + HEADER_SIZE])))
                 pos = start + 3
                 continue
             end = start + HEADER_SIZE + size + TRAILER_SIZE

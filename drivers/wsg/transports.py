@@ -9,9 +9,11 @@ reads.
 from __future__ import annotations
 
 import math
+import select
 import socket
 import struct
 import threading
+from collections.abc import Callable
 from typing import Protocol
 
 import can
@@ -70,16 +72,29 @@ class Transport(Protocol):
     name: str
     #: True where the WSG knows about connections (TCP): the client then announces its disconnect with 07h.
     connection_oriented: bool
+    #: True on a serial line only: there a pause ends a half-received packet (PROTOCOL-NOTES §1,
+    #: docs/protocols.md §1). A TCP stream may pause inside a reply (a delayed ACK) and still be whole.
+    silent_gap: bool
 
     def send(self, data: bytes) -> None: ...
 
     def recv(self, timeout: float) -> bytes: ...
 
+    def recv_nowait(self) -> bytes:
+        """What has already arrived, without waiting (b"" for nothing)."""
+        ...
+
+    # Optional, where it is cheaper than recv_nowait: ``ready(0)`` is true when something may have arrived.
+
     def close(self) -> None: ...
+
+
+_DRAIN_READS = 64  # recv_nowait reads at most this many datagrams or frames: bounded under a flood
 
 
 class TcpTransport:
     connection_oriented = True
+    silent_gap = False
 
     def __init__(
         self, host: str, port: int = DEFAULT_TCP_PORT, *, connect_timeout: float | None = 5.0
@@ -95,6 +110,7 @@ class TcpTransport:
         _blocking_with_timeouts(self._sock)
         self._timeout: float | None = None
         self._send_lock = threading.Lock()
+        self._poll = self.ready = _poller(self._sock)
 
     def send(self, data: bytes) -> None:
         try:
@@ -118,6 +134,19 @@ class TcpTransport:
             raise ConnectionLost("connection closed by the gripper", device=self.name)
         return data
 
+    def recv_nowait(self) -> bytes:
+        if not self._poll(0):  # the usual answer, and 4x cheaper than a recv that raises EAGAIN
+            return b""
+        try:
+            data = self._sock.recv(65536, socket.MSG_DONTWAIT)
+        except BlockingIOError:
+            return b""
+        except OSError as exc:
+            raise ConnectionLost(f"receive failed: {exc}", device=self.name) from None
+        if not data:
+            raise ConnectionLost("connection closed by the gripper", device=self.name)
+        return data
+
     def close(self) -> None:
         try:
             self._sock.shutdown(socket.SHUT_RDWR)
@@ -127,9 +156,14 @@ class TcpTransport:
 
 
 class UdpTransport:
-    """One datagram per packet; replies are accepted from the gripper's address only (any source port)."""
+    """One datagram per packet; replies are accepted from the gripper's address only (any source port).
+
+    The socket binds the local address that reaches the gripper (the kernel's route to it: loopback for a
+    gripper on loopback), not every interface: nothing on another network can send it replies.
+    """
 
     connection_oriented = False
+    silent_gap = False
 
     def __init__(
         self,
@@ -137,14 +171,20 @@ class UdpTransport:
         port: int = DEFAULT_UDP_PORT,
         *,
         local_port: int = DEFAULT_UDP_LOCAL_PORT,
-        local_host: str = "",
+        local_host: str | None = None,
     ) -> None:
         try:
             # The gripper's address decides the family, so wsg+udp://[::1] works as well as IPv4.
             family, _, _, _, self._peer = socket.getaddrinfo(host, port, 0, socket.SOCK_DGRAM)[0]
+            if local_host is None:
+                local: tuple = _route_source(family, self._peer)
+                local = (local[0], local_port, *local[2:])  # IPv6 keeps its flow info and scope id
+            else:
+                local = (local_host, local_port)
             self._sock = socket.socket(family, socket.SOCK_DGRAM)
-            self._sock.bind((local_host, local_port))
+            self._sock.bind(local)
             _blocking_with_timeouts(self._sock)
+            self._poll = self.ready = _poller(self._sock)
         except OSError as exc:
             raise ConnectionLost(f"cannot open UDP {host}:{port} (local port {local_port}): {exc}",
                                  device=f"udp://{host}:{port}") from None
@@ -172,14 +212,50 @@ class UdpTransport:
             raise ConnectionLost(f"receive failed: {exc}", device=self.name) from None
         return data if source[0] == self._peer[0] else b""
 
+    def recv_nowait(self) -> bytes:
+        if not self._poll(0):
+            return b""
+        chunks = []
+        for _ in range(_DRAIN_READS):
+            try:
+                data, source = self._sock.recvfrom(65536, socket.MSG_DONTWAIT)
+            except (BlockingIOError, ConnectionRefusedError):
+                break
+            except OSError as exc:
+                raise ConnectionLost(f"receive failed: {exc}", device=self.name) from None
+            if source[0] == self._peer[0]:
+                chunks.append(data)
+        return b"".join(chunks)
+
     def close(self) -> None:
         self._sock.close()
+
+
+def _poller(sock: socket.socket) -> Callable[[int], list]:
+    """``poll(0)`` on ``sock``: whether anything (data, EOF, an error) is waiting, without raising."""
+    poller = select.poll()
+    poller.register(sock, select.POLLIN)
+    return poller.poll
+
+
+def _route_source(family: int, peer: tuple) -> tuple:
+    """The local socket address the kernel would send from to reach ``peer`` (IPv6: with its scope id).
+
+    A connect() on a datagram socket only looks the route up: no packet leaves the machine.
+    """
+    probe = socket.socket(family, socket.SOCK_DGRAM)
+    try:
+        probe.connect(peer)
+        return probe.getsockname()
+    finally:
+        probe.close()
 
 
 class SerialTransport:
     """RS-232 through pyserial; ``port`` may be any pyserial URL (``/dev/ttyUSB0``, ``socket://``, ``loop://``)."""
 
     connection_oriented = False
+    silent_gap = True
 
     def __init__(
         self,
@@ -219,6 +295,13 @@ class SerialTransport:
             # TypeError: pyserial's posix read after the fd was closed underneath it.
             raise ConnectionLost(f"receive failed: {exc}", device=self.name) from None
 
+    def recv_nowait(self) -> bytes:
+        try:
+            waiting = self._port.in_waiting
+            return self._port.read(waiting) if waiting else b""
+        except (serial.SerialException, OSError, TypeError) as exc:
+            raise ConnectionLost(f"receive failed: {exc}", device=self.name) from None
+
     def close(self) -> None:
         try:
             self._port.close()
@@ -234,6 +317,7 @@ class CanTransport:
     """
 
     connection_oriented = False
+    silent_gap = False
 
     def __init__(
         self,
@@ -284,6 +368,21 @@ class CanTransport:
             msg = self._bus.recv(timeout)
         except (can.CanError, OSError) as exc:
             raise ConnectionLost(f"receive failed: {exc}", device=self.name) from None
+        return self._data(msg)
+
+    def recv_nowait(self) -> bytes:
+        chunks = []
+        for _ in range(_DRAIN_READS):
+            try:
+                msg = self._bus.recv(0.0)
+            except (can.CanError, OSError) as exc:
+                raise ConnectionLost(f"receive failed: {exc}", device=self.name) from None
+            if msg is None:
+                break
+            chunks.append(self._data(msg))
+        return b"".join(chunks)
+
+    def _data(self, msg: can.Message | None) -> bytes:
         if (
             msg is None
             or msg.arbitration_id != self.recv_id

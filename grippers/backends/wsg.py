@@ -7,6 +7,8 @@ numbers cannot send a value the gripper would turn into a FAST STOP.
 
 from __future__ import annotations
 
+import logging
+import math
 import time
 import uuid
 from typing import Any
@@ -49,6 +51,8 @@ _FAULT_FLAGS = tuple(
 
 FALLBACK_PROFILE = "wsg50"
 
+log = logging.getLogger(__name__)
+
 
 def _fault_names(flags: int) -> tuple[str, ...]:
     return tuple(f.name.removeprefix("SF_").lower() for f in _FAULT_FLAGS if flags & f and f.name)
@@ -71,8 +75,12 @@ class WsgGripper(Gripper):
         # A gripper left in FAST STOP (a dropped TCP connection, another program) refuses motion until it
         # is acknowledged: know it from the start, so motion calls say so instead of E_ACCESS_DENIED.
         self._fast_stopped = bool(client.system_state() & SystemFlags.SF_FAST_STOP)
+        #: Human-readable lines for probe/info (``DeviceInfo.extra["warnings"]``).
+        self.warnings: list[str] = []
         if device_limits is not None:
-            self.limits = _narrow(self.limits, device_limits)
+            self.limits, self.warnings = _narrow(self.limits, device_limits, profile.name)
+            for line in self.warnings:
+                log.warning("%s: %s", url, line)
         caps = {
             Capability.FORCE_CONTROL,
             Capability.FORCE_MEASUREMENT,
@@ -165,7 +173,7 @@ class WsgGripper(Gripper):
             limits=self.limits,
             url=self.url,
             profile=self.profile.name,
-            extra={"device_type": int(si.device_type)},
+            extra={"device_type": int(si.device_type), "warnings": list(self.warnings)},
         )
 
     def _temperature(self) -> float:
@@ -187,17 +195,46 @@ class WsgGripper(Gripper):
         self._client.close()
 
 
-def _narrow(limits: Limits, device: SystemLimits) -> Limits:
-    """The profile's limits within the device's own 53h limits (mm, mm/s, N in; SI out)."""
-    return limits.model_copy(
-        update={
-            "max_width": min(limits.max_width, float(device.stroke) / 1000),
-            "min_speed": max(limits.min_speed, float(device.min_speed) / 1000),
-            "max_speed": min(limits.max_speed, float(device.max_speed) / 1000),
-            "min_force": max(limits.min_force, float(device.min_force)),
-            "max_force": min(limits.max_force, float(device.nominal_force)),
-        }
-    )
+def _narrow(limits: Limits, device: SystemLimits, profile: str) -> tuple[Limits, list[str]]:
+    """The profile's limits within the device's own 53h limits (mm, mm/s, N in; SI out), and warnings.
+
+    A device value that is not finite or not positive cannot be a limit (an emulator that sends big-endian
+    integers there gave "speed 50 mm/s is outside 5..-2.8e-17 mm/s" on every move): it is ignored with a
+    warning and the profile's value is kept. So is a pair whose narrowed range would be empty (min > max).
+    """
+    warnings: list[str] = []
+
+    def usable(name: str, value: float, unit: str) -> float | None:
+        if math.isfinite(value) and value > 0:
+            return value
+        warnings.append(f"device reports {name} {value!r} {unit} (53h), not a positive finite number: "
+                        f"ignored, the {profile!r} profile's limit is used")
+        return None
+
+    stroke = usable("stroke", float(device.stroke), "mm")
+    min_speed = usable("min_speed", float(device.min_speed), "mm/s")
+    max_speed = usable("max_speed", float(device.max_speed), "mm/s")
+    min_force = usable("min_force", float(device.min_force), "N")
+    nominal_force = usable("nominal_force", float(device.nominal_force), "N")
+    update: dict[str, float] = {}
+    if stroke is not None:
+        update["max_width"] = min(limits.max_width, stroke / 1000)
+    for lo_key, hi_key, lo, hi, scale, unit in (
+        ("min_speed", "max_speed", min_speed, max_speed, 1000.0, "mm/s"),
+        ("min_force", "max_force", min_force, nominal_force, 1.0, "N"),
+    ):
+        lo_v = getattr(limits, lo_key) if lo is None else max(getattr(limits, lo_key), lo / scale)
+        hi_v = getattr(limits, hi_key) if hi is None else min(getattr(limits, hi_key), hi / scale)
+        if lo_v > hi_v:
+            warnings.append(f"device limits leave no {lo_key.split('_')[1]} range with the profile's "
+                            f"({lo!r}..{hi!r} {unit}, 53h): ignored, the {profile!r} profile's limits "
+                            "are used")
+            continue
+        update[lo_key], update[hi_key] = lo_v, hi_v
+    if "max_width" in update and update["max_width"] < limits.min_width:
+        warnings.append(f"device stroke {stroke!r} mm (53h) is below the profile's minimum width: ignored")
+        del update["max_width"]
+    return limits.model_copy(update=update), warnings
 
 
 class WsgBackend:

@@ -19,7 +19,9 @@ from ...simkit import FaultHooks, FaultKind, SimClock
 from ..protocol import ChecksumError, Packet, PacketParser
 from .model import WsgModel
 
-# PROTOCOL-NOTES §1: a device drops a half-received packet after a silent gap of tens of milliseconds.
+# PROTOCOL-NOTES §1 (docs/protocols.md §1): on a SERIAL line a device drops a half-received packet after a
+# silent gap of tens of milliseconds. Not on TCP (a request written in pieces, or paused 40 ms by a delayed
+# ACK, is still one request) nor on CAN: there the size field ends a packet.
 SILENT_GAP_S = 0.03
 # Longest the server thread sleeps: bounds how late it notices close(), request_close() and test pokes.
 MAX_WAIT_S = 0.02
@@ -28,11 +30,13 @@ MAX_WAIT_S = 0.02
 class Link:
     """One conversation with the model: its connection id, its receive parser and how to send on it."""
 
-    def __init__(self, conn: int, parser: PacketParser, send: Callable[[bytes], None], name: str) -> None:
+    def __init__(self, conn: int, parser: PacketParser, send: Callable[[bytes], None], name: str, *,
+                 silent_gap: bool = False) -> None:
         self.conn = conn
         self.parser = parser
         self.send = send
         self.name = name
+        self.silent_gap = silent_gap  # a serial line: a pause drops a half-received packet
         self.last_rx = time.monotonic()
 
 
@@ -151,7 +155,7 @@ class SimServer:
             if self._delayed:
                 wait = min(wait, self._delayed[0][0] - time.monotonic())
             for link in self._links.values():
-                if link.parser.buffered:
+                if link.silent_gap and link.parser.buffered:
                     wait = min(wait, link.last_rx + SILENT_GAP_S - time.monotonic())
             return max(wait, 0.0)
 
@@ -178,7 +182,7 @@ class SimServer:
         with self.lock:
             wall = time.monotonic()
             for link in list(self._links.values()):
-                if link.parser.buffered and wall - link.last_rx >= SILENT_GAP_S:
+                if link.silent_gap and link.parser.buffered and wall - link.last_rx >= SILENT_GAP_S:
                     link.parser.reset()
                     link.last_rx = wall
                     self._received(link, b"")
@@ -209,6 +213,8 @@ class SimServer:
                     due = time.monotonic() + fault.seconds
                     heapq.heappush(self._delayed, (due, next(self._seq), link, data))
                     continue
+                elif fault.kind is FaultKind.DUPLICATE:
+                    self._send(link, data)
                 # ERROR_BIT is a STEPFOC fault; a WSG packet goes out unchanged.
             self._send(link, data)
 

@@ -68,6 +68,8 @@ SIM_CHOICES = (
     "non-finite floats, soft limits with minus > plus: E_INVALID_PARAMETER",
     "a server-side TCP drop (faults.request_close()) is an unannounced end of the link: FAST STOP",
     "zero-length motions still answer E_CMD_PENDING first and the final reply on the next advance",
+    "auto-update period below the 10 ms minimum (§3.4.1): E_CMD_FORMAT_ERROR, the only refusal listed there",
+    "UDP: at most 64 peers are remembered; the one silent longest is forgotten (its auto updates end)",
 )
 
 # Change thresholds for "update on changes only": WSG manual 4.0.x §3.4.4–3.4.6.
@@ -787,6 +789,12 @@ class WsgModel:
         return {name: value}
 
     def _state_command(self, conn: int, f: dict, cmd: int) -> None:
+        if f.get("auto_update") and int(f.get("period_ms", 0)) < _MIN_PERIOD_MS:
+            # WSG manual 4.0.x §3.4.1-3.4.6: "Minimum value is 10 ms"; the only refusal those sections list
+            # is E_CMD_FORMAT_ERROR ("Fehler im Befehlsformat", German edition), so a shorter period gets it
+            # (sim choice: the manual names no status for this case) and no subscription is changed.
+            self._reply(conn, cmd, Status.E_CMD_FORMAT_ERROR)
+            return
         value = self._state_value(cmd)
         self._reply(conn, cmd, Status.E_SUCCESS, **self._state_fields(cmd, value))
         subs = self._connections[conn].subscriptions

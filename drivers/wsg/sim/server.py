@@ -5,8 +5,9 @@ Listen URLs (the simulator's side; it binds to loopback unless a host is given):
 - ``tcp://HOST:PORT`` (port 0: any free port; no port: 1000, the WSG default, PROTOCOL-NOTES §1)
 - ``udp://HOST:PORT`` (no port: 1500)
 - ``pty`` (a new pseudo-terminal; ``.url`` names its slave path)
-- ``can://INTERFACE/CHANNEL?send_id=..&recv_id=..&bitrate=..`` (any python-can interface; the ids are the
-  client's: the simulator receives on ``send_id`` (default 0x000) and answers on ``recv_id`` (default 0x001))
+- ``can://INTERFACE/CHANNEL?send_id=..&recv_id=..&bitrate=..&extended=1`` (any python-can interface; the ids
+  are the client's: the simulator receives on ``send_id`` (default 0x000) and answers on ``recv_id`` (default
+  0x001); standard 11-bit frames unless ``extended=1``; an id the frame format cannot carry is a ValueError)
 """
 
 from __future__ import annotations
@@ -57,7 +58,7 @@ def serve(
         if not interface:
             raise ValueError(f"listen URL {listen!r} names no python-can interface (can://INTERFACE/CHANNEL)")
         query = {k: v[-1] for k, v in parse_qs(parts.query).items()}
-        unknown = set(query) - {"send_id", "recv_id", "bitrate"}
+        unknown = set(query) - {"send_id", "recv_id", "bitrate", "extended"}
         if unknown:
             raise ValueError(f"listen URL {listen!r}: unknown parameter(s) {', '.join(sorted(unknown))}")
         return CanSimServer(
@@ -67,6 +68,7 @@ def serve(
             send_id=_int(query.get("send_id", "0")),
             recv_id=_int(query.get("recv_id", "1")),
             bitrate=_int(query["bitrate"]) if "bitrate" in query else None,
+            extended_id=query.get("extended", "0").lower() in ("1", "true", "yes"),
             bus=bus,
             time_scale=time_scale,
         )

@@ -10,6 +10,7 @@ import os
 import selectors
 import socket
 import tty
+from collections import OrderedDict
 
 import can
 
@@ -113,15 +114,22 @@ class TcpSimServer(_SelectorServer):
 
 
 class UdpSimServer(_SelectorServer):
-    """Answers every datagram to its sender's address; each sender address is one model connection."""
+    """Answers every datagram to its sender's address; each sender address is one model connection.
 
-    def __init__(self, model: WsgModel, host: str, port: int, *, time_scale: float) -> None:
+    At most ``max_peers`` addresses are remembered: a new one beyond that makes the simulator forget the
+    peer that has been silent longest (its auto updates end), so a stream of datagrams from ever new
+    source ports cannot grow its memory without bound.
+    """
+
+    def __init__(self, model: WsgModel, host: str, port: int, *, time_scale: float,
+                 max_peers: int = 64) -> None:
         super().__init__(model, time_scale=time_scale)
         family = socket.AF_INET6 if ":" in host else socket.AF_INET
         self._sock = socket.socket(family, socket.SOCK_DGRAM)
         self._sock.bind((host, port))
         self._sock.setblocking(False)
-        self._peers: dict[tuple, Link] = {}
+        self.max_peers = max_peers
+        self._peers: OrderedDict[tuple, Link] = OrderedDict()  # least recently heard first
         self._selector.register(self._sock, selectors.EVENT_READ, self._readable)
         self.address = self._sock.getsockname()[:2]
         # The simulator replies to the sender's port, so the client may bind any local port.
@@ -139,11 +147,22 @@ class UdpSimServer(_SelectorServer):
             link = self._peers.get(peer)
             if link is None:
                 with self.lock:
+                    while len(self._peers) >= self.max_peers:
+                        _, old = self._peers.popitem(last=False)
+                        self._links.pop(old.conn, None)
+                        self.model.disconnect(old.conn)
                     conn = self.model.connect(connection_oriented=False)
                     link = Link(conn, self._parser(), lambda d, p=peer: self._sendto(d, p), f"udp {peer}")
                     self._add_link(link)
                     self._peers[peer] = link
+            else:
+                self._peers.move_to_end(peer)
             self._received(link, data, datagram=True)
+
+    @property
+    def peers(self) -> int:
+        """How many sender addresses the simulator remembers now."""
+        return len(self._peers)
 
     def _sendto(self, data: bytes, peer: tuple) -> None:
         with contextlib.suppress(BlockingIOError):
@@ -169,7 +188,7 @@ class PtySimServer(_SelectorServer):
         self.url = f"wsg+serial://{self.path}"
         with self.lock:
             conn = self.model.connect(connection_oriented=False)
-            self._link = Link(conn, self._parser(), self._write, f"pty {self.path}")
+            self._link = Link(conn, self._parser(), self._write, f"pty {self.path}", silent_gap=True)
             self._add_link(self._link)
         self._selector.register(self._master, selectors.EVENT_READ, self._readable)
         self._start(f"wsg-sim-pty-{os.path.basename(self.path)}")
@@ -219,8 +238,17 @@ class CanSimServer(SimServer):
         recv_id: int = 0x001,
         bitrate: int | None = None,
         bus: can.BusABC | None = None,
+        extended_id: bool = False,
         time_scale: float,
     ) -> None:
+        # The WSG uses standard frames (PROTOCOL-NOTES §1, CAN): an 11-bit identifier is 0..0x7FF, a 29-bit
+        # one 0..0x1FFFFFFF; an id the frame format cannot carry is refused, never sent in another format.
+        top = 0x1FFFFFFF if extended_id else 0x7FF
+        for what, value in (("send_id", send_id), ("recv_id", recv_id)):
+            if not 0 <= value <= top:
+                fmt = "an extended (29-bit)" if extended_id else "a standard (11-bit)"
+                raise ValueError(f"{what} {value:#x} is not valid for {fmt} CAN frame (0..{top:#x})")
+        self._extended = extended_id
         super().__init__(model, time_scale=time_scale)
         self._own_bus = bus is None
         kwargs = {} if bitrate is None else {"bitrate": bitrate}
@@ -233,6 +261,8 @@ class CanSimServer(SimServer):
             query.append(f"recv_id=0x{recv_id:X}")
         if bitrate is not None:
             query.append(f"bitrate={bitrate}")
+        if extended_id:
+            query.append("extended=1")
         self.url = f"wsg+can://{interface}/{channel}" + ("?" + "&".join(query) if query else "")
         with self.lock:
             conn = self.model.connect(connection_oriented=False)
@@ -245,12 +275,12 @@ class CanSimServer(SimServer):
         msg = self._bus.recv(timeout=timeout)
         while msg is not None:
             if (msg.arbitration_id == self._rx_id and not msg.is_remote_frame and not msg.is_error_frame
-                    and msg.dlc):
+                    and bool(msg.is_extended_id) == self._extended and msg.dlc):
                 self._received(self._link, bytes(msg.data))
             msg = self._bus.recv(timeout=0.0)
 
     def _send_frames(self, data: bytes) -> None:
-        extended = self._tx_id > 0x7FF
+        extended = self._extended
         for chunk in can_frames(data):
             self._bus.send(can.Message(arbitration_id=self._tx_id, data=chunk, is_extended_id=extended),
                            timeout=0.5)

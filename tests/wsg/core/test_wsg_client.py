@@ -373,10 +373,11 @@ def test_can_frames_on_the_bus(wsg_sim, can_channel) -> None:
 
 
 def test_serial_framing_options_over_loop_url() -> None:
-    # pyserial's loop:// echoes what is written: a raw request comes back as its own "reply".
+    # pyserial's loop:// echoes what is written: a raw request comes back as its own "reply" (not LOOP,
+    # whose reply must echo the request's data after a status).
     with WsgClient.serial("loop://", baudrate=9600, parity="E", stopbits=2) as c:
-        packet = c.request(Cmd.LOOP, b"\x00\x00hello")
-        assert packet.payload == b"\x00\x00hello"
+        packet = c.request(Cmd.GET_WIDTH, b"\x00\x00\x00")
+        assert packet.payload == b"\x00\x00\x00"
         assert c._transport._port.parity == "E" and c._transport._port.stopbits == 2
 
 

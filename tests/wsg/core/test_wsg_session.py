@@ -141,14 +141,71 @@ def test_stale_marker_of_a_timed_out_motion_waits_for_its_final_reply() -> None:
     assert kinds(s.receive(reply(0x21, Status.E_CMD_PENDING), now=26.1)) == ["Acknowledged"]
 
 
-def test_stale_markers_expire() -> None:
+def test_stale_marker_goes_only_when_a_later_reply_proves_its_reply_lost() -> None:
     s = Session(stale_ttl=2.0)
     ex, _ = s.send(0x40, b"\x00\x00\x00", now=0.0)
     s.abandon(ex, now=1.0)
     assert s.is_busy(0x40, 2.9) and s.stale_ids(2.9) == [0x40]
-    assert not s.is_busy(0x40, 3.0)  # the reply was lost altogether: the slot frees itself
-    new, _ = s.send(0x40, b"\x00\x00\x00", now=3.0)
-    assert kinds(s.receive(reply(0x40, state=0), now=3.1)) == ["Completed"]
+    # Issue 13 item 2: no expiry on a timer alone; a reply 4 s late would answer the next request.
+    assert s.is_busy(0x40, 100.0) and s.needs_barrier(0x40, 100.0) and not s.needs_barrier(0x40, 2.9)
+    # The barrier: a LOOP with a fresh nonce, sent after the lost request and answered in order.
+    nonce = s.barrier_payload()
+    loop, _ = s.send(0x06, nonce, now=100.0)
+    assert kinds(s.receive(reply(0x06, data=nonce), now=100.1)) == ["Completed"]
+    assert not s.is_busy(0x40, 100.1) and s.lost_replies == 1
+    new, _ = s.send(0x40, b"\x00\x00\x00", now=100.2)
+    assert kinds(s.receive(reply(0x40, state=0), now=100.3)) == ["Completed"]
+
+
+def test_a_proof_inside_the_reorder_margin_waits_for_the_margin() -> None:
+    s = Session(stale_ttl=2.0)
+    ex, _ = s.send(0x31, b"", now=0.0)
+    s.abandon(ex, now=0.2)
+    other, _ = s.send(0x40, b"\x00\x00\x00", now=0.3)
+    s.receive(reply(0x40, state=0), now=0.4)  # a later request answered: the 31h reply is lost ...
+    assert s.is_busy(0x31, 1.0)  # ... but a datagram network may still deliver it within stale_ttl
+    assert not s.needs_barrier(0x31, 2.5) and not s.is_busy(0x31, 2.5)
+
+
+def test_late_reply_after_the_marker_was_proved_lost_is_unsolicited_not_a_reply() -> None:
+    s = Session(stale_ttl=0.5)
+    ex, _ = s.send(0x33, b"", now=0.0)
+    s.abandon(ex, now=0.2)
+    s.send(0x40, b"\x00\x00\x00", now=0.3)
+    s.receive(reply(0x40, state=0), now=0.4)
+    assert not s.is_busy(0x33, 1.0)
+    assert kinds(s.receive(reply(0x33, force=10.0), now=1.1)) == ["Unsolicited"]
+
+
+def test_loop_replies_are_matched_by_content() -> None:
+    s = Session(stale_ttl=5.0)
+    a, _ = s.send(0x06, b"A", now=0.0)
+    s.abandon(a, now=0.2)
+    assert not s.is_busy(0x06, 0.3)  # a LOOP never waits for a LOOP marker
+    b, _ = s.send(0x06, b"B", now=0.3)
+    events = s.receive(reply(0x06, data=b"A") + reply(0x06, data=b"B") + reply(0x06, data=b"B"), now=4.0)
+    assert kinds(events) == ["StaleReply", "Completed", "Unsolicited"]  # late A, own B, duplicated B
+    assert b.reply is not None and b.reply.payload[2:] == b"B"
+    c, _ = s.send(0x06, b"C", now=4.1)
+    assert s.take_reply(c, reply(0x06, data=b"B")) is None  # the fast path checks the content too
+    assert kinds(s.receive(reply(0x06, data=b"B"), now=4.2)) == ["Unsolicited"]
+    error = reply(0x06, Status.E_CMD_FORMAT_ERROR)
+    assert s.take_reply(c, error) is not None  # an error status carries no echo: it is the reply
+
+
+def test_size_field_bound_per_command() -> None:
+    """Issue 13 item 4: a false header claiming more than its id's reply can hold is dropped at once."""
+    s = Session()
+    ex, _ = s.send(0x43, b"\x00\x00\x00", now=0.0)
+    false_header = b"\xaa\xaa\xaa\x43\xe8\x03"  # GET_WIDTH claiming 1,000 bytes (its reply holds 6)
+    events = s.receive(false_header + reply(0x43, width=7.0), now=0.01)
+    assert kinds(events) == ["BadLength", "Completed"]
+    # Open-ended replies (finger data) are plausible only while a request of that id is outstanding.
+    events = s.receive(b"\xaa\xaa\xaa\x63\xe8\x03" + reply(0x40, state=0), now=0.02)
+    assert kinds(events)[0] == "BadLength"
+    fd, _ = s.send(0x63, b"", now=0.03)
+    assert s.receive(b"\xaa\xaa\xaa\x63\x10\x00", now=0.04) == []  # waits: it may be the reply
+    assert s.parser.buffered
 
 
 def test_abandoning_a_finished_exchange_does_nothing() -> None:
@@ -205,9 +262,9 @@ def test_noise_and_split_packets_between_replies() -> None:
 
 def test_silent_gap_resets_a_half_received_packet() -> None:
     s = Session()
-    ex, _ = s.send(0x43, b"\x00\x00\x00", now=0.0)
-    corrupt_header = b"\xaa\xaa\xaa\x43\x00\x01"  # claims 256 bytes
-    events = s.receive(corrupt_header + reply(0x43, width=7.0), now=0.01)
+    ex, _ = s.send(0x06, b"x", now=0.0)
+    corrupt_header = b"\xaa\xaa\xaa\x06\x00\x01"  # claims 256 bytes: plausible for a LOOP reply
+    events = s.receive(corrupt_header + reply(0x06, data=b"x"), now=0.01)
     assert kinds(events) == [] and ex.state is ExchangeState.SENT
     events = s.reset_parser(now=0.1)
     assert "Completed" in kinds(events) and ex.state is ExchangeState.DONE
@@ -258,3 +315,16 @@ def test_take_reply_completes_only_an_exact_final_reply() -> None:
     s.receive(b"\xaa\xaa", now=0.0)  # the parser holds the start of a preamble: the bytes belong together
     q, _ = s.send(0x45, encode_request(0x45), now=0.0)
     assert s.take_reply(q, reply(0x45, force=3.0)) is None
+
+
+def test_a_stop_never_waits_for_the_marker_of_an_interrupted_stop() -> None:
+    s = Session(stale_ttl=5.0)
+    first, _ = s.send(0x22, b"", now=0.0)
+    s.abandon(first, now=0.1)  # Ctrl-C while waiting for the STOP's reply
+    assert not s.is_busy(0x22, 0.2) and not s.needs_barrier(0x22, 10.0)
+    second, _ = s.send(0x22, b"", now=0.2)
+    assert s.take_reply(second, reply(0x22)) is None  # the fast path leaves the order to receive()
+    events = s.receive(reply(0x22) + reply(0x22), now=0.3)
+    assert kinds(events) == ["StaleReply", "Completed"]  # in order: the first stop's reply, then its own
+    assert events[0].exchange is first and events[1].exchange is second
+    assert not s.is_busy(0x20, 0.3)

@@ -480,7 +480,14 @@ def test_auto_update_changes_only(homed) -> None:
 
 def test_auto_update_minimum_period_and_state_flow_during_motion(homed) -> None:
     d = homed
-    assert d.one(Cmd.GET_GRASPING_STATE, auto_update=True, period_ms=1).ok
+    # Issue 12 §4: below the manual's 10 ms minimum (4.0.x §3.4.1) the request is refused with the only
+    # refusal the section lists, and no subscription starts; a plain query (period 0, updates off) is fine.
+    for period in (0, 1, 9):
+        refused = d.one(Cmd.GET_GRASPING_STATE, auto_update=True, period_ms=period)
+        assert refused.status == S.E_CMD_FORMAT_ERROR
+    assert [r for r in d.advance(0.05) if r.command == Cmd.GET_GRASPING_STATE] == []
+    assert d.one(Cmd.GET_GRASPING_STATE).ok
+    assert d.one(Cmd.GET_GRASPING_STATE, auto_update=True, period_ms=10).ok
     assert d.one(Cmd.PREPOSITION, width=0.0, speed=50.0).pending
     updates = [r for r in d.advance(0.1) if r.command == Cmd.GET_GRASPING_STATE]
     assert len(updates) == 1  # one step of 100 ms: coalesced, never more than one per period
