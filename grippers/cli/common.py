@@ -130,7 +130,7 @@ def state_dict(state: GripperState) -> dict[str, Any]:
         "current_a": _num(state.current),
         "grasp_state": state.grasp.value,
         "moving": state.moving,
-        "homed": state.referenced,
+        "referenced": state.referenced,
         "faults": list(state.faults),
     }
 

@@ -236,7 +236,7 @@ def collect(
     progress: Progress,
     wsg_ids: list[int] | None = None,
 ) -> dict[str, Any]:
-    """Probe and build the JSON document (grippers.probe/1)."""
+    """Probe and build the JSON document (grippers.probe/2)."""
     from . import probe_targets as pt
 
     if target is None:
@@ -325,7 +325,7 @@ def render(doc: dict[str, Any]) -> str:
                 where(d["location"]),
                 fmt_num(s.get("width_mm"), "mm", 1),
                 s.get("grasp_state") or s.get("error"),
-                None if s.get("homed") is None else ("yes" if s["homed"] else "no"),
+                None if s.get("referenced") is None else ("yes" if s["referenced"] else "no"),
                 ", ".join(faults) if faults else ("none" if faults is not None else None),
                 f"{fmt_num(lim.get('min_width_mm'), '', 0)}-{fmt_num(lim.get('max_width_mm'), 'mm', 0)}",
                 fmt_num(lim.get("max_force_n"), "N", 0),
@@ -340,7 +340,7 @@ def render(doc: dict[str, Any]) -> str:
             "WHERE",
             "WIDTH",
             "GRASP",
-            "HOMED",
+            "REFERENCED",
             "FAULTS",
             "STROKE",
             "FORCE",

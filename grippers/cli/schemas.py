@@ -41,7 +41,7 @@ class State(_Strict):
     current_a: float | None = Field(description="motor current in A (MSG over CAN); null elsewhere")
     grasp_state: Literal[GRASP_STATES] = Field(description="grippers.GraspState, lower case")  # type: ignore[valid-type]
     moving: bool
-    homed: bool = Field(description="WSG homed / MSG calibrated")
+    referenced: bool = Field(description="the jaws know their position: WSG homed, MSG calibrated")
     faults: list[str] = Field(description="active faults by name, e.g. fast_stop; empty when none")
 
 
@@ -89,7 +89,7 @@ class Skip(_Strict):
 class ProbeDocument(_Strict):
     """``grippers probe --json``. Exit code 0 iff ``grippers`` is not empty."""
 
-    schema_: Literal["grippers.probe/1"] = Field(alias="schema")
+    schema_: Literal["grippers.probe/2"] = Field(alias="schema")
     target: str | None = Field(description="the URL given, null for a machine scan")
     timeout_s: float = Field(description="the per-device timeout used")
     grippers: list[Device]
@@ -101,7 +101,7 @@ class ProbeDocument(_Strict):
 class StateDocument(_Strict):
     """``grippers state --json``; with ``--watch`` one such document per line."""
 
-    schema_: Literal["grippers.state/1"] = Field(alias="schema")
+    schema_: Literal["grippers.state/2"] = Field(alias="schema")
     target: str
     time: float = Field(description="Unix time of the reading")
     state: State
@@ -141,7 +141,7 @@ class GraspOutcome(_Strict):
 class ResultDocument(_Strict):
     """``grippers home|move|grasp|release|stop|ack --json``."""
 
-    schema_: Literal["grippers.result/1"] = Field(alias="schema")
+    schema_: Literal["grippers.result/2"] = Field(alias="schema")
     command: Literal["home", "move", "grasp", "release", "stop", "ack"]
     target: str
     ok: bool = Field(description="false only for a grasp that gripped no part (exit code 1)")
@@ -156,7 +156,9 @@ class MonitorRecord(_Strict):
 
     schema_: Literal["grippers.monitor/1"] = Field(alias="schema")
     time: float | None
-    protocol: Literal["wsg", "stepfoc"]
+    protocol: Literal["wsg", "stepfoc", "can"] = Field(
+        description="can: a frame neither protocol carries (error, extended, CAN FD) or that did not decode"
+    )
     direction: str = Field(description="host->gripper, gripper->host or ?")
     id: str | None = Field(description="WSG command id as '21h'; CAN arbitration id in hex for STEPFOC")
     node: int | None = Field(description="STEPFOC node id; null for WSG")
@@ -198,10 +200,10 @@ class ProfilesDocument(_Strict):
 
 
 SCHEMAS: dict[str, type[BaseModel]] = {
-    "grippers.probe/1": ProbeDocument,
-    "grippers.state/1": StateDocument,
+    "grippers.probe/2": ProbeDocument,
+    "grippers.state/2": StateDocument,
     "grippers.info/1": InfoDocument,
-    "grippers.result/1": ResultDocument,
+    "grippers.result/2": ResultDocument,
     "grippers.monitor/1": MonitorRecord,
     "grippers.profiles/1": ProfilesDocument,
 }
@@ -217,9 +219,13 @@ def json_schema(schema_id: str) -> dict:
     return SCHEMAS[schema_id].model_json_schema(by_alias=True)
 
 
-if __name__ == "__main__":  # python -m grippers.cli.schemas [grippers.probe/1 ...]
+if __name__ == "__main__":  # python -m grippers.cli.schemas [grippers.probe/2 ...]
     import json
     import sys
 
+    unknown = [name for name in sys.argv[1:] if name not in SCHEMAS]
+    if unknown:  # one line, as every CLI error: no KeyError traceback
+        known = ", ".join(SCHEMAS)
+        sys.exit(f"python -m grippers.cli.schemas: error: unknown schema {unknown[0]!r} (known: {known})")
     for schema_id in sys.argv[1:] or list(SCHEMAS):
         print(json.dumps(json_schema(schema_id), indent=2))

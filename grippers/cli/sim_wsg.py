@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from .sim_common import add_sim_arguments, serve_forever, settings_for
+from .sim_common import add_sim_arguments, serve_forever, settings_for, warn_private_bus
 
 HELP = "simulate a WSG gripper (binary protocol) on tcp://, udp://, pty or can://"
 EXAMPLE = (
@@ -39,6 +39,7 @@ def run(args: argparse.Namespace) -> int:
     backend = get_backend("wsg")
     if profile.family != "wsg":
         raise UsageError(f"profile {profile.name} is a {profile.family} profile, not a WSG one")
+    warn_private_bus(args.listen or "")
     settings = settings_for(profile, args, firmware=args.firmware)
     try:
         server = backend.simulator(profile, settings, listen=args.listen or "tcp://127.0.0.1:1000")
