@@ -120,8 +120,14 @@ def _preflight(gripper: Gripper, command: str, args: argparse.Namespace) -> None
         )
     if command != "home" and not state.referenced:
         if not args.home:
+            # Each sim:// command starts its own simulator: a separate `grippers home` cannot reach this one.
+            how = (
+                "add --home (each sim:// command starts a new simulator)"
+                if args.target.startswith("sim:")
+                else f"run `grippers home {args.target}` first, or add --home"
+            )
             raise GripperError(
-                f"not referenced: run `grippers home {args.target}` first, or add --home",
+                f"not referenced: {how}",
                 device=gripper.name,
                 command=command,
             )

@@ -73,6 +73,9 @@ class Device(_Strict):
     location: Location
     state: State | StateError | None
     limits: Limits
+    warnings: list[str] = Field(
+        default_factory=list, description="what the probe assumed or ignored, e.g. an MSG's model"
+    )
 
 
 class Miss(_Strict):
