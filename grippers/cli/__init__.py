@@ -28,6 +28,7 @@ SUBCOMMANDS: dict[str, str] = {
     "release": ".motion:release",
     "stop": ".motion:stop",
     "ack": ".motion:ack",
+    "settings": ".settings_cmd",
     "profiles": ".profiles_cmd",
     "monitor": ".monitor",
     "sim": ".sim",

@@ -28,6 +28,8 @@ INFO_SCHEMA_ID = "grippers.info/1"
 RESULT_SCHEMA_ID = "grippers.result/2"
 MONITOR_SCHEMA_ID = "grippers.monitor/1"
 PROFILES_SCHEMA_ID = "grippers.profiles/1"
+SETTINGS_SCHEMA_ID = "grippers.settings/1"
+DOCTOR_SCHEMA_ID = "grippers.doctor/1"
 
 
 class UsageError(Exception):

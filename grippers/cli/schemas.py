@@ -202,6 +202,22 @@ class ProfilesDocument(_Strict):
     search_path: list[str] | None = None
 
 
+class SettingsDocument(_Strict):
+    """``grippers settings URL --json``."""
+
+    schema_: Literal["grippers.settings/1"] = Field(alias="schema")
+    target: str
+    family: str
+    settings: dict[str, object] = Field(
+        description="device units in the names (temperature_c, acceleration_mm_s2, force_limit_n, "
+        "soft_limits {min_mm, max_mm}, device_tag, finger_N {type, data_size}; MSG: node_id, "
+        "temperature_c, supply_v); "
+        "a value the device did not give is {unavailable: why}"
+    )
+    changed: list[str] = Field(description="the settings this call changed")
+    url: str = Field(description="the URL that opens the gripper now (a new node id changes it)")
+
+
 SCHEMAS: dict[str, type[BaseModel]] = {
     "grippers.probe/2": ProbeDocument,
     "grippers.state/2": StateDocument,
@@ -209,6 +225,7 @@ SCHEMAS: dict[str, type[BaseModel]] = {
     "grippers.result/2": ResultDocument,
     "grippers.monitor/1": MonitorRecord,
     "grippers.profiles/1": ProfilesDocument,
+    "grippers.settings/1": SettingsDocument,
 }
 
 
