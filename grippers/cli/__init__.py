@@ -29,6 +29,8 @@ SUBCOMMANDS: dict[str, str] = {
     "stop": ".motion:stop",
     "ack": ".motion:ack",
     "settings": ".settings_cmd",
+    "record": ".record",
+    "plot": ".plot",
     "profiles": ".profiles_cmd",
     "monitor": ".monitor",
     "sim": ".sim",
