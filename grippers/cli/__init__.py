@@ -34,6 +34,7 @@ SUBCOMMANDS: dict[str, str] = {
     "profiles": ".profiles_cmd",
     "monitor": ".monitor",
     "sim": ".sim",
+    "doctor": ".doctor",
 }
 
 

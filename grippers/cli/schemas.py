@@ -218,6 +218,21 @@ class SettingsDocument(_Strict):
     url: str = Field(description="the URL that opens the gripper now (a new node id changes it)")
 
 
+class DoctorCheck(_Strict):
+    name: str = Field(description="what was checked, e.g. 'socketcan can0', 'serial /dev/ttyUSB0'")
+    status: Literal["ok", "warn", "fail"]
+    detail: str
+    fix: str | None = Field(description="the command or step that fixes a warn or fail")
+
+
+class DoctorDocument(_Strict):
+    """``grippers doctor --json``. Exit code 1 iff a check failed (``ok`` false)."""
+
+    schema_: Literal["grippers.doctor/1"] = Field(alias="schema")
+    ok: bool
+    checks: list[DoctorCheck]
+
+
 SCHEMAS: dict[str, type[BaseModel]] = {
     "grippers.probe/2": ProbeDocument,
     "grippers.state/2": StateDocument,
@@ -226,6 +241,7 @@ SCHEMAS: dict[str, type[BaseModel]] = {
     "grippers.monitor/1": MonitorRecord,
     "grippers.profiles/1": ProfilesDocument,
     "grippers.settings/1": SettingsDocument,
+    "grippers.doctor/1": DoctorDocument,
 }
 
 
