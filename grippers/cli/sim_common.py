@@ -30,6 +30,12 @@ def add_sim_arguments(parser: argparse.ArgumentParser, default_profile: str, lis
         metavar="MM",
         help="width of a part between the fingers in mm (default: no part)",
     )
+    parser.add_argument(
+        "--replay",
+        metavar="FILE",
+        help="answer as the captured session did (a capture saved by grippers monitor --write); a request "
+        "that differs from the capture is reported on stderr and not answered",
+    )
 
 
 class _Terminated(Exception):
@@ -70,6 +76,49 @@ def serve_forever(server: Any, what: str, urls: list[str] | None = None) -> int:
         signal.signal(signal.SIGTERM, previous)
         server.close()
     return 0  # pragma: no cover - the wait above only ends by an exception
+
+
+def serve_replay(args: argparse.Namespace, family: str) -> int:
+    """``--replay FILE``: serve the capture instead of a simulated device; exit 1 if a request mismatched."""
+    from . import replay
+    from .captures import CaptureError
+    from .output import UsageError
+
+    try:
+        with open(args.replay, "rb") as fh:
+            blob = fh.read()
+    except OSError as exc:
+        raise UsageError(f"--replay {args.replay}: {exc.strerror or exc}") from None
+    try:
+        if family == "wsg":
+            script = replay.wsg_script(blob, args.replay)
+            listen = args.listen or "tcp://127.0.0.1:1000"
+            scheme, _, rest = listen.partition("://")
+            host, _, port = rest.rpartition(":")
+            if scheme != "tcp" or not host or not port.isdigit():
+                raise UsageError(f"--replay serves a WSG on tcp://HOST:PORT, not {listen!r}")
+            server: Any = replay.WsgReplayServer(script, host.strip("[]"), int(port), args.time_scale)
+        else:
+            script = replay.stepfoc_script(blob, args.replay)
+            listen = args.listen or ""
+            if not listen.startswith("can://"):
+                raise UsageError("--replay serves STEPFOC nodes on a CAN bus: --listen can://INTERFACE/CHANNEL")
+            from urllib.parse import parse_qsl
+
+            base, _, query = listen[len("can://") :].partition("?")
+            interface, _, channel = base.partition("/")
+            bus = {k: int(v) for k, v in parse_qsl(query) if k in ("port", "bitrate")}
+            if interface in ("virtual", "udp_multicast"):
+                bus.pop("bitrate", None)
+            warn_private_bus(listen)
+            server = replay.StepfocReplayServer(script, interface, channel, args.time_scale, **bus)
+    except (CaptureError, ValueError) as exc:
+        raise UsageError(f"--replay {args.replay}: {exc}") from None
+    try:
+        code = serve_forever(server, f"replay of {args.replay} ({len(script.steps)} requests)")
+    finally:
+        print(replay.summary(script), file=sys.stderr, flush=True)
+    return 1 if script.mismatches else code
 
 
 def settings_for(profile: Any, args: argparse.Namespace, **extra: Any) -> Any:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from .sim_common import add_sim_arguments, serve_forever, settings_for, warn_private_bus
+from .sim_common import add_sim_arguments, serve_forever, serve_replay, settings_for, warn_private_bus
 
 HELP = "simulate MSG grippers (STEPFOC) as CAN nodes (can://IF/CH?node=N) or a UART device (pty)"
 EXAMPLE = (
@@ -29,6 +29,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from grippers.backends import get_backend
     from grippers.profiles import load_profile
+
+    if args.replay:
+        return serve_replay(args, "stepfoc")
 
     from .output import UsageError
 

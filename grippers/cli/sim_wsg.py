@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from .sim_common import add_sim_arguments, serve_forever, settings_for, warn_private_bus
+from .sim_common import add_sim_arguments, serve_forever, serve_replay, settings_for, warn_private_bus
 
 HELP = "simulate a WSG gripper (binary protocol) on tcp://, udp://, pty or can://"
 EXAMPLE = (
@@ -32,6 +32,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from grippers.backends import get_backend
     from grippers.profiles import load_profile
+
+    if args.replay:
+        return serve_replay(args, "wsg")
 
     from .output import UsageError
 
