@@ -40,7 +40,7 @@ class Mismatch:
 
     def __str__(self) -> str:
         if self.expected is None:
-            return f"request after the end of the capture ({self.index} steps): {self.got}"
+            return f"request after the end of the capture: {self.got}"
         return f"request {self.index + 1} differs from the capture: expected {self.expected}, got {self.got}"
 
 

@@ -68,7 +68,6 @@ def serve_forever(server: Any, what: str, urls: list[str] | None = None) -> int:
         print(f"{what} serving at {urls[0]}", flush=True)
         for url in urls[1:]:
             print(f"  also at {url}", flush=True)
-        print("press Ctrl-C to stop", file=sys.stderr, flush=True)
         threading.Event().wait()  # forever; the signal handlers end it
     except _Terminated:
         return 0
@@ -115,7 +114,7 @@ def serve_replay(args: argparse.Namespace, family: str) -> int:
     except (CaptureError, ValueError) as exc:
         raise UsageError(f"--replay {args.replay}: {exc}") from None
     try:
-        code = serve_forever(server, f"replay of {args.replay} ({len(script.steps)} requests)")
+        code = serve_forever(server, f"replay of {args.replay}")
     finally:
         print(replay.summary(script), file=sys.stderr, flush=True)
     return 1 if script.mismatches else code
