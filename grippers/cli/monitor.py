@@ -292,7 +292,7 @@ class CanDecoder:
         if arbitration_id not in (self.wsg_id, self.wsg_id + 1):
             return False
         # These ids are also a STEPFOC node's frames (0x000 is node 0's E-stop, which has no data): a frame is
-        # WSG when it starts a packet or continues one (PROTOCOL-NOTES §1 CAN: 8-byte chunks of a packet).
+        # WSG when it starts a packet or continues one (docs/protocols.md §1 CAN: 8-byte chunks of a packet).
         return data.startswith(b"\xaa") or (self._wsg is not None and self._wsg.busy(direction))
 
     def decode(

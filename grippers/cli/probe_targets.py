@@ -16,14 +16,14 @@ from urllib.parse import parse_qsl, unquote, urlsplit
 
 from .output import UsageError
 
-# Defaults not in the manuals; PROTOCOL-NOTES §1 "Transport defaults" and §2.
+# Defaults not in the manuals; docs/protocols.md §1 "Transport defaults" and §2.
 WSG_DEFAULT_HOST = "192.168.1.20"
 WSG_TCP_PORT = 1000
 WSG_UDP_PORT = 1500
 WSG_SERIAL_BAUD = 115200
 STEPFOC_UART_BAUD = 256000
 STEPFOC_NODES = range(16)  # 4-bit node id (MSG manual, "Bits 10 - 7 of CAN ID")
-# The WSG over CAN: commands on a base id, replies on base + 1, base 0x000 (PROTOCOL-NOTES §1, one public
+# The WSG over CAN: commands on a base id, replies on base + 1, base 0x000 (docs/protocols.md §1, one public
 # driver); the probe adds the ids of every WSG profile on the search path.
 WSG_CAN_IDS: tuple[tuple[int, int], ...] = ((0x000, 0x001),)
 
@@ -39,7 +39,7 @@ class Candidate:
     location: dict[str, Any]
     group: str
     # When set, the candidate is only tried if no STEPFOC device answered at these nodes on the same bus: a
-    # WSG packet on CAN id 0x000/0x001 would be an E-stop frame for STEPFOC node 0 (PROTOCOL-NOTES §1, §2).
+    # WSG packet on CAN id 0x000/0x001 would be an E-stop frame for STEPFOC node 0 (docs/protocols.md §1, §2).
     unless_nodes: tuple[int, ...] = ()
 
 
