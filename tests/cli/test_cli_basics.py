@@ -116,3 +116,23 @@ def test_sim_stops_promptly_on_sigterm() -> None:
     # The old loop looked at a flag every 0.5 s; the handler now ends the wait at once. Generous bound for a
     # loaded 2-core machine, still below what the old polling loop plus close could take at its worst.
     assert took < 0.5 + 0.4, took
+
+
+def test_ctrl_c_in_a_command_exits_130_with_one_line() -> None:
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "grippers", "state", "sim://wsg50", "--watch"],
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "PYTHONUNBUFFERED": "1"},
+    )
+    try:
+        assert _first_line(proc)  # it is watching
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=10)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 130
+    assert err.strip().splitlines() == ["grippers state: interrupted"]
