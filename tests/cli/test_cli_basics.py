@@ -11,6 +11,8 @@ import sys
 import time
 from pathlib import Path
 
+import pytest
+
 from grippers.cli import main
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -136,3 +138,24 @@ def test_ctrl_c_in_a_command_exits_130_with_one_line() -> None:
             proc.kill()
     assert proc.returncode == 130
     assert err.strip().splitlines() == ["grippers state: interrupted"]
+
+
+@pytest.mark.udp_multicast
+def test_sim_msg_on_a_private_udp_multicast_port(sim_process, mcast_channel: str) -> None:
+    """Issue 12 §4: `sim msg` takes udp_multicast's port= as the drivers' client does; the printed URL reaches
+    it from another process, and a client on the default port does not (the port isolates the bus)."""
+    from grippers.drivers.stepfoc.can_client import StepfocBus
+
+    port = 43000 + os.getpid() % 1000
+    sim = sim_process("msg", "--listen", f"can://udp_multicast/{mcast_channel}?node=11&port={port}")
+    assert sim.url.endswith(f"?node=11&port={port}")
+    bus, node = StepfocBus.from_url(sim.url)
+    try:
+        assert node == 11 and bus.node(11, timeout=2.0).ping(timeout=2.0)
+    finally:
+        bus.close()
+    other, _ = StepfocBus.from_url(sim.url.replace(f"&port={port}", ""))
+    try:
+        assert not other.node(11, timeout=0.3).ping(timeout=0.3)
+    finally:
+        other.close()
