@@ -10,7 +10,8 @@ HELP = "simulate MSG grippers (STEPFOC) as CAN nodes (can://IF/CH?node=N) or a U
 EXAMPLE = (
     "grippers sim msg --listen 'can://udp_multicast/239.74.163.2?node=0'\n"
     "         grippers sim msg --listen 'can://socketcan/vcan0?node=0,1,2'\n"
-    "         grippers sim msg --listen pty --part-width 40"
+    "         grippers sim msg --listen pty --part-width 40\n"
+    "         grippers sim msg --replay session.log --listen can://socketcan/vcan0   (a candump log)"
 )
 
 

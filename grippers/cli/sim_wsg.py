@@ -10,7 +10,8 @@ HELP = "simulate a WSG gripper (binary protocol) on tcp://, udp://, pty or can:/
 EXAMPLE = (
     "grippers sim wsg --listen tcp://127.0.0.1:1000\n"
     "         grippers sim wsg --listen pty --firmware 2.2.0 --part-width 40\n"
-    "         grippers sim wsg --listen 'can://udp_multicast/239.74.163.2?send_id=0x7E8&recv_id=0x7E9'"
+    "         grippers sim wsg --listen 'can://udp_multicast/239.74.163.2?send_id=0x7E8&recv_id=0x7E9'\n"
+    "         grippers sim wsg --replay session.hex --listen tcp://127.0.0.1:1000   (monitor --write)"
 )
 
 
