@@ -79,3 +79,26 @@ def test_plot_refuses_what_is_not_a_recording(cli, tmp_path: Path) -> None:
     bad.write_text(json.dumps({"hello": 1}) + "\n")
     r = cli("plot", str(bad), "-o", str(tmp_path / "x.png"))
     assert r.returncode == 2 and "not a grippers recording" in r.one_error_line()
+
+
+def test_record_ctrl_c_keeps_the_file_and_exits_130(tmp_path: Path) -> None:
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    out = tmp_path / "cut.jsonl"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "grippers", "record", URL, "-o", str(out), "--duration", "60"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "PYTHONUNBUFFERED": "1"},
+    )
+    time.sleep(3.0)  # started and sampling (the exact moment does not matter)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=20)
+    assert proc.returncode == 130 and err.strip().splitlines()[-1] == "grippers record: interrupted"
+    _, rows = read(out)
+    assert rows and all(row["kind"] == "state" for row in rows)
