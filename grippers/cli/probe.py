@@ -410,15 +410,26 @@ def _cause(reason: str | None, url: str) -> str:
     return f"{kind}: {': '.join(segments)}"
 
 
+def _key(cause: str) -> str:
+    """What makes two failures the same: the operating system's error when there is one (the WSG and the
+    STEPFOC drivers word 'cannot open the CAN bus' differently around the same [Errno 19])."""
+    kind, _, text = cause.partition(": ")
+    errno = text.find("[Errno ")
+    return f"{kind}: {text[errno:]}" if errno >= 0 else cause
+
+
 def collapse(misses: list[dict[str, Any]]) -> list[tuple[list[str], str]]:
     """Misses grouped by their cause, in first-seen order: one line per distinct failure."""
     groups: dict[str, list[str]] = {}
+    shown: dict[str, str] = {}
     reasons: dict[str, str] = {}
     for miss in misses:
-        key = _cause(miss.get("reason"), miss["url"])
+        cause = _cause(miss.get("reason"), miss["url"])
+        key = _key(cause)
         groups.setdefault(key, []).append(miss["url"])
+        shown.setdefault(key, cause)
         reasons.setdefault(key, miss.get("reason") or "-")
-    return [(urls, key if len(urls) > 1 else reasons[key]) for key, urls in groups.items()]
+    return [(urls, shown[key] if len(urls) > 1 else reasons[key]) for key, urls in groups.items()]
 
 
 def _urls(urls: list[str]) -> str:
