@@ -169,11 +169,15 @@ def garbage_check(url: str, timeout: float) -> str | None:
 
     parts = urlsplit(url)
     family, _, transport = parts.scheme.partition("+")
+    goodbye = b""
     if family == "wsg":
         from grippers.drivers.wsg.commands import Cmd
         from grippers.drivers.wsg.protocol import encode_packet
 
         request = encode_packet(Cmd.GET_SYSTEM_INFO)
+        # A WSG whose TCP connection closes without 07h enters FAST STOP (docs/protocols.md §1 "Field details
+        # that are easy to get wrong"): a slow but real gripper must not be left in it by this check.
+        goodbye = encode_packet(Cmd.DISCONNECT) if transport == "tcp" else b""
     elif family == "stepfoc" and transport == "serial":
         from grippers.drivers.stepfoc.uart_protocol import format_command
 
@@ -201,6 +205,11 @@ def garbage_check(url: str, timeout: float) -> str | None:
                     if not chunk:
                         break
                     received += chunk
+                if goodbye:
+                    try:
+                        s.sendall(goodbye)
+                    except OSError:
+                        pass
         elif transport == "serial":
             import serial
 
@@ -214,12 +223,18 @@ def garbage_check(url: str, timeout: float) -> str | None:
             return None
     except (OSError, ValueError, ImportError):
         return None
-    if not received:
-        return None
+    if not received or (family == "wsg" and _has_wsg_packet(received)):
+        return None  # silent, or a real WSG that answered late: the timeout stands as the reason
     return (
         f"sends bytes that are not a {family} answer ({len(received)}+ bytes, starting "
         f"{received[:8].hex(' ')}): a different protocol or baud rate?"
     )
+
+
+def _has_wsg_packet(data: bytes) -> bool:
+    from grippers.drivers.wsg.protocol import Packet, PacketParser
+
+    return any(isinstance(item, Packet) for item in PacketParser().feed(data))
 
 
 def _reason(exc: BaseException) -> str:
