@@ -175,8 +175,8 @@ def garbage_check(url: str, timeout: float) -> str | None:
         from grippers.drivers.wsg.protocol import encode_packet
 
         request = encode_packet(Cmd.GET_SYSTEM_INFO)
-        # A WSG whose TCP connection closes without 07h enters FAST STOP (docs/protocols.md §1 "Field details
-        # that are easy to get wrong"): a slow but real gripper must not be left in it by this check.
+        # A WSG whose TCP connection closes without 07h enters FAST STOP (docs/protocols.md §1 "Field
+        # details"): a slow but real gripper must not be left in it by this check.
         goodbye = encode_packet(Cmd.DISCONNECT) if transport == "tcp" else b""
     elif family == "stepfoc" and transport == "serial":
         from grippers.drivers.stepfoc.uart_protocol import format_command
