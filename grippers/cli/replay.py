@@ -190,6 +190,7 @@ class WsgReplayServer:
         self.script = script
         self._sender = _Sender(time_scale)
         self._listener = socket.create_server((host, port))
+        self._listener.settimeout(0.05)  # close() alone does not wake a blocked accept() on Linux
         self._closed = threading.Event()
         self._lock = threading.Lock()
         self._conns: list[socket.socket] = []
@@ -205,8 +206,11 @@ class WsgReplayServer:
         while not self._closed.is_set():
             try:
                 conn, _ = self._listener.accept()
+            except TimeoutError:
+                continue
             except OSError:
                 return
+            conn.settimeout(None)
             with self._lock:
                 self._conns.append(conn)
             threading.Thread(target=self._serve, args=(conn,), daemon=True).start()

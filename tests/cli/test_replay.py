@@ -157,3 +157,22 @@ def test_replay_needs_a_capture_with_directions(tmp_path: Path, cli) -> None:
 def test_replay_of_a_missing_file_is_a_usage_error(family: str, cli, tmp_path: Path) -> None:
     r = cli("sim", family, "--replay", str(tmp_path / "none.log"))
     assert r.returncode == 2 and "none.log" in r.one_error_line()
+
+
+def test_replay_stops_promptly_on_sigterm_with_a_client_connected(tmp_path: Path) -> None:
+    import socket
+
+    capture = tmp_path / "one.hex"
+    capture.write_text("(1.0) > AA AA AA 50 00 00 DB 87\n(1.1) < AA AA AA 50 02 00 00 00 00 00\n")
+    replay = _popen("sim", "wsg", "--replay", str(capture), "--listen", "tcp://127.0.0.1:0")
+    url = _line(replay.stdout, r"serving at (\S+)").group(1)
+    client = socket.create_connection(("127.0.0.1", int(url.rsplit(":", 1)[1])))
+    try:
+        replay.send_signal(signal.SIGTERM)
+        replay.communicate(timeout=1.5)  # the accept loop used to block in accept() for 2 s after close()
+    finally:
+        client.close()
+        if replay.poll() is None:
+            replay.kill()
+            replay.wait(5)
+    assert replay.returncode == 0
