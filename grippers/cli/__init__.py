@@ -28,9 +28,13 @@ SUBCOMMANDS: dict[str, str] = {
     "release": ".motion:release",
     "stop": ".motion:stop",
     "ack": ".motion:ack",
+    "settings": ".settings_cmd",
+    "record": ".record",
+    "plot": ".plot",
     "profiles": ".profiles_cmd",
     "monitor": ".monitor",
     "sim": ".sim",
+    "doctor": ".doctor",
 }
 
 
@@ -47,6 +51,24 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
 
+def _version() -> str:
+    """The installed distribution's version (importlib.metadata reads it without importing the package)."""
+    from importlib import metadata
+
+    try:
+        return metadata.version("grippers")
+    except metadata.PackageNotFoundError:  # running from a source tree that was never installed
+        return "unknown"
+
+
+class _VersionAction(argparse.Action):
+    """``--version``, looked up only when asked: importlib.metadata is not free, and --help must stay fast."""
+
+    def __call__(self, parser: argparse.ArgumentParser, *_: Any) -> None:
+        print(f"grippers {_version()}")
+        parser.exit(0)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(
         prog="grippers",
@@ -55,6 +77,7 @@ def build_parser() -> argparse.ArgumentParser:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("--debug", action="store_true", help="show tracebacks on errors")
+    parser.add_argument("--version", action=_VersionAction, nargs=0, help="print the version and exit")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name, spec in SUBCOMMANDS.items():
         command = _load(spec)
@@ -83,6 +106,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return int(module.run(args) or 0)
     except KeyboardInterrupt:
+        # The library stops a moving gripper before KeyboardInterrupt leaves its call; say so in one line.
+        print(f"grippers {args.command}: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
     except BrokenPipeError:  # `grippers monitor ... | head`: not an error; keep Python quiet at exit
         devnull = os.open(os.devnull, os.O_WRONLY)

@@ -17,6 +17,9 @@ FROM_DEVICE = "gripper->host"
 UNKNOWN_DIRECTION = "?"
 
 
+CAN_ERR_FLAG = 0x20000000  # linux/can.h: the error-frame flag in a can_id
+
+
 class CaptureError(ValueError):
     """A capture that does not parse; names the line."""
 
@@ -32,6 +35,8 @@ class CanRecord:
     is_remote: bool
     is_extended: bool
     line: int
+    is_fd: bool = False
+    is_error: bool = False
 
 
 @dataclass(frozen=True)
@@ -87,14 +92,20 @@ def _parse_log_line(text: str, number: int) -> CanRecord | None:
             data = bytes.fromhex(rest)
         except ValueError:
             raise CaptureError(f"line {number}: bad data {rest!r}") from None
+    value = int(ident, 16)
+    extended = len(ident) > 3
+    # can-utils' lib.c prints an error frame's id with CAN_ERR_FLAG (0x20000000, linux/can.h) set.
+    error = extended and bool(value & CAN_ERR_FLAG)
     return CanRecord(
         timestamp=float(m["ts"]),
         channel=m["chan"],
-        arbitration_id=int(ident, 16),
+        arbitration_id=value & ~CAN_ERR_FLAG if error else value,
         data=data,
         is_remote=remote,
-        is_extended=len(ident) > 3,
+        is_extended=extended and not error,
         line=number,
+        is_fd=m["sep"] == "##",
+        is_error=error,
     )
 
 
@@ -121,6 +132,34 @@ def _parse_screen_line(text: str, number: int) -> CanRecord | None:
         is_extended=len(m["id"]) > 3,
         line=number,
     )
+
+
+def format_candump(
+    timestamp: float,
+    channel: str,
+    arbitration_id: int,
+    data: bytes,
+    *,
+    is_remote: bool = False,
+    is_extended: bool = False,
+    is_fd: bool = False,
+    is_error: bool = False,
+) -> str:
+    """One frame as a candump log line (``candump -L``), the form :func:`parse_candump` and can-utils'
+    canplayer read back: 3 hex digits for a standard id, 8 for an extended one or an error frame."""
+    if is_error:
+        ident = f"{(arbitration_id | CAN_ERR_FLAG):08X}"
+    elif is_extended or arbitration_id > 0x7FF:
+        ident = f"{arbitration_id:08X}"
+    else:
+        ident = f"{arbitration_id:03X}"
+    if is_remote:
+        body = "#R" + (str(len(data)) if data else "")
+    elif is_fd:
+        body = "##0" + data.hex().upper()
+    else:
+        body = "#" + data.hex().upper()
+    return f"({timestamp:.6f}) {channel} {ident}{body}"
 
 
 # --- hex dumps ---------------------------------------------------------------------------------------------
@@ -185,6 +224,13 @@ def _hex_bytes(text: str, number: int) -> bytes:
     if not _HEX_RE.match(digits):
         raise CaptureError(f"line {number}: not hex bytes: {text[:60]!r}")
     return bytes.fromhex(digits)
+
+
+def format_hex_line(timestamp: float, direction: str, data: bytes) -> str:
+    """A chunk of a byte stream as a hex-dump line with its time and direction, which
+    :func:`parse_hex_dump` reads back: ``(1700000000.123456) > AA AA AA 01 00 00 E8 10``."""
+    arrow = {TO_DEVICE: ">", FROM_DEVICE: "<"}.get(direction, "")
+    return f"({timestamp:.6f}) {arrow} {data.hex(' ').upper()}".replace("  ", " ")
 
 
 def looks_like_text(blob: bytes) -> bool:

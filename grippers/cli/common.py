@@ -102,12 +102,21 @@ def overrides_from(args: argparse.Namespace) -> dict[str, Any]:
 def open_gripper(args: argparse.Namespace) -> Gripper:
     """Open the gripper named on the command line; a malformed URL or unknown profile is a usage error."""
     import grippers
+    from grippers.errors import ProfileError, URLError
+
+    from .suggest import hint
 
     kwargs = overrides_from(args)
     timeout = getattr(args, "timeout", None)
     if timeout is not None:
         kwargs["timeout"] = timeout
-    return grippers.open(args.target, **kwargs)
+    try:
+        return grippers.open(args.target, **kwargs)
+    except (URLError, ProfileError) as exc:
+        fix = hint(args.target)
+        if fix is None:
+            raise
+        raise type(exc)(f"{exc.message} ({fix})", device=exc.device, command=exc.command) from exc
 
 
 # --- API objects to the CLI's plain documents ---------------------------------------------------------------
@@ -130,7 +139,7 @@ def state_dict(state: GripperState) -> dict[str, Any]:
         "current_a": _num(state.current),
         "grasp_state": state.grasp.value,
         "moving": state.moving,
-        "homed": state.referenced,
+        "referenced": state.referenced,
         "faults": list(state.faults),
     }
 

@@ -33,8 +33,11 @@ def render(info: dict[str, Any]) -> str:
     ]
     if lim["max_current_a"] is not None:
         pairs.append(("max current", fmt_num(lim["max_current_a"], "A", 3)))
-    pairs += [(str(k), v) for k, v in (info.get("extra") or {}).items()]
-    return key_values(pairs)
+    extra = dict(info.get("extra") or {})
+    warnings = [str(w) for w in extra.pop("warnings", None) or []]
+    pairs += [(str(k), v) for k, v in extra.items()]
+    # What the backend had to assume (an MSG's model, limits it ignored), one line each, where it is seen.
+    return "\n".join([key_values(pairs), *(f"warning: {w}" for w in warnings)])
 
 
 def run(args: argparse.Namespace) -> int:

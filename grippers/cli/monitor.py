@@ -16,7 +16,7 @@ import selectors
 import socket
 import sys
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from typing import Any
 
 from .common import add_can_flags, can_id, positive_float
@@ -28,7 +28,8 @@ EXAMPLE = (
     "         grippers monitor wsg.hex --protocol wsg\n"
     "         grippers monitor -i socketcan -c can0 --protocol stepfoc\n"
     "         grippers monitor --proxy 127.0.0.1:1000 --to 192.168.1.20:1000\n"
-    "         candump -L can0 | grippers monitor -"
+    "         candump -L can0 | grippers monitor -\n"
+    "         grippers monitor -i socketcan -c can0 -t r --write session.log   (record a fixture)"
 )
 
 PROTOCOLS = ("auto", "wsg", "stepfoc")
@@ -65,7 +66,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=can_id,
         default=0x000,
         metavar="ID",
-        help="WSG over CAN: the command id; replies come on ID+1 (default 0x000, PROTOCOL-NOTES §1)",
+        help="WSG over CAN: the command id; replies come on ID+1 (default 0x000, docs/protocols.md §1)",
     )
     parser.add_argument(
         "--direction",
@@ -91,6 +92,21 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--to", type=_host_port, metavar="HOST:PORT", help="with --proxy: the gripper to forward to"
+    )
+    parser.add_argument(
+        "-t",
+        "--timestamps",
+        choices=("a", "r", "z", "d"),
+        default="a",
+        metavar="TYPE",
+        help="time column, as candump's -t: a absolute (default), r or z relative to the first line, "
+        "d delta to the previous line",
+    )
+    parser.add_argument(
+        "--write",
+        metavar="FILE",
+        help="live sources: also save the traffic, a candump log (-L format) for CAN, a timestamped hex "
+        "dump with directions for --proxy; both are read back by monitor and by sim --replay",
     )
     add_can_flags(parser)
 
@@ -276,10 +292,61 @@ class CanDecoder:
         if arbitration_id not in (self.wsg_id, self.wsg_id + 1):
             return False
         # These ids are also a STEPFOC node's frames (0x000 is node 0's E-stop, which has no data): a frame is
-        # WSG when it starts a packet or continues one (PROTOCOL-NOTES §1 CAN: 8-byte chunks of a packet).
+        # WSG when it starts a packet or continues one (docs/protocols.md §1 CAN: 8-byte chunks of a packet).
         return data.startswith(b"\xaa") or (self._wsg is not None and self._wsg.busy(direction))
 
-    def decode(self, arbitration_id: int, data: bytes, is_remote: bool, stamp: float | None) -> list[dict]:
+    def decode(
+        self,
+        arbitration_id: int,
+        data: bytes,
+        is_remote: bool,
+        stamp: float | None,
+        *,
+        is_extended: bool = False,
+        is_fd: bool = False,
+        is_error: bool = False,
+    ) -> list[dict]:
+        """One frame to records. Never raises: a frame neither protocol can carry (an error frame, an
+        extended or CAN FD frame, an id above 0x7FF) is shown as what it is, and a decoding failure is a
+        record with the reason, so a live monitor outlives anything the bus carries."""
+        wide = is_extended or is_error or arbitration_id > 0x7FF
+        ident = f"{arbitration_id:08X}" if wide else f"{arbitration_id:03X}"
+        other = None
+        if is_error:
+            other = "error frame", f"CAN error frame (class 0x{arbitration_id:X}, data {data.hex() or '-'})"
+        elif is_extended or arbitration_id > 0x7FF:
+            # STEPFOC and the WSG use 11-bit identifiers only (docs/protocols.md §1 CAN, §2 CAN).
+            other = "extended frame", f"extended (29-bit) id, not a WSG or STEPFOC frame: {data.hex() or '-'}"
+        elif is_fd:
+            other = "fd frame", f"CAN FD frame ({len(data)} bytes), not a WSG or STEPFOC frame: {data.hex()}"
+        if other is not None:
+            return [
+                _record(
+                    time=stamp,
+                    protocol="can",
+                    id=ident,
+                    status=other[0],
+                    fields={"bytes": len(data)},
+                    text=other[1],
+                    raw="R" if is_remote else data.hex(),
+                )
+            ]
+        try:
+            return self._decode(arbitration_id, data, is_remote, stamp)
+        except Exception as exc:  # a bug or a table gap must not end the monitor: show the frame and why
+            return [
+                _record(
+                    time=stamp,
+                    protocol="can",
+                    id=ident,
+                    status="error",
+                    fields={"error": str(exc)},
+                    text=f"undecodable frame ({type(exc).__name__}: {exc}): {data.hex() or '-'}",
+                    raw="R" if is_remote else data.hex(),
+                )
+            ]
+
+    def _decode(self, arbitration_id: int, data: bytes, is_remote: bool, stamp: float | None) -> list[dict]:
         direction = FROM_GRIPPER if arbitration_id == self.wsg_id + 1 else TO_GRIPPER
         if not is_remote and self._is_wsg(arbitration_id, data, direction):
             return list(self._wsg_stream().feed(direction, data, stamp))
@@ -373,7 +440,15 @@ def _capture_records(args: argparse.Namespace) -> Iterator[dict[str, Any]]:
         if fmt == "candump":
             decoder = CanDecoder(args.protocol, args.wsg_id)
             for frame in parse_candump(blob.decode("ascii", errors="replace").splitlines()):
-                yield from decoder.decode(frame.arbitration_id, frame.data, frame.is_remote, frame.timestamp)
+                yield from decoder.decode(
+                    frame.arbitration_id,
+                    frame.data,
+                    frame.is_remote,
+                    frame.timestamp,
+                    is_extended=frame.is_extended,
+                    is_fd=frame.is_fd,
+                    is_error=frame.is_error,
+                )
             yield from decoder.flush()
             return
         if args.protocol == "stepfoc":
@@ -390,8 +465,10 @@ def _capture_records(args: argparse.Namespace) -> Iterator[dict[str, Any]]:
         raise UsageError(f"{args.capture}: {exc}") from None
 
 
-def _live_can_records(args: argparse.Namespace) -> Iterator[dict[str, Any]]:
+def _live_can_records(args: argparse.Namespace, writer: Writer | None) -> Iterator[dict[str, Any]]:
     import can
+
+    from .captures import format_candump
 
     if not (args.interface and args.channel):
         raise UsageError(
@@ -406,19 +483,31 @@ def _live_can_records(args: argparse.Namespace) -> Iterator[dict[str, Any]]:
         while end is None or time.monotonic() < end:
             wait = 0.25 if end is None else max(0.0, min(0.25, end - time.monotonic()))
             msg = bus.recv(timeout=wait)
-            if msg is None or msg.is_error_frame:
+            if msg is None:
                 continue
-            yield from decoder.decode(
-                msg.arbitration_id, bytes(msg.data), msg.is_remote_frame, msg.timestamp or time.time()
-            )
+            stamp = msg.timestamp or time.time()
+            data = bytes(msg.data)
+            flags = {
+                "is_extended": bool(msg.is_extended_id),
+                "is_fd": bool(msg.is_fd),
+                "is_error": bool(msg.is_error_frame),
+            }
+            if writer is not None:
+                line = format_candump(
+                    stamp, args.channel, msg.arbitration_id, data, is_remote=msg.is_remote_frame, **flags
+                )
+                writer(line)
+            yield from decoder.decode(msg.arbitration_id, data, msg.is_remote_frame, stamp, **flags)
 
 
-def _proxy_records(args: argparse.Namespace) -> Iterator[dict[str, Any]]:
+def _proxy_records(args: argparse.Namespace, writer: Writer | None) -> Iterator[dict[str, Any]]:
     """A transparent TCP relay between clients and a WSG; both directions are decoded as they pass.
 
     Each client connection gets its own connection to the gripper and its own parsers, so two programs
     talking through the proxy do not garble each other's packets.
     """
+    from .captures import format_hex_line
+
     if args.to is None:
         raise UsageError("--proxy needs --to HOST:PORT (the gripper)")
     listener = socket.create_server(args.proxy)
@@ -468,11 +557,35 @@ def _proxy_records(args: argparse.Namespace) -> Iterator[dict[str, Any]]:
                             pass
                         s.close()  # type: ignore[union-attr]
                     continue
-                yield from stream.feed(direction, data, time.time())
+                stamp = time.time()
+                if writer is not None:
+                    writer(format_hex_line(stamp, direction, data))
+                yield from stream.feed(direction, data, stamp)
     finally:
         for key in list(sel.get_map().values()):
             key.fileobj.close()  # type: ignore[union-attr]
         sel.close()
+
+
+Writer = Callable[[str], None]
+
+
+class _Clock:
+    """The time column as candump's ``-t``: absolute, relative to the first line, or delta to the last."""
+
+    def __init__(self, kind: str) -> None:
+        self.kind = kind
+        self._first: float | None = None
+        self._last: float | None = None
+
+    def __call__(self, stamp: float | None) -> float | None:
+        if stamp is None or self.kind == "a":
+            return stamp
+        if self._first is None:
+            self._first = self._last = stamp
+        shown = stamp - (self._first if self.kind in ("r", "z") else (self._last or stamp))
+        self._last = stamp
+        return shown
 
 
 def run(args: argparse.Namespace) -> int:
@@ -485,21 +598,41 @@ def run(args: argparse.Namespace) -> int:
         )
     if sources > 1:
         raise UsageError("give one source: a capture FILE, -i/-c, or --proxy")
-    if args.capture is not None:
-        records = _capture_records(args)
-    elif live_can:
-        records = _live_can_records(args)
-    else:
-        records = _proxy_records(args)
-    decoded = 0
-    for shown, rec in enumerate(records, start=1):
-        if args.json:
-            write_json({"schema": MONITOR_SCHEMA_ID, **rec})
+    if args.write and args.capture is not None:
+        raise UsageError("--write saves live traffic (-i/-c or --proxy); a capture FILE is already saved")
+    out = None
+    if args.write:
+        try:
+            out = open(args.write, "w", encoding="ascii")  # noqa: SIM115 - closed in the finally below
+        except OSError as exc:
+            raise UsageError(f"cannot write {args.write}: {exc.strerror or exc}") from None
+
+    def writer(line: str) -> None:
+        assert out is not None
+        out.write(line + "\n")
+        out.flush()  # a capture cut by Ctrl-C keeps every line written so far
+
+    try:
+        if args.capture is not None:
+            records = _capture_records(args)
+        elif live_can:
+            records = _live_can_records(args, writer if out else None)
         else:
-            print(render_line(rec), flush=args.capture is None)
-        decoded += rec["status"] != "noise"
-        if args.count and shown >= args.count:
-            break
+            records = _proxy_records(args, writer if out else None)
+        clock = _Clock(args.timestamps)
+        decoded = 0
+        for shown, rec in enumerate(records, start=1):
+            rec["time"] = clock(rec["time"])
+            if args.json:
+                write_json({"schema": MONITOR_SCHEMA_ID, **rec})
+            else:
+                print(render_line(rec), flush=args.capture is None)
+            decoded += rec["status"] != "noise"
+            if args.count and shown >= args.count:
+                break
+    finally:
+        if out is not None:
+            out.close()
     if args.capture is not None and decoded == 0:
         print("grippers monitor: error: no complete packet or frame in the capture", file=sys.stderr)
         return EXIT_FAILED

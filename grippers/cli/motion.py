@@ -98,8 +98,8 @@ MOTIONS = ("home", "move", "grasp", "release")
 
 def _preflight(gripper: Gripper, command: str, args: argparse.Namespace) -> None:
     """Each CLI call is a new connection that cannot know what earlier calls left behind; a device would
-    answer a motion with a bare E_ACCESS_DENIED (FAST STOP) or E_NOT_INITIALIZED (not homed), so the state is
-    read first and the error says what to do."""
+    answer a motion with a bare E_ACCESS_DENIED (FAST STOP) or E_NOT_INITIALIZED (not referenced), so the
+    state is read first and the error says what to do."""
     from grippers.errors import GripperError
     from grippers.gripper import FastStopActive
 
@@ -120,8 +120,14 @@ def _preflight(gripper: Gripper, command: str, args: argparse.Namespace) -> None
         )
     if command != "home" and not state.referenced:
         if not args.home:
+            # Each sim:// command starts its own simulator: a separate `grippers home` cannot reach this one.
+            how = (
+                "add --home (each sim:// command starts a new simulator)"
+                if args.target.startswith("sim:")
+                else f"run `grippers home {args.target}` first, or add --home"
+            )
             raise GripperError(
-                f"not homed: run `grippers home {args.target}` first, or add --home",
+                f"not referenced: {how}",
                 device=gripper.name,
                 command=command,
             )

@@ -22,12 +22,14 @@ EXIT_FAILED = 1
 EXIT_USAGE = 2
 EXIT_INTERRUPTED = 130
 
-PROBE_SCHEMA_ID = "grippers.probe/1"
-STATE_SCHEMA_ID = "grippers.state/1"
+PROBE_SCHEMA_ID = "grippers.probe/2"
+STATE_SCHEMA_ID = "grippers.state/2"
 INFO_SCHEMA_ID = "grippers.info/1"
-RESULT_SCHEMA_ID = "grippers.result/1"
+RESULT_SCHEMA_ID = "grippers.result/2"
 MONITOR_SCHEMA_ID = "grippers.monitor/1"
 PROFILES_SCHEMA_ID = "grippers.profiles/1"
+SETTINGS_SCHEMA_ID = "grippers.settings/1"
+DOCTOR_SCHEMA_ID = "grippers.doctor/1"
 
 
 class UsageError(Exception):

@@ -73,6 +73,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="on a bare CAN bus, look for a WSG taking commands on ID and replying on ID+1 (repeatable; "
         "default: the ids of the WSG profiles, 0x000)",
     )
+    parser.add_argument(
+        "--profile",
+        metavar="NAME",
+        help="device profile for the candidates of its family (an MSG cannot report its model or stroke)",
+    )
     add_can_flags(parser)
 
 
@@ -101,14 +106,23 @@ class Outcome:
     reason: str | None = None
 
 
-def probe_one(url: str, location: dict[str, Any], timeout: float) -> Outcome:
-    """Open one family URL and read what it is and its state; classify any failure."""
+def probe_one(url: str, location: dict[str, Any], timeout: float, profile: Any = None) -> Outcome:
+    """Open one family URL and read what it is and its state; classify any failure. ``profile`` (a loaded
+    profile) is used for the URLs of its own family only."""
     import grippers
 
+    kwargs: dict[str, Any] = {"timeout": timeout}
+    if profile is not None and url.lower().startswith(f"{profile.family}+"):
+        kwargs["profile"] = profile
     try:
-        gripper = grippers.open(url, timeout=timeout)
+        gripper = grippers.open(url, **kwargs)
     except Exception as exc:
-        return _failed(url, location, exc)
+        outcome = _failed(url, location, exc)
+        if outcome.kind == "silent" and isinstance(exc, TimeoutError):
+            noise = garbage_check(url, timeout)
+            if noise:  # bytes came back, none of them an answer: a device, but not one we understand
+                return Outcome("other", url, location, reason=noise)
+        return outcome
     try:
         info = info_dict(gripper.info())
         try:
@@ -121,6 +135,7 @@ def probe_one(url: str, location: dict[str, Any], timeout: float) -> Outcome:
             "location": location,
             "state": state,
             "limits": info["limits"],
+            "warnings": [str(w) for w in (info.get("extra") or {}).get("warnings", [])],
         }
         return Outcome("gripper", url, location, device=device)
     except Exception as exc:
@@ -146,6 +161,82 @@ def _failed(url: str, location: dict[str, Any], exc: Exception) -> Outcome:
     raise exc
 
 
+def garbage_check(url: str, timeout: float) -> str | None:
+    """After a timeout on a byte stream (TCP, UDP, serial): ask once more on a raw connection and count what
+    comes back. A device that answers with bytes that are not a packet of the family is reported as sending
+    garbage (wrong baud rate, wrong protocol), not as silent. None when nothing came back."""
+    from urllib.parse import unquote, urlsplit
+
+    parts = urlsplit(url)
+    family, _, transport = parts.scheme.partition("+")
+    goodbye = b""
+    if family == "wsg":
+        from grippers.drivers.wsg.commands import Cmd
+        from grippers.drivers.wsg.protocol import encode_packet
+
+        request = encode_packet(Cmd.GET_SYSTEM_INFO)
+        # A WSG whose TCP connection closes without 07h enters FAST STOP (docs/protocols.md §1 "Field
+        # details"): a slow but real gripper must not be left in it by this check.
+        goodbye = encode_packet(Cmd.DISCONNECT) if transport == "tcp" else b""
+    elif family == "stepfoc" and transport == "serial":
+        from grippers.drivers.stepfoc.uart_protocol import format_command
+
+        request = format_command("Gripinfo")
+    else:
+        return None
+    received = b""
+    try:
+        if transport in ("tcp", "udp"):
+            import socket
+
+            kind = socket.SOCK_STREAM if transport == "tcp" else socket.SOCK_DGRAM
+            family_ = socket.AF_INET6 if ":" in (parts.hostname or "") else socket.AF_INET
+            with socket.socket(family_, kind) as s:
+                s.settimeout(timeout)
+                s.connect((parts.hostname, parts.port))
+                s.sendall(request)
+                end = time.monotonic() + timeout
+                while time.monotonic() < end and len(received) < 64:
+                    s.settimeout(max(0.01, end - time.monotonic()))
+                    try:
+                        chunk = s.recv(256)
+                    except TimeoutError:
+                        break
+                    if not chunk:
+                        break
+                    received += chunk
+                if goodbye:
+                    try:
+                        s.sendall(goodbye)
+                    except OSError:
+                        pass
+        elif transport == "serial":
+            import serial
+
+            baud = dict(p.split("=", 1) for p in parts.query.split("&") if "=" in p).get("baudrate")
+            port = unquote(parts.netloc + parts.path)
+            with serial.Serial(port, int(baud or 115200), timeout=timeout, write_timeout=timeout) as ser:
+                ser.reset_input_buffer()
+                ser.write(request)
+                received = ser.read(64)
+        else:
+            return None
+    except (OSError, ValueError, ImportError):
+        return None
+    if not received or (family == "wsg" and _has_wsg_packet(received)):
+        return None  # silent, or a real WSG that answered late: the timeout stands as the reason
+    return (
+        f"sends bytes that are not a {family} answer ({len(received)}+ bytes, starting "
+        f"{received[:8].hex(' ')}): a different protocol or baud rate?"
+    )
+
+
+def _has_wsg_packet(data: bytes) -> bool:
+    from grippers.drivers.wsg.protocol import Packet, PacketParser
+
+    return any(isinstance(item, Packet) for item in PacketParser().feed(data))
+
+
 def _reason(exc: BaseException) -> str:
     text = " ".join(str(exc).split()) or type(exc).__name__
     return f"{type(exc).__name__}: {text}"
@@ -154,7 +245,8 @@ def _reason(exc: BaseException) -> str:
 class _Runner:
     """Runs candidate groups in parallel daemon threads, each candidate under a hard deadline."""
 
-    def __init__(self, timeout: float, progress: Progress) -> None:
+    def __init__(self, timeout: float, progress: Progress, profile: Any = None) -> None:
+        self.profile = profile
         self.timeout = timeout
         self.progress = progress
         self.outcomes: dict[str, Outcome] = {}
@@ -166,7 +258,7 @@ class _Runner:
 
         def work() -> None:
             try:
-                box.append(probe_one(candidate.url, candidate.location, self.timeout))
+                box.append(probe_one(candidate.url, candidate.location, self.timeout, self.profile))
             except BaseException as exc:  # re-raised in the caller's thread
                 errors.append(exc)
 
@@ -235,9 +327,16 @@ def collect(
     bitrate: int | None,
     progress: Progress,
     wsg_ids: list[int] | None = None,
+    profile: str | None = None,
 ) -> dict[str, Any]:
-    """Probe and build the JSON document (grippers.probe/1)."""
+    """Probe and build the JSON document (grippers.probe/2)."""
     from . import probe_targets as pt
+
+    loaded = None
+    if profile is not None:
+        from grippers.profiles import load_profile
+
+        loaded = load_profile(profile)  # an unknown name is a usage error before anything is sent
 
     if target is None:
         plan = pt.machine_targets(network=network, bitrate=bitrate, wsg_can_ids=_wsg_can_ids(wsg_ids))
@@ -248,7 +347,7 @@ def collect(
                 plan.candidates.append(pt.Candidate(url, pt.location_of(url), group=url))
     first = [c for c in plan.candidates if not c.unless_nodes]
     later = [c for c in plan.candidates if c.unless_nodes]
-    runner = _Runner(timeout, progress)
+    runner = _Runner(timeout, progress, loaded)
     failures = runner.run_groups(first)
     skipped = list(plan.skipped)
     if later:
@@ -296,7 +395,8 @@ def collect(
 def where(location: dict[str, Any]) -> str:
     t = location.get("transport")
     if t in ("tcp", "udp"):
-        return f"{t} {location.get('host')}:{location.get('port')}"
+        port = location.get("port")
+        return f"{t} {location.get('host')}" + ("" if port is None else f":{port}")
     if t == "serial":
         return f"serial {location.get('serial_port')}"
     if t == "can":
@@ -307,6 +407,48 @@ def where(location: dict[str, Any]) -> str:
     if location.get("profile"):
         return f"sim {location['profile']}"
     return str(t or "-")
+
+
+def _cause(reason: str | None, url: str) -> str:
+    """A failure's reason without the device it names, so that the same cause at sixteen CAN nodes is one
+    line: 'ConnectionLost: stepfoc+can://socketcan/can9: open: cannot open the CAN bus: ...' ->
+    'ConnectionLost: cannot open the CAN bus: ...'."""
+    if not reason:
+        return "-"
+    kind, sep, text = reason.partition(": ")
+    if not sep:
+        return reason
+    segments = text.split(": ")
+    while len(segments) > 1 and ("://" in segments[0] or segments[0].startswith(("serial:", "/"))
+                                 or segments[0] in url or segments[0].isidentifier()):
+        segments.pop(0)
+    return f"{kind}: {': '.join(segments)}"
+
+
+def _key(cause: str) -> str:
+    """What makes two failures the same: the operating system's error when there is one (the WSG and the
+    STEPFOC drivers word 'cannot open the CAN bus' differently around the same [Errno 19])."""
+    kind, _, text = cause.partition(": ")
+    errno = text.find("[Errno ")
+    return f"{kind}: {text[errno:]}" if errno >= 0 else cause
+
+
+def collapse(misses: list[dict[str, Any]]) -> list[tuple[list[str], str]]:
+    """Misses grouped by their cause, in first-seen order: one line per distinct failure."""
+    groups: dict[str, list[str]] = {}
+    shown: dict[str, str] = {}
+    reasons: dict[str, str] = {}
+    for miss in misses:
+        cause = _cause(miss.get("reason"), miss["url"])
+        key = _key(cause)
+        groups.setdefault(key, []).append(miss["url"])
+        shown.setdefault(key, cause)
+        reasons.setdefault(key, miss.get("reason") or "-")
+    return [(urls, shown[key] if len(urls) > 1 else reasons[key]) for key, urls in groups.items()]
+
+
+def _urls(urls: list[str]) -> str:
+    return urls[0] if len(urls) == 1 else f"{urls[0]} and {len(urls) - 1} more"
 
 
 def render(doc: dict[str, Any]) -> str:
@@ -325,7 +467,7 @@ def render(doc: dict[str, Any]) -> str:
                 where(d["location"]),
                 fmt_num(s.get("width_mm"), "mm", 1),
                 s.get("grasp_state") or s.get("error"),
-                None if s.get("homed") is None else ("yes" if s["homed"] else "no"),
+                None if s.get("referenced") is None else ("yes" if s["referenced"] else "no"),
                 ", ".join(faults) if faults else ("none" if faults is not None else None),
                 f"{fmt_num(lim.get('min_width_mm'), '', 0)}-{fmt_num(lim.get('max_width_mm'), 'mm', 0)}",
                 fmt_num(lim.get("max_force_n"), "N", 0),
@@ -340,7 +482,7 @@ def render(doc: dict[str, Any]) -> str:
             "WHERE",
             "WIDTH",
             "GRASP",
-            "HOMED",
+            "REFERENCED",
             "FAULTS",
             "STROKE",
             "FORCE",
@@ -351,11 +493,15 @@ def render(doc: dict[str, Any]) -> str:
         lines += [f"  {d['url']}" for d in doc["grippers"]]
     else:
         lines.append("no gripper found")
-    for o in doc["others"]:
-        lines.append(f"answered, not a gripper: {o['url']} ({o['reason']})")
-    if not rows or len(doc["silent"]) <= 4:
-        for o in doc["silent"]:
-            lines.append(f"no answer: {o['url']} ({o['reason']})")
+    for d in doc["grippers"]:
+        for warning in d.get("warnings") or []:
+            lines.append(f"warning: {d['url']}: {warning}")
+    for urls, reason in collapse(doc["others"]):
+        lines.append(f"answered, not a gripper: {_urls(urls)} ({reason})")
+    silent = collapse(doc["silent"])
+    if not rows or len(silent) <= 4:
+        for urls, reason in silent:
+            lines.append(f"no answer: {_urls(urls)} ({reason})")
     else:
         lines.append(f"no answer at {len(doc['silent'])} other address(es); --json lists them")
     for s in doc["skipped"]:
@@ -371,7 +517,7 @@ def run(args: argparse.Namespace) -> int:
             raise UsageError("-i/--interface and -c/--channel go together")
         args.target = f"can://{args.interface}/{args.channel}"
     progress = Progress()
-    doc = collect(args.target, args.timeout, args.network, args.bitrate, progress, args.wsg_id)
+    doc = collect(args.target, args.timeout, args.network, args.bitrate, progress, args.wsg_id, args.profile)
     if args.json:
         write_json(doc)
     else:

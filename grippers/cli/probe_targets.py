@@ -16,14 +16,14 @@ from urllib.parse import parse_qsl, unquote, urlsplit
 
 from .output import UsageError
 
-# Defaults not in the manuals; PROTOCOL-NOTES §1 "Transport defaults" and §2.
+# Defaults not in the manuals; docs/protocols.md §1 "Transport defaults" and §2.
 WSG_DEFAULT_HOST = "192.168.1.20"
 WSG_TCP_PORT = 1000
 WSG_UDP_PORT = 1500
 WSG_SERIAL_BAUD = 115200
 STEPFOC_UART_BAUD = 256000
 STEPFOC_NODES = range(16)  # 4-bit node id (MSG manual, "Bits 10 - 7 of CAN ID")
-# The WSG over CAN: commands on a base id, replies on base + 1, base 0x000 (PROTOCOL-NOTES §1, one public
+# The WSG over CAN: commands on a base id, replies on base + 1, base 0x000 (docs/protocols.md §1, one public
 # driver); the probe adds the ids of every WSG profile on the search path.
 WSG_CAN_IDS: tuple[tuple[int, int], ...] = ((0x000, 0x001),)
 
@@ -39,7 +39,7 @@ class Candidate:
     location: dict[str, Any]
     group: str
     # When set, the candidate is only tried if no STEPFOC device answered at these nodes on the same bus: a
-    # WSG packet on CAN id 0x000/0x001 would be an E-stop frame for STEPFOC node 0 (PROTOCOL-NOTES §1, §2).
+    # WSG packet on CAN id 0x000/0x001 would be an E-stop frame for STEPFOC node 0 (docs/protocols.md §1, §2).
     unless_nodes: tuple[int, ...] = ()
 
 
@@ -119,8 +119,12 @@ def expand(
     if text.startswith("/") or (len(text) > 3 and text[:3].upper() == "COM" and text[3:].isdigit()):
         text = f"serial://{text}"  # a bare device path is a serial port
     if "://" not in text:
+        from .suggest import hint
+
+        fix = hint(text)
         raise UsageError(
             f"{target!r} is not a URL (expected e.g. tcp://HOST, can://IF/CH, serial:///dev/ttyX)"
+            + (f" ({fix})" if fix else "")
         )
     parts = urlsplit(text)
     scheme = parts.scheme.lower()
@@ -131,13 +135,18 @@ def expand(
         else:
             plan.sim_all = True
         return plan
-    if scheme in FAMILY_SCHEMES:
+    if scheme in FAMILY_SCHEMES or _is_plugin_scheme(scheme):
         _check_family(text, scheme, parts)
         plan.candidates.append(Candidate(text, location_of(text), group=_group_of(text)))
         return plan
     if scheme not in BARE_SCHEMES:
-        known = ", ".join(BARE_SCHEMES + FAMILY_SCHEMES + ("sim",))
-        raise UsageError(f"{target!r}: unknown scheme {parts.scheme!r} (known: {known})")
+        from .suggest import hint
+
+        known = ", ".join(BARE_SCHEMES + FAMILY_SCHEMES + ("sim", "FAMILY+TRANSPORT of a plugin"))
+        fix = hint(text)
+        raise UsageError(
+            f"{target!r}: unknown scheme {parts.scheme!r} (known: {known})" + (f"; {fix}" if fix else "")
+        )
     if scheme == "tcp":
         host, port = _host(parts, target), _port(parts, WSG_TCP_PORT, target)
         url = f"wsg+tcp://{_netloc(host, port)}"
@@ -172,6 +181,16 @@ def expand(
             nodes = tuple({i >> 7 for i in (send_id, recv_id)})
             plan.candidates.append(Candidate(url, location_of(url), group=url, unless_nodes=nodes))
     return plan
+
+
+def _is_plugin_scheme(scheme: str) -> bool:
+    """``acme+tcp``: a family installed through the ``grippers.backends`` entry points (docs/backends.md)."""
+    family, plus, transport = scheme.partition("+")
+    if not plus or transport not in BARE_SCHEMES:
+        return False
+    from grippers.backends import available_backends
+
+    return family in available_backends()
 
 
 def _check_family(text: str, scheme: str, parts: Any) -> None:

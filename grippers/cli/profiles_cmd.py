@@ -116,8 +116,11 @@ def run(args: argparse.Namespace) -> int:
         if args.json:
             write_json({"schema": PROFILES_SCHEMA_ID, "profile": plain})
         else:
-            print(f"# {profile.path}")
-            _print_tree(plain)
+            from .toml_out import dumps
+
+            # TOML, so that `show NAME > my.toml` is a file `validate` accepts and that loads back the same.
+            print(f"# profile {profile.name}, read from {_origin(profile.path)}")
+            print(dumps(plain), end="")
         return EXIT_OK
     if not args.names:
         raise UsageError("validate takes one or more profile files")
@@ -134,16 +137,3 @@ def run(args: argparse.Namespace) -> int:
             for problem in r["problems"]:
                 print(problem if problem.startswith(r["file"]) else f"{r['file']}: {problem}")
     return EXIT_OK if all(r["valid"] for r in results) else EXIT_FAILED
-
-
-def _print_tree(value: Any, indent: int = 0) -> None:
-    pad = "  " * indent
-    if isinstance(value, dict):
-        for key, item in value.items():
-            if isinstance(item, dict) and item:
-                print(f"{pad}{key}:")
-                _print_tree(item, indent + 1)
-            else:
-                print(f"{pad}{key}: {item}")
-    else:
-        print(f"{pad}{value}")

@@ -41,7 +41,7 @@ class State(_Strict):
     current_a: float | None = Field(description="motor current in A (MSG over CAN); null elsewhere")
     grasp_state: Literal[GRASP_STATES] = Field(description="grippers.GraspState, lower case")  # type: ignore[valid-type]
     moving: bool
-    homed: bool = Field(description="WSG homed / MSG calibrated")
+    referenced: bool = Field(description="the jaws know their position: WSG homed, MSG calibrated")
     faults: list[str] = Field(description="active faults by name, e.g. fast_stop; empty when none")
 
 
@@ -73,6 +73,9 @@ class Device(_Strict):
     location: Location
     state: State | StateError | None
     limits: Limits
+    warnings: list[str] = Field(
+        default_factory=list, description="what the probe assumed or ignored, e.g. an MSG's model"
+    )
 
 
 class Miss(_Strict):
@@ -89,7 +92,7 @@ class Skip(_Strict):
 class ProbeDocument(_Strict):
     """``grippers probe --json``. Exit code 0 iff ``grippers`` is not empty."""
 
-    schema_: Literal["grippers.probe/1"] = Field(alias="schema")
+    schema_: Literal["grippers.probe/2"] = Field(alias="schema")
     target: str | None = Field(description="the URL given, null for a machine scan")
     timeout_s: float = Field(description="the per-device timeout used")
     grippers: list[Device]
@@ -101,7 +104,7 @@ class ProbeDocument(_Strict):
 class StateDocument(_Strict):
     """``grippers state --json``; with ``--watch`` one such document per line."""
 
-    schema_: Literal["grippers.state/1"] = Field(alias="schema")
+    schema_: Literal["grippers.state/2"] = Field(alias="schema")
     target: str
     time: float = Field(description="Unix time of the reading")
     state: State
@@ -141,7 +144,7 @@ class GraspOutcome(_Strict):
 class ResultDocument(_Strict):
     """``grippers home|move|grasp|release|stop|ack --json``."""
 
-    schema_: Literal["grippers.result/1"] = Field(alias="schema")
+    schema_: Literal["grippers.result/2"] = Field(alias="schema")
     command: Literal["home", "move", "grasp", "release", "stop", "ack"]
     target: str
     ok: bool = Field(description="false only for a grasp that gripped no part (exit code 1)")
@@ -156,7 +159,9 @@ class MonitorRecord(_Strict):
 
     schema_: Literal["grippers.monitor/1"] = Field(alias="schema")
     time: float | None
-    protocol: Literal["wsg", "stepfoc"]
+    protocol: Literal["wsg", "stepfoc", "can"] = Field(
+        description="can: a frame neither protocol carries (error, extended, CAN FD) or that did not decode"
+    )
     direction: str = Field(description="host->gripper, gripper->host or ?")
     id: str | None = Field(description="WSG command id as '21h'; CAN arbitration id in hex for STEPFOC")
     node: int | None = Field(description="STEPFOC node id; null for WSG")
@@ -200,13 +205,46 @@ class ProfilesDocument(_Strict):
     )
 
 
+class SettingsDocument(_Strict):
+    """``grippers settings URL --json``."""
+
+    schema_: Literal["grippers.settings/1"] = Field(alias="schema")
+    target: str
+    family: str
+    settings: dict[str, object] = Field(
+        description="device units in the names (temperature_c, acceleration_mm_s2, force_limit_n, "
+        "soft_limits {min_mm, max_mm}, device_tag, finger_N {type, data_size}; MSG: node_id, "
+        "temperature_c, supply_v); "
+        "a value the device did not give is {unavailable: why}"
+    )
+    changed: list[str] = Field(description="the settings this call changed")
+    url: str = Field(description="the URL that opens the gripper now (a new node id changes it)")
+
+
+class DoctorCheck(_Strict):
+    name: str = Field(description="what was checked, e.g. 'socketcan can0', 'serial /dev/ttyUSB0'")
+    status: Literal["ok", "warn", "fail"]
+    detail: str
+    fix: str | None = Field(description="the command or step that fixes a warn or fail")
+
+
+class DoctorDocument(_Strict):
+    """``grippers doctor --json``. Exit code 1 iff a check failed (``ok`` false)."""
+
+    schema_: Literal["grippers.doctor/1"] = Field(alias="schema")
+    ok: bool
+    checks: list[DoctorCheck]
+
+
 SCHEMAS: dict[str, type[BaseModel]] = {
-    "grippers.probe/1": ProbeDocument,
-    "grippers.state/1": StateDocument,
+    "grippers.probe/2": ProbeDocument,
+    "grippers.state/2": StateDocument,
     "grippers.info/1": InfoDocument,
-    "grippers.result/1": ResultDocument,
+    "grippers.result/2": ResultDocument,
     "grippers.monitor/1": MonitorRecord,
     "grippers.profiles/1": ProfilesDocument,
+    "grippers.settings/1": SettingsDocument,
+    "grippers.doctor/1": DoctorDocument,
 }
 
 
@@ -220,9 +258,13 @@ def json_schema(schema_id: str) -> dict:
     return SCHEMAS[schema_id].model_json_schema(by_alias=True)
 
 
-if __name__ == "__main__":  # python -m grippers.cli.schemas [grippers.probe/1 ...]
+if __name__ == "__main__":  # python -m grippers.cli.schemas [grippers.probe/2 ...]
     import json
     import sys
 
+    unknown = [name for name in sys.argv[1:] if name not in SCHEMAS]
+    if unknown:  # one line, as every CLI error: no KeyError traceback
+        known = ", ".join(SCHEMAS)
+        sys.exit(f"python -m grippers.cli.schemas: error: unknown schema {unknown[0]!r} (known: {known})")
     for schema_id in sys.argv[1:] or list(SCHEMAS):
         print(json.dumps(json_schema(schema_id), indent=2))

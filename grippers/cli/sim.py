@@ -20,6 +20,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
             help=module.HELP,
             description=module.HELP,
             epilog=f"Example: {module.EXAMPLE}",
+            formatter_class=argparse.RawDescriptionHelpFormatter,  # the examples, one per line
         )
         module.add_arguments(sp)
         sp.set_defaults(_family_module=module)

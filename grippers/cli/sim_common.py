@@ -30,30 +30,94 @@ def add_sim_arguments(parser: argparse.ArgumentParser, default_profile: str, lis
         metavar="MM",
         help="width of a part between the fingers in mm (default: no part)",
     )
+    parser.add_argument(
+        "--replay",
+        metavar="FILE",
+        help="answer as the captured session did (a capture saved by grippers monitor --write); a request "
+        "that differs from the capture is reported on stderr and not answered",
+    )
+
+
+class _Terminated(Exception):
+    """Raised by the SIGTERM handler in the main thread, so the wait ends at once (a flag would only be seen
+    when the wait's timeout runs out: Python retries an interrupted wait, PEP 475)."""
+
+
+def warn_private_bus(listen: str) -> None:
+    """python-can's ``virtual`` bus lives in one process: a client in another shell would wait for answers
+    that never come, so say so before serving."""
+    if listen.startswith("can://virtual"):
+        print(
+            "grippers sim: warning: python-can's virtual bus exists only inside this process; no other "
+            "process can reach it (use can://udp_multicast/239.74.163.2 or can://socketcan/vcan0)",
+            file=sys.stderr,
+            flush=True,
+        )
 
 
 def serve_forever(server: Any, what: str, urls: list[str] | None = None) -> int:
     """Print where to connect (first line, for people and for scripts; one line per extra node), then serve
-    until Ctrl-C or SIGTERM."""
-    stop = threading.Event()
+    until Ctrl-C (exit 130, like every command) or SIGTERM (exit 0)."""
 
-    def _stop(*_: object) -> None:
-        stop.set()
+    def _terminate(*_: object) -> None:
+        raise _Terminated
 
-    signal.signal(signal.SIGTERM, _stop)
+    previous = signal.signal(signal.SIGTERM, _terminate)
     urls = urls or [server.url]
-    print(f"{what} serving at {urls[0]}", flush=True)
-    for url in urls[1:]:
-        print(f"  also at {url}", flush=True)
-    print("press Ctrl-C to stop", file=sys.stderr, flush=True)
     try:
-        while not stop.wait(0.5):
-            pass
-    except KeyboardInterrupt:
-        pass
+        print(f"{what} serving at {urls[0]}", flush=True)
+        for url in urls[1:]:
+            print(f"  also at {url}", flush=True)
+        threading.Event().wait()  # forever; the signal handlers end it
+    except _Terminated:
+        return 0
     finally:
+        signal.signal(signal.SIGTERM, previous)
         server.close()
-    return 0
+    return 0  # pragma: no cover - the wait above only ends by an exception
+
+
+def serve_replay(args: argparse.Namespace, family: str) -> int:
+    """``--replay FILE``: serve the capture instead of a simulated device; exit 1 if a request mismatched."""
+    from . import replay
+    from .captures import CaptureError
+    from .output import UsageError
+
+    try:
+        with open(args.replay, "rb") as fh:
+            blob = fh.read()
+    except OSError as exc:
+        raise UsageError(f"--replay {args.replay}: {exc.strerror or exc}") from None
+    try:
+        if family == "wsg":
+            script = replay.wsg_script(blob, args.replay)
+            listen = args.listen or "tcp://127.0.0.1:1000"
+            scheme, _, rest = listen.partition("://")
+            host, _, port = rest.rpartition(":")
+            if scheme != "tcp" or not host or not port.isdigit():
+                raise UsageError(f"--replay serves a WSG on tcp://HOST:PORT, not {listen!r}")
+            server: Any = replay.WsgReplayServer(script, host.strip("[]"), int(port), args.time_scale)
+        else:
+            script = replay.stepfoc_script(blob, args.replay)
+            listen = args.listen or ""
+            if not listen.startswith("can://"):
+                raise UsageError("--replay serves STEPFOC nodes on a CAN bus: --listen can://INTERFACE/CHANNEL")
+            from urllib.parse import parse_qsl
+
+            base, _, query = listen[len("can://") :].partition("?")
+            interface, _, channel = base.partition("/")
+            bus = {k: int(v) for k, v in parse_qsl(query) if k in ("port", "bitrate")}
+            if interface in ("virtual", "udp_multicast"):
+                bus.pop("bitrate", None)
+            warn_private_bus(listen)
+            server = replay.StepfocReplayServer(script, interface, channel, args.time_scale, **bus)
+    except (CaptureError, ValueError) as exc:
+        raise UsageError(f"--replay {args.replay}: {exc}") from None
+    try:
+        code = serve_forever(server, f"replay of {args.replay}")
+    finally:
+        print(replay.summary(script), file=sys.stderr, flush=True)
+    return 1 if script.mismatches else code
 
 
 def settings_for(profile: Any, args: argparse.Namespace, **extra: Any) -> Any:

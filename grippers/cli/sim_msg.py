@@ -4,14 +4,18 @@ from __future__ import annotations
 
 import argparse
 
-from .sim_common import add_sim_arguments, serve_forever, settings_for
+from .sim_common import add_sim_arguments, serve_forever, serve_replay, settings_for, warn_private_bus
 
 HELP = "simulate MSG grippers (STEPFOC) as CAN nodes (can://IF/CH?node=N) or a UART device (pty)"
 EXAMPLE = (
     "grippers sim msg --listen 'can://udp_multicast/239.74.163.2?node=0'\n"
     "         grippers sim msg --listen 'can://socketcan/vcan0?node=0,1,2'\n"
-    "         grippers sim msg --listen pty --part-width 40"
+    "         grippers sim msg --listen pty --part-width 40\n"
+    "         grippers sim msg --replay session.log --listen can://socketcan/vcan0   (a candump log)"
 )
+
+
+BUS_PARAMETERS = ("port", "bitrate")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -27,6 +31,9 @@ def run(args: argparse.Namespace) -> int:
     from grippers.backends import get_backend
     from grippers.profiles import load_profile
 
+    if args.replay:
+        return serve_replay(args, "stepfoc")
+
     from .output import UsageError
 
     profile = load_profile(args.profile)
@@ -35,18 +42,32 @@ def run(args: argparse.Namespace) -> int:
     backend = get_backend("stepfoc")
     listen = args.listen or "pty"
     nodes = [0]
+    bus_query = ""
     if listen.startswith("can://"):
         base, _, query = listen.partition("?")
-        from urllib.parse import parse_qsl
+        from urllib.parse import parse_qsl, urlencode
 
         params = dict(parse_qsl(query))
         try:
             nodes = [int(n, 0) for n in params.pop("node", "0").split(",")]
         except ValueError:
             raise UsageError(f"--listen {listen}: node must be a number or a comma-separated list") from None
-        if params:
-            raise UsageError(f"--listen {listen}: unknown parameter(s) {', '.join(params)}")
-        listen = base
+        # The bus options a client URL takes too: udp_multicast's port (a private port isolates a bus) and
+        # the bit rate; the simulator opens its bus with them.
+        unknown = [k for k in params if k not in BUS_PARAMETERS]
+        if unknown:
+            raise UsageError(
+                f"--listen {listen}: unknown parameter(s) {', '.join(unknown)} "
+                f"(known: node, {', '.join(BUS_PARAMETERS)})"
+            )
+        for key in params:
+            try:
+                int(params[key])
+            except ValueError:
+                raise UsageError(f"--listen {listen}: {key} must be a number") from None
+        bus_query = urlencode(params)
+        listen = base + (f"?{bus_query}" if bus_query else "")
+    warn_private_bus(listen)
     settings = settings_for(profile, args)
     part = settings.float("part_width_mm", profile.simulator.part_width_mm)
     models = [backend.sim_model(profile, node, part) for node in nodes]
@@ -58,4 +79,6 @@ def run(args: argparse.Namespace) -> int:
     what = f"simulated {profile.model}" + (f" (node {', '.join(map(str, nodes))})" if listen != "pty" else "")
     urls = getattr(server, "urls", None)  # the CAN server names every node it serves
     urls = list(urls() if callable(urls) else urls or [server.url])
+    if bus_query:  # a client needs the same port to reach the bus
+        urls = [f"{u}&{bus_query}" for u in urls]
     return serve_forever(server, what, urls)

@@ -4,13 +4,14 @@ from __future__ import annotations
 
 import argparse
 
-from .sim_common import add_sim_arguments, serve_forever, settings_for
+from .sim_common import add_sim_arguments, serve_forever, serve_replay, settings_for, warn_private_bus
 
 HELP = "simulate a WSG gripper (binary protocol) on tcp://, udp://, pty or can://"
 EXAMPLE = (
     "grippers sim wsg --listen tcp://127.0.0.1:1000\n"
     "         grippers sim wsg --listen pty --firmware 2.2.0 --part-width 40\n"
-    "         grippers sim wsg --listen 'can://udp_multicast/239.74.163.2?send_id=0x7E8&recv_id=0x7E9'"
+    "         grippers sim wsg --listen 'can://udp_multicast/239.74.163.2?send_id=0x7E8&recv_id=0x7E9'\n"
+    "         grippers sim wsg --replay session.hex --listen tcp://127.0.0.1:1000   (monitor --write)"
 )
 
 
@@ -33,12 +34,16 @@ def run(args: argparse.Namespace) -> int:
     from grippers.backends import get_backend
     from grippers.profiles import load_profile
 
+    if args.replay:
+        return serve_replay(args, "wsg")
+
     from .output import UsageError
 
     profile = load_profile(args.profile)
     backend = get_backend("wsg")
     if profile.family != "wsg":
         raise UsageError(f"profile {profile.name} is a {profile.family} profile, not a WSG one")
+    warn_private_bus(args.listen or "")
     settings = settings_for(profile, args, firmware=args.firmware)
     try:
         server = backend.simulator(profile, settings, listen=args.listen or "tcp://127.0.0.1:1000")

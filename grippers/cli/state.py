@@ -59,7 +59,7 @@ def render(doc: dict[str, Any]) -> str:
     pairs += [
         ("grasp state", s["grasp_state"]),
         ("moving", "yes" if s["moving"] else "no"),
-        ("homed", "yes" if s["homed"] else "no"),
+        ("referenced", "yes" if s["referenced"] else "no"),
         ("faults", ", ".join(s["faults"]) or "none"),
     ]
     return key_values(pairs)

@@ -201,7 +201,7 @@ _groups = itertools.count(1)
 
 @pytest.fixture
 def mcast_channel() -> str:
-    """A multicast group for this test. Groups do not isolate on Linux (PROTOCOL-NOTES §2, last section), so
-    the tests also use node ids and WSG CAN ids no other test uses."""
+    """A multicast group for this test. Groups do not isolate on Linux (docs/protocols.md §2 "Testing without
+    CAN hardware"), so the tests also use node ids and WSG CAN ids no other test uses."""
     pytest.importorskip("msgpack", reason="python-can's udp_multicast interface needs msgpack")
     return f"239.74.{150 + os.getpid() % 50}.{next(_groups)}"

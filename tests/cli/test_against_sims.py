@@ -39,7 +39,7 @@ def test_probe_finds_the_wsg_on_a_bare_tcp_port(wsg_tcp: str, cli, cli_json) -> 
 
 
 def test_everyday_commands_against_the_wsg_over_tcp(wsg_tcp: str, cli, cli_json) -> None:
-    assert cli_json("home", wsg_tcp, "--timeout", T)["state"]["homed"] is True
+    assert cli_json("home", wsg_tcp, "--timeout", T)["state"]["referenced"] is True
     doc = cli_json("move", wsg_tcp, "40", "--speed", "50", "--timeout", T)
     assert doc["result"]["width_mm"] == pytest.approx(40.0, abs=0.5)
     state = cli_json("state", wsg_tcp, "--timeout", T)
@@ -127,8 +127,8 @@ def test_everyday_commands_against_the_msg_over_can(start_sim, cli, cli_json, mc
     ).url
     assert url.endswith(f"node={MSG_NODE}")
     before = cli_json("state", url, "--timeout", T)["state"]
-    assert before["homed"] is False and before["force_n"] is None and before["current_a"] is not None
-    assert cli_json("home", url, "--timeout", T)["state"]["homed"] is True
+    assert before["referenced"] is False and before["force_n"] is None and before["current_a"] is not None
+    assert cli_json("home", url, "--timeout", T)["state"]["referenced"] is True
     moved = cli_json("move", url, "60", "--speed", "80", "--timeout", T)
     assert moved["result"]["width_mm"] == pytest.approx(60.0, abs=1.0)
     grasp = cli_json("grasp", url, "40", "--force", "20", "--timeout", T)
@@ -168,10 +168,10 @@ def test_probe_sim_lists_every_shipped_profile(cli, cli_json) -> None:
 
 def test_commands_on_an_in_process_simulator(cli, cli_json) -> None:
     r = cli("move", "sim://wsg25?time_scale=50", "20")
-    assert r.returncode == 1 and "not homed" in r.one_error_line() and "--home" in r.stderr
+    assert r.returncode == 1 and "not referenced" in r.one_error_line() and "--home" in r.stderr
     doc = cli_json("move", "sim://wsg25?time_scale=50", "20", "--home")
     assert doc["result"]["width_mm"] == pytest.approx(20.0, abs=0.5)
     doc = cli_json("grasp", "sim://wsg70?time_scale=50&part_width_mm=30", "30", "--home", "--force", "100")
     assert doc["result"]["grasped"] is True and doc["result"]["force_n"] == pytest.approx(100, rel=0.1)
     doc = cli_json("move", "sim://msg-100?time_scale=50", "40", "--home")
-    assert doc["state"]["width_mm"] == pytest.approx(40.0, abs=1.0) and doc["state"]["homed"] is True
+    assert doc["state"]["width_mm"] == pytest.approx(40.0, abs=1.0) and doc["state"]["referenced"] is True

@@ -1,0 +1,87 @@
+"""The right spelling for a mistyped target, added to the one-line error (issue 16 §6).
+
+Pure string work over the families, transports and profile names the library knows, so each rule is tested
+on strings. A suggestion is only offered when it is a target the command accepts as written.
+"""
+
+from __future__ import annotations
+
+import difflib
+import ipaddress
+import re
+from collections.abc import Iterable
+
+TRANSPORTS = ("tcp", "udp", "serial", "can")
+# What a bare transport carries (docs/protocols.md §1 "Transport defaults", §2): the family URLs to try.
+BARE = {
+    "tcp": ("wsg+tcp://{rest}",),
+    "udp": ("wsg+udp://{rest}",),
+    "serial": ("wsg+serial://{rest}", "stepfoc+serial://{rest}"),
+    "can": ("stepfoc+can://{rest}?node=0", "wsg+can://{rest}"),
+}
+
+
+def _looks_like_host(text: str) -> bool:
+    host, _, port = text.rpartition(":") if text.count(":") == 1 else (text, "", "")
+    if port and not port.isdigit():
+        return False
+    try:
+        ipaddress.ip_address(host)
+        return True
+    except ValueError:
+        return bool(re.fullmatch(r"[A-Za-z0-9-]+(\.[A-Za-z0-9-]+)+", host))
+
+
+def suggest(target: str, families: Iterable[str], profiles: Iterable[str]) -> str | None:
+    """A corrected target for ``target``, or None when nothing close is known."""
+    families = list(families)
+    profiles = list(profiles)
+    text = target.strip()
+    scheme, sep, rest = text.partition("://")
+    if not sep:
+        m = re.fullmatch(r"([A-Za-z][A-Za-z0-9+]*):/*(.+)", text)
+        if m and (m[1].lower() in TRANSPORTS or "+" in m[1] or m[1].lower() == "sim"):
+            return suggest(f"{m[1]}://{m[2]}", families, profiles) or f"{m[1]}://{m[2]}"  # wsg+tcp:/host
+        if _looks_like_host(text):
+            return f"wsg+tcp://{text}"  # a bare address: the WSG is the family on Ethernet
+        if text in profiles:
+            return None
+        close = difflib.get_close_matches(text, profiles, n=1, cutoff=0.6)
+        return close[0] if close else None
+    scheme = scheme.lower()
+    if scheme == "sim":
+        name = rest.split("?", 1)[0].strip("/")
+        if name and name not in profiles:
+            close = difflib.get_close_matches(name, profiles, n=1, cutoff=0.6)
+            if close:
+                return f"sim://{close[0]}" + (f"?{rest.split('?', 1)[1]}" if "?" in rest else "")
+        return None
+    if scheme in BARE:
+        return " or ".join(form.format(rest=rest) for form in BARE[scheme])
+    family, plus, transport = scheme.partition("+")
+    if plus:
+        fixed_family = family if family in families else next(
+            iter(difflib.get_close_matches(family, families, n=1, cutoff=0.5)), None
+        )
+        fixed_transport = transport if transport in TRANSPORTS else next(
+            iter(difflib.get_close_matches(transport, TRANSPORTS, n=1, cutoff=0.5)), None
+        )
+        if fixed_family and fixed_transport and (fixed_family, fixed_transport) != (family, transport):
+            return f"{fixed_family}+{fixed_transport}://{rest}"
+    return None
+
+
+def hint(target: str) -> str | None:
+    """``did you mean …?`` for the error line, from the installed families and the profiles found."""
+    try:
+        from grippers.backends import available_backends
+        from grippers.profiles import list_profiles
+
+        names: list[str] = []
+        for profile in list_profiles():
+            names.append(profile.name)
+            names.extend(profile.aliases)
+        fixed = suggest(target, available_backends(), names)
+    except Exception:  # a hint must never replace the error it decorates
+        return None
+    return None if fixed is None or fixed == target else f"did you mean {fixed}?"
