@@ -15,6 +15,7 @@ import importlib
 from typing import TYPE_CHECKING, Any
 
 from .errors import (
+    AccessDenied,
     CommandFailed,
     ConnectionLost,
     GripperError,
@@ -62,6 +63,7 @@ _LAZY = {
 }
 
 __all__ = [
+    "AccessDenied",
     "CommandFailed",
     "ConnectionLost",
     "GripperError",

@@ -31,6 +31,7 @@ SUBCOMMANDS: dict[str, str] = {
     "profiles": ".profiles_cmd",
     "monitor": ".monitor",
     "sim": ".sim",
+    "serve": ".serve",
 }
 
 
