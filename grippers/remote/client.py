@@ -182,6 +182,16 @@ class RemoteGripper(Gripper):
         wait = self.timeout if timeout is None else timeout + self.timeout
         return self._query(protocol.command_key(self.served_name, command), payload, command, wait)
 
+    def _check_motion(self, command: str) -> None:
+        if self._fast_stopped and not self._closed:
+            # Another client may have acknowledged the fast stop: the served state is the truth (state()
+            # takes its faults over), and the server refuses motion itself while a fast stop is active.
+            try:
+                self.state()
+            except GripperError:
+                pass
+        super()._check_motion(command)
+
     # -- the backend primitives ---------------------------------------------------------------------------
 
     def _home(self, timeout: float) -> None:
