@@ -1,4 +1,4 @@
-"""The API scenario of tests/api over ``zenoh://``: a WSG and an MSG served by one ``grippers serve`` process."""
+"""The API scenario of tests/api over ``zenoh://``: a WSG and an MSG served by one ``grippers serve``."""
 
 from __future__ import annotations
 
