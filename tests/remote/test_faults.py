@@ -163,3 +163,28 @@ def test_eight_grippers_no_leaks_loopback_only(serve) -> None:
         time.sleep(0.05)
     assert not leaked_threads
     assert not leaked_sockets
+
+
+def test_payloads_follow_the_published_schemas(serve) -> None:
+    from grippers.remote.schemas import SCHEMAS
+
+    server: ServeProcess = serve(f"g={sim('wsg50')}")
+    session = _raw_session(server.endpoint)
+    try:
+        (info,) = session.get("grippers/g/info", timeout=2)
+        SCHEMAS["grippers.remote.info/1"].model_validate_json(info.ok.payload.to_bytes())
+        (state,) = session.get("grippers/g/state", timeout=2)
+        SCHEMAS["grippers.remote.state/1"].model_validate_json(state.ok.payload.to_bytes())
+        request = protocol.encode_request("raw", "test", {"width": 0.05})
+        SCHEMAS["grippers.remote.request/1"].model_validate_json(request)
+        home = protocol.encode_request("raw", "test", {})
+        every = zenoh.ConsolidationMode.NONE  # the pending and the final reply, both
+        replies = list(session.get("grippers/g/cmd/home", payload=home, consolidation=every, timeout=10))
+        docs = [r.ok.payload.to_bytes() for r in replies]
+        assert [json.loads(d)["status"] for d in docs] == ["pending", "done"]
+        for d in docs:
+            SCHEMAS["grippers.remote.reply/1"].model_validate_json(d)
+        (err,) = session.get("grippers/g/cmd/move", payload=b"{}", timeout=2)
+        SCHEMAS["grippers.remote.error/1"].model_validate_json(err.err.payload.to_bytes())
+    finally:
+        session.close()
