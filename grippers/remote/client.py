@@ -79,6 +79,7 @@ class RemoteGripper(Gripper):
         self._lost: GripperError | None = None
         self._session = open_session(config, url)
         self._entities: list[Any] = []
+        self._queriers: dict[str, Any] = {}
         self._remote_streams: list[SubscribedStream] = []
         try:
             doc = self._query(protocol.info_key(name), b"", "info", timeout, device=url)
@@ -221,8 +222,26 @@ class RemoteGripper(Gripper):
     def _state(self) -> GripperState:
         if self._lost is not None:
             raise ConnectionLost(self._lost.message, device=self.name, command="state")
-        doc = self._query(protocol.state_key(self.served_name), b"", "state", self.timeout)
-        return payloads.state_from(doc, self.name)[1]
+        return payloads.state_from(self._read(protocol.state_key(self.served_name), "state"), self.name)[1]
+
+    def _read(self, key: str, command: str) -> Any:
+        """A read (state): Zenoh's own channel, the fastest path; bounded by the query's timeout, which is
+        also how long Ctrl-C may wait (a motion waits on an interruptible queue instead, see _query)."""
+        querier = self._queriers.get(key)
+        if querier is None:  # declared once: Zenoh resolves the key and its routes once, not per call
+            querier = self._queriers[key] = self._session.declare_querier(key, timeout=self.timeout)
+            self._entities.append(querier)
+        for reply in querier.get():
+            if reply.err is not None:
+                raise protocol.decode_error(reply.err.payload.to_bytes(), command, self.name)
+            return protocol.decode_json(reply.ok.payload.to_bytes(), command)
+        if self._lost is not None:
+            raise ConnectionLost(self._lost.message, device=self.name, command=command)
+        raise ConnectionLost(
+            f"no answer from a server serving {self.served_name!r} within {self.timeout:g} s",
+            device=self.name,
+            command=command,
+        )
 
     def _info(self) -> DeviceInfo:
         doc = self._query(protocol.info_key(self.served_name), b"", "info", self.timeout)

@@ -151,9 +151,7 @@ class ServedGripper:
     # -- queries ------------------------------------------------------------------------------------------
 
     def _on_state(self, query: Any) -> None:
-        self.server.pool.submit(self._answer_state, query)
-
-    def _answer_state(self, query: Any) -> None:
+        # Answered on Zenoh's thread: the latest reading is in memory, nothing blocks.
         with query:
             if self._lost is not None:
                 query.reply_err(protocol.encode_error(self._lost, "state"))
