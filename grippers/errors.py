@@ -34,7 +34,7 @@ class URLError(GripperError, ValueError):
     """A connection URL that does not follow the grammar in :mod:`grippers.urls`."""
 
 
-class AccessDenied(GripperError, PermissionError):
+class AccessDenied(GripperError):
     """Another client holds the control lease of a served gripper (``zenoh://``); ``holder`` names it.
     ``stop()`` and ``fast_stop()`` are never denied."""
 

@@ -68,3 +68,19 @@ def test_lease_bookkeeping() -> None:
     assert lease.expired(10.0) is None  # alive: held as long as it lives
     assert lease.client_gone("b") is True and lease.holder is None
     assert lease.client_gone("b") is False
+
+
+def test_help_and_import_do_not_load_zenoh() -> None:
+    import subprocess
+    import sys
+
+    code = (
+        "import sys, grippers, grippers.errors\n"
+        "from grippers.cli import build_parser\n"
+        "build_parser().format_help()\n"
+        "import grippers.remote.protocol, grippers.remote.lease\n"
+        "print('zenoh' in sys.modules)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "False"
