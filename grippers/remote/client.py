@@ -24,6 +24,7 @@ from .session import import_zenoh, make_config, open_session
 from .stream import SubscribedStream
 
 DEFAULT_TIMEOUT = 2.0
+DEFAULT_LINK_LEASE = 1.0  # s; matches the server's default --lease-timeout
 _END = object()
 
 
@@ -54,6 +55,9 @@ class ZenohBackend:
             connect=connect,
             config_file=config_file,
             scout=scout,
+            # The link lease this session announces: how long the server waits on a silent link before our
+            # token (and the control lease with it) goes away. Zenoh's default is 10 s.
+            lease_s=settings.positive("lease", DEFAULT_LINK_LEASE),
         )
         timeout = settings.positive("timeout", DEFAULT_TIMEOUT)
         label = settings.str("label", f"{socket.gethostname()} pid {os.getpid()}")

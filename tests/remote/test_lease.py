@@ -61,8 +61,11 @@ CONTROLLER = textwrap.dedent(
 )
 
 
-@pytest.mark.parametrize("lease_timeout", [1.0])
-def test_controller_killed_mid_motion_is_stopped(serve, lease_timeout: float) -> None:
+@pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGSTOP], ids=["killed", "frozen-silent-link"])
+def test_controller_killed_mid_motion_is_stopped(serve, sig: int) -> None:
+    """SIGKILL closes the controller's connection at once; SIGSTOP leaves it open and silent, like a cut
+    cable, so only the link lease the client announced (1 s by default) can tell."""
+    lease_timeout = 1.0
     server: ServeProcess = serve(f"g={sim('wsg50', scale=1)}", "--lease-timeout", str(lease_timeout))
     url = server.urls["g"]
     proc = subprocess.Popen(
@@ -74,7 +77,7 @@ def test_controller_killed_mid_motion_is_stopped(serve, lease_timeout: float) ->
             assert watcher.state().moving
             with pytest.raises(AccessDenied):
                 watcher.move(0.05)
-            proc.send_signal(signal.SIGKILL)
+            proc.send_signal(sig)
             killed = time.monotonic()
             while watcher.state().moving:
                 assert time.monotonic() - killed < lease_timeout + 1.0, "motion still running"
