@@ -96,6 +96,12 @@ class ServedGripper:
         self._declared.clear()
         with self._motions_lock:
             running = list(self._motions)
+        if running and self._lost is None:
+            # No one will see these motions end: a served gripper does not keep moving once unserved.
+            try:
+                self.gripper.stop()
+            except GripperError as exc:
+                log.error("%s: stop at shutdown failed: %s", self.name, exc)
         for t in running:
             t.join(CLOSE_JOIN_S)
 

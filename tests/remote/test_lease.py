@@ -93,3 +93,19 @@ def test_controller_killed_mid_motion_is_stopped(serve, sig: int) -> None:
     finally:
         proc.kill()
         proc.wait(5)
+
+
+def test_server_shutdown_stops_a_running_motion(serve) -> None:
+    server: ServeProcess = serve(f"g={sim('wsg50', scale=1)}")
+    g = grippers.open(server.urls["g"])
+    try:
+        g.home()
+        handle = g.move(g.limits.min_width + 0.001, g.limits.min_speed, wait=False)
+        time.sleep(0.1)
+        started = time.monotonic()
+        assert server.close(signal.SIGINT) == 0  # Ctrl-C: a clean exit, motion stopped, grippers closed
+        assert time.monotonic() - started < 5.0  # not the 20 s the motion would take
+        with pytest.raises(grippers.GripperError):
+            handle.wait(5)
+    finally:
+        g.close()
