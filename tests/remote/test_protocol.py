@@ -84,3 +84,15 @@ def test_help_and_import_do_not_load_zenoh() -> None:
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip() == "False"
+
+
+def test_remote_benchmarks_are_registered() -> None:
+    import sys
+    from pathlib import Path
+
+    repo = Path(__file__).resolve().parents[2]
+    if str(repo) not in sys.path:
+        sys.path.insert(0, str(repo))
+    from benchmarks import run
+
+    assert {8, 9, 10} <= set(run._targets())
