@@ -26,7 +26,7 @@ from benchmarks.common import Result, format_table, markdown_table
 
 def _targets() -> dict[int, Callable[[bool], list[Result]]]:
     # imported here so that `--only` loads only what it runs
-    from benchmarks import startup, stepfoc_bus, stepfoc_codec, wsg_client, wsg_parser
+    from benchmarks import remote, startup, stepfoc_bus, stepfoc_codec, wsg_client, wsg_parser
 
     return {
         1: wsg_parser.run,
@@ -36,6 +36,9 @@ def _targets() -> dict[int, Callable[[bool], list[Result]]]:
         5: stepfoc_bus.run,
         6: startup.run,
         7: lambda quick: [wsg_client.memory(quick)],
+        8: lambda quick: [remote.state_round_trip(quick)],
+        9: lambda quick: [remote.publish_load(quick)],
+        10: lambda quick: [remote.lease_failover(quick)],
     }
 
 

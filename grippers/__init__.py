@@ -15,6 +15,7 @@ import importlib
 from typing import TYPE_CHECKING, Any
 
 from .errors import (
+    AccessDenied,
     CommandFailed,
     ConnectionLost,
     GripperError,
@@ -64,6 +65,7 @@ _LAZY = {
 }
 
 __all__ = [
+    "AccessDenied",
     "CommandFailed",
     "ConnectionLost",
     "GripperError",

@@ -13,6 +13,7 @@ from grippers.drivers.errors import (
 )
 
 __all__ = [
+    "AccessDenied",
     "CommandFailed",
     "ConnectionLost",
     "GripperError",
@@ -31,3 +32,19 @@ class ProfileError(GripperError, ValueError):
 
 class URLError(GripperError, ValueError):
     """A connection URL that does not follow the grammar in :mod:`grippers.urls`."""
+
+
+class AccessDenied(GripperError):
+    """Another client holds the control lease of a served gripper (``zenoh://``); ``holder`` names it.
+    ``stop()`` and ``fast_stop()`` are never denied."""
+
+    def __init__(
+        self,
+        message: str,
+        *,
+        holder: str | None = None,
+        device: str | None = None,
+        command: str | None = None,
+    ) -> None:
+        self.holder = holder
+        super().__init__(message, device=device, command=command)

@@ -7,6 +7,7 @@
     wsg+can://INTERFACE/CHANNEL[?bitrate=N&send_id=0x000&recv_id=0x001]
     stepfoc+can://INTERFACE/CHANNEL[?node=N&bitrate=N]      stepfoc+serial://PORT[?baudrate=N]
     sim://PROFILE[?part_width_mm=40&transport=tcp]          (an in-process simulated gripper)
+    zenoh://NAME?connect=tcp/HOST:7447                       (a gripper served by `grippers serve`)
 
 The scheme is ``FAMILY+TRANSPORT``, so a third-party backend brings its own family name. Query parameters
 become settings that win over the profile's fields (keyword overrides to :func:`grippers.open` win over both).
@@ -72,6 +73,8 @@ def parse_url(url: str) -> ConnectionURL:
     scheme = scheme.lower()
     if scheme == "sim":
         return _parse_sim(url, rest)
+    if scheme == "zenoh":  # zenoh://NAME?connect=tcp/HOST:7447, a served gripper (docs/remote.md)
+        return _parse_zenoh(url, rest)
     family, plus, transport = scheme.partition("+")
     if not plus or not family or transport not in TRANSPORTS:
         raise URLError(
@@ -145,6 +148,12 @@ def _parse_sim(url: str, rest: str) -> ConnectionURL:
     parts = _split(url, rest)
     profile = unquote(parts.netloc + parts.path).strip("/") or None
     return ConnectionURL(url, "sim", "", profile=profile, params=_query(url, parts.query))
+
+
+def _parse_zenoh(url: str, rest: str) -> ConnectionURL:
+    name, _, query = rest.partition("?")
+    served = unquote(name).strip("/") or None
+    return ConnectionURL(url, "zenoh", "zenoh", channel=served, params=_query(url, query))
 
 
 def to_int(value: Any, name: str, url: str = "") -> int:

@@ -35,6 +35,7 @@ SUBCOMMANDS: dict[str, str] = {
     "monitor": ".monitor",
     "sim": ".sim",
     "doctor": ".doctor",
+    "serve": ".serve",
 }
 
 

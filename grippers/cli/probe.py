@@ -340,6 +340,10 @@ def collect(
 
     if target is None:
         plan = pt.machine_targets(network=network, bitrate=bitrate, wsg_can_ids=_wsg_can_ids(wsg_ids))
+    elif target.startswith("zenoh://"):  # grippers served over Zenoh: ask who is served (docs/remote.md)
+        from grippers.remote import served_urls
+
+        plan = pt.Plan([pt.Candidate(u, pt.location_of(u), group=u) for u in served_urls(target, timeout)])
     else:
         plan = pt.expand(target, bitrate=bitrate, wsg_can_ids=_wsg_can_ids(wsg_ids))
         if plan.sim_all:

@@ -1,0 +1,143 @@
+"""``grippers serve NAME=TARGET ...``: share grippers with other processes and machines over Eclipse Zenoh.
+
+The key space and payloads are in docs/remote.md. Zenoh is imported inside ``run`` only (the ``remote``
+extra).
+"""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+import threading
+from typing import Any
+
+from .common import positive_float
+
+HELP = "serve grippers over Eclipse Zenoh (zenoh://NAME URLs for other processes and machines)"
+EXAMPLE = (
+    "grippers serve left=wsg+tcp://192.168.1.20 right=sim://msg-150\n"
+    "         grippers serve wsg50 --listen tcp/0.0.0.0:7447        (every interface: other machines)\n"
+    "         grippers serve left=wsg50 --zenoh-config cell.json5   (TLS, access control, routers)"
+)
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "targets",
+        nargs="+",
+        metavar="[NAME=]TARGET",
+        help="a URL, profile name or profile file to open and serve as NAME (default: its profile's name)",
+    )
+    parser.add_argument(
+        "--listen",
+        action="append",
+        metavar="ENDPOINT",
+        help="Zenoh endpoint to listen on, repeatable (default tcp/127.0.0.1:7447: loopback only; port 0 "
+        "picks a free port)",
+    )
+    parser.add_argument(
+        "--connect", action="append", metavar="ENDPOINT", help="a router or peer to connect to"
+    )
+    parser.add_argument(
+        "--zenoh-config", metavar="FILE", help="a Zenoh JSON5 configuration (TLS, ACL, routers)"
+    )
+    parser.add_argument(
+        "--scout",
+        action="store_true",
+        help="enable Zenoh multicast scouting (off: nothing announced on the LAN)",
+    )
+    parser.add_argument(
+        "--rate",
+        type=positive_float,
+        default=50.0,
+        metavar="HZ",
+        help="state publications per second (default 50)",
+    )
+    parser.add_argument(
+        "--lease-timeout",
+        type=positive_float,
+        default=1.0,
+        metavar="SECONDS",
+        help="stop the motion of a controlling client that vanished within this long (default 1)",
+    )
+    parser.add_argument(
+        "-t",
+        "--timeout",
+        type=positive_float,
+        default=None,
+        metavar="SECONDS",
+        help="device exchange timeout",
+    )
+
+
+def parse_targets(items: list[str]) -> list[tuple[str | None, str]]:
+    """``NAME=TARGET`` or a bare ``TARGET``; a URL's own ``=`` (in its query) is not a name."""
+    out: list[tuple[str | None, str]] = []
+    for item in items:
+        head, eq, tail = item.partition("=")
+        if eq and "://" not in head and "?" not in head and "/" not in head:
+            out.append((head, tail))
+        else:
+            out.append((None, item))
+    return out
+
+
+def run(args: argparse.Namespace) -> int:
+    import grippers
+    from grippers.remote import protocol
+    from grippers.remote.server import Server
+
+    from .output import UsageError
+
+    targets = parse_targets(args.targets)
+    for name, target in targets:
+        if name is not None:
+            try:
+                protocol.check_name(name)
+            except ValueError as exc:
+                raise UsageError(str(exc)) from None
+        if not target:
+            raise UsageError(f"nothing to serve as {name!r}")
+    opened: dict[str, Any] = {}
+    stop = threading.Event()
+    signal.signal(signal.SIGTERM, lambda *_: stop.set())
+    server = None
+    try:
+        for name, target in targets:
+            kwargs = {} if args.timeout is None else {"timeout": args.timeout}
+            gripper = grippers.open(target, **kwargs)
+            served = name or gripper.profile.name
+            if served in opened:
+                gripper.close()
+                raise UsageError(f"two grippers named {served!r}: write NAME=TARGET")
+            opened[served] = gripper
+        try:
+            server = Server(
+                opened,
+                listen=args.listen,
+                connect=args.connect,
+                config_file=args.zenoh_config,
+                scout=args.scout,
+                rate=args.rate,
+                lease_timeout=args.lease_timeout,
+            )
+        except ValueError as exc:
+            raise UsageError(str(exc)) from None
+        server.start()
+        for name, gripper in opened.items():
+            print(
+                f"{name}: {gripper.profile.model} at {gripper.url} serving at {server.url(name)}", flush=True
+            )
+        print("press Ctrl-C to stop", file=sys.stderr, flush=True)
+        while not stop.wait(0.5):
+            pass
+    except KeyboardInterrupt:
+        pass
+    finally:
+        if server is not None:
+            server.close()  # closes every gripper
+        else:
+            for gripper in opened.values():
+                gripper.close()
+    return 0

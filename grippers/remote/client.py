@@ -1,0 +1,351 @@
+"""``zenoh://NAME?connect=tcp/HOST:7447``: a served gripper behind the ordinary :class:`Gripper` API.
+
+Limits come from the served info and are checked here before anything is sent (and again by the server);
+errors arrive as a class name and are raised as the same class; ``stream()`` is a Zenoh subscription to the
+published states, not polling. Each call is one Zenoh query bounded by a timeout: a vanished server is a
+``ConnectionLost`` within that bound (at once when its token goes away), never a hang.
+"""
+
+from __future__ import annotations
+
+import os
+import queue
+import socket
+import time
+import uuid
+from collections.abc import Callable
+from typing import Any
+
+from ..errors import ConnectionLost, GripperError, GripperTimeout, ProtocolError, URLError
+from ..gripper import Capability, DeviceInfo, GraspResult, Gripper, GripperState, MotionResult
+from ..profiles import Limits, ProfileBase, parse_profile
+from . import payloads, protocol
+from .session import import_zenoh, make_config, open_session
+from .stream import SubscribedStream
+
+DEFAULT_TIMEOUT = 2.0
+DEFAULT_LINK_LEASE = 1.0  # s; matches the server's default --lease-timeout
+_END = object()
+
+
+class ZenohBackend:
+    """The ``zenoh`` family of the backend table: no profile of its own, the served one is used."""
+
+    family = "zenoh"
+    profile_model = None
+
+    def open(self, url: Any, profile: ProfileBase | None, settings: Any) -> RemoteGripper:
+        name = url.channel or ""
+        if not name:
+            raise URLError(f"{url.url}: name the served gripper (zenoh://NAME?connect=tcp/HOST:7447)")
+        try:
+            protocol.check_name(name)
+        except ValueError as exc:
+            raise URLError(f"{url.url}: {exc}") from None
+        connect = [e for e in settings.str("connect", "").split(",") if e]
+        config_file = settings.str("zenoh_config", None)
+        scout = settings.bool("scout", False)
+        if not (connect or config_file or scout):
+            raise URLError(
+                f"{url.url}: say where the server is: ?connect=tcp/HOST:7447 (or zenoh_config=, scout=1)"
+            )
+        config = make_config(
+            mode=settings.str("mode", "client"),
+            listen=[],
+            connect=connect,
+            config_file=config_file,
+            scout=scout,
+            # The link lease this session announces: how long the server waits on a silent link before our
+            # token (and the control lease with it) goes away. Zenoh's default is 10 s.
+            lease_s=settings.positive("lease", DEFAULT_LINK_LEASE),
+        )
+        timeout = settings.positive("timeout", DEFAULT_TIMEOUT)
+        label = settings.str("label", f"{socket.gethostname()} pid {os.getpid()}")
+        return RemoteGripper(url.url, name, config, timeout=timeout, label=label, profile=profile)
+
+
+class RemoteGripper(Gripper):
+    """A gripper served by ``grippers serve``; holds the control lease by its liveliness (docs/remote.md)."""
+
+    def __init__(
+        self,
+        url: str,
+        name: str,
+        config: Any,
+        *,
+        timeout: float,
+        label: str,
+        profile: ProfileBase | None = None,
+    ) -> None:
+        self.served_name = name
+        self.client_id = uuid.uuid4().hex
+        self.label = label
+        self._lost: GripperError | None = None
+        self._session = open_session(config, url)
+        self._entities: list[Any] = []
+        self._queriers: dict[str, Any] = {}
+        self._remote_streams: list[SubscribedStream] = []
+        try:
+            doc = self._query(protocol.info_key(name), b"", "info", timeout, device=url)
+            served = parse_profile(doc["profile_data"], f"{url} (served profile)")
+            if profile is not None and profile.name != served.name:
+                raise URLError(f"{url}: serves {served.name!r}, not the profile {profile.name!r} asked for")
+            super().__init__(served, url, timeout=timeout)
+            self.limits = Limits.model_validate(doc["limits"])  # the served, possibly device-narrowed, limits
+            self.capabilities = frozenset(Capability(c) for c in doc["capabilities"] if c in _CAPS)
+            self._info_doc = doc
+            zenoh = import_zenoh()
+            live = self._session.liveliness()
+            self._entities.append(live.declare_token(protocol.client_key(name, self.client_id)))
+            self._entities.append(
+                live.declare_subscriber(
+                    protocol.token_key(name),
+                    zenoh.handlers.Callback(self._on_token, indirect=False),
+                    history=False,
+                )
+            )
+        except BaseException:
+            self._session.close()
+            raise
+
+    # -- plumbing -----------------------------------------------------------------------------------------
+
+    @property
+    def driver(self) -> Any:
+        """The Zenoh session underneath (vendor extras stay on the serving machine)."""
+        return self._session
+
+    def _on_token(self, sample: Any) -> None:
+        zenoh = import_zenoh()
+        if sample.kind == zenoh.SampleKind.DELETE:
+            self._lost = ConnectionLost(
+                f"the server withdrew {self.served_name!r} (server stopped or gripper disconnected)",
+                device=self.name,
+            )
+            for s in list(self._remote_streams):
+                s.fail(self._lost)
+
+    def _query(
+        self,
+        key: str,
+        payload: bytes,
+        command: str,
+        timeout: float,
+        *,
+        device: str | None = None,
+        on_pending: Callable[[], None] | None = None,
+    ) -> Any:
+        """One query: every reply is handled here; bounded by ``timeout`` plus the exchange timeout."""
+        zenoh = import_zenoh()
+        dev = device or self.name
+        replies: queue.Queue[Any] = queue.Queue()
+        handler = zenoh.handlers.Callback(replies.put, lambda: replies.put(_END), indirect=False)
+        started = time.monotonic()
+        self._session.get(
+            key,
+            handler,
+            payload=payload or None,
+            consolidation=zenoh.ConsolidationMode.NONE,
+            timeout=timeout,
+        )
+        deadline = started + timeout + 0.5  # Zenoh ends the query at ``timeout``; this is a backstop
+        pending = False
+        while True:
+            try:
+                reply = replies.get(timeout=max(0.0, deadline - time.monotonic()))
+            except queue.Empty:
+                reply = _END
+            if reply is _END:
+                if self._lost is not None:
+                    raise ConnectionLost(self._lost.message, device=dev, command=command)
+                if pending and time.monotonic() - started < timeout - 0.05:
+                    raise ConnectionLost("the server went away mid-motion", device=dev, command=command)
+                if pending:
+                    raise GripperTimeout(f"no result within {timeout:g} s", device=dev, command=command)
+                raise ConnectionLost(
+                    f"no answer from a server serving {self.served_name if device is None else key!r} "
+                    f"within {timeout:g} s",
+                    device=dev,
+                    command=command,
+                )
+            if reply.err is not None:
+                raise protocol.decode_error(reply.err.payload.to_bytes(), command, dev)
+            data = reply.ok.payload.to_bytes()
+            if command in ("info", "state"):
+                return protocol.decode_json(data, command)
+            status, result = protocol.parse_reply(data, command)
+            if status == protocol.DONE:
+                return result
+            pending = True
+            if on_pending is not None:
+                on_pending()
+
+    def _call(self, command: str, args: dict[str, Any] | None = None, timeout: float | None = None) -> Any:
+        if self._lost is not None:
+            raise ConnectionLost(self._lost.message, device=self.name, command=command)
+        payload = protocol.encode_request(self.client_id, self.label, args or {})
+        wait = self.timeout if timeout is None else timeout + self.timeout
+        return self._query(protocol.command_key(self.served_name, command), payload, command, wait)
+
+    def _check_motion(self, command: str) -> None:
+        if self._fast_stopped and not self._closed:
+            # Another client may have acknowledged the fast stop: the served state is the truth (state()
+            # takes its faults over), and the server refuses motion itself while a fast stop is active.
+            try:
+                self.state()
+            except GripperError:
+                pass
+        super()._check_motion(command)
+
+    # -- the backend primitives ---------------------------------------------------------------------------
+
+    def _home(self, timeout: float) -> None:
+        self._call("home", {"timeout": timeout}, timeout)
+
+    def _move(self, width: float, speed: float, timeout: float) -> MotionResult:
+        doc = self._call("move", {"width": width, "speed": speed, "timeout": timeout}, timeout)
+        return payloads.motion_from(doc, self.name, "move")
+
+    def _grasp(self, width: float, speed: float, force: float, timeout: float) -> GraspResult:
+        args = {"width": width, "speed": speed, "force": force, "timeout": timeout}
+        return payloads.grasp_from(self._call("grasp", args, timeout), self.name)
+
+    def _release(self, width: float, speed: float, timeout: float) -> MotionResult:
+        doc = self._call("release", {"width": width, "speed": speed, "timeout": timeout}, timeout)
+        return payloads.motion_from(doc, self.name, "release")
+
+    def _stop(self) -> None:
+        self._call("stop")
+
+    def _fast_stop(self) -> None:
+        self._call("fast_stop")
+
+    def _acknowledge(self) -> None:
+        self._call("acknowledge")
+
+    def _state(self) -> GripperState:
+        if self._lost is not None:
+            raise ConnectionLost(self._lost.message, device=self.name, command="state")
+        return payloads.state_from(self._read(protocol.state_key(self.served_name), "state"), self.name)[1]
+
+    def _read(self, key: str, command: str) -> Any:
+        """A read (state): Zenoh's own channel, the fastest path; bounded by the query's timeout, which is
+        also how long Ctrl-C may wait (a motion waits on an interruptible queue instead, see _query)."""
+        querier = self._queriers.get(key)
+        if querier is None:  # declared once: Zenoh resolves the key and its routes once, not per call
+            querier = self._queriers[key] = self._session.declare_querier(key, timeout=self.timeout)
+            self._entities.append(querier)
+        for reply in querier.get():
+            if reply.err is not None:
+                raise protocol.decode_error(reply.err.payload.to_bytes(), command, self.name)
+            return protocol.decode_json(reply.ok.payload.to_bytes(), command)
+        if self._lost is not None:
+            raise ConnectionLost(self._lost.message, device=self.name, command=command)
+        raise ConnectionLost(
+            f"no answer from a server serving {self.served_name!r} within {self.timeout:g} s",
+            device=self.name,
+            command=command,
+        )
+
+    def _info(self) -> DeviceInfo:
+        doc = self._query(protocol.info_key(self.served_name), b"", "info", self.timeout)
+        return payloads.info_from(doc, self.url, self.name)
+
+    def _temperature(self) -> float:
+        value = self._call("temperature")
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise ProtocolError(
+                f"temperature is not a number: {value!r}", device=self.name, command="temperature"
+            )
+        return float(value)
+
+    def _set_soft_limits(self, min_width: float | None, max_width: float | None) -> None:
+        if min_width is None or max_width is None:
+            self._call("clear_soft_limits")
+        else:
+            self._call("set_soft_limits", {"min_width": min_width, "max_width": max_width})
+
+    def _device_tag(self, tag: str | None) -> str:
+        if tag is None:
+            return str(self._call("device_tag"))
+        self._call("set_device_tag", {"tag": tag})
+        return tag
+
+    # -- the control lease --------------------------------------------------------------------------------
+
+    def control(self) -> _Control:
+        """``with g.control():`` holds the control lease (AccessDenied if another client has it) and frees
+        it at the end; without it, the first motion command takes the lease and keeps it until close()."""
+        return _Control(self)
+
+    def acquire_control(self) -> None:
+        self._check_open("control")
+        self._call("control", {"action": "acquire"})
+
+    def release_control(self) -> None:
+        self._check_open("control")
+        self._call("control", {"action": "release"})
+
+    # -- streams: a subscription ----------------------------------------------------------------------------
+
+    def stream(
+        self, rate_hz: float = 50.0, callback: Callable[[GripperState], Any] | None = None
+    ) -> SubscribedStream:  # type: ignore[override]
+        """The served states as they are published (at most ``rate_hz`` of them a second)."""
+        zenoh = import_zenoh()
+        with self._lock:
+            self._check_open("stream")
+            if self._lost is not None:
+                raise ConnectionLost(self._lost.message, device=self.name, command="stream")
+            s = SubscribedStream(
+                lambda data: payloads.state_from(protocol.decode_json(data, "stream"), self.name),
+                rate_hz,
+                callback,
+                on_close=self._forget_remote_stream,
+            )
+            sub = self._session.declare_subscriber(
+                protocol.state_key(self.served_name),
+                zenoh.handlers.Callback(lambda sample: s.feed(sample.payload.to_bytes()), indirect=False),
+            )
+            s.attach(sub)
+            self._remote_streams.append(s)
+            self._streams.append(s)  # type: ignore[arg-type]  # closed by Gripper.close() like any stream
+        return s
+
+    def _forget_remote_stream(self, s: SubscribedStream) -> None:
+        with self._lock:
+            if s in self._remote_streams:
+                self._remote_streams.remove(s)
+            if s in self._streams:  # type: ignore[comparison-overlap]
+                self._streams.remove(s)  # type: ignore[arg-type]
+
+    def _close(self) -> None:
+        for entity in reversed(self._entities):
+            try:
+                entity.undeclare()
+            except Exception:
+                pass
+        self._entities.clear()
+        try:
+            self._session.close()
+        except Exception:
+            pass
+
+
+_CAPS = {c.value for c in Capability}
+
+
+class _Control:
+    def __init__(self, gripper: RemoteGripper) -> None:
+        self.gripper = gripper
+
+    def __enter__(self) -> RemoteGripper:
+        self.gripper.acquire_control()
+        return self.gripper
+
+    def __exit__(self, *exc: object) -> None:
+        if not self.gripper._closed and self.gripper._lost is None:
+            try:
+                self.gripper.release_control()
+            except GripperError:
+                pass

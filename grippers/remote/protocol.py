@@ -1,0 +1,270 @@
+"""The served key space and its JSON payloads, version 1 (docs/remote.md): pure code, no Zenoh, no I/O.
+
+Kept apart from the server and the client so that both sides (and a program in another language reading
+docs/remote.md) agree on one definition: the key of every resource, what each command takes, how a state
+or an error looks on the wire. Parsing is strict: a payload that does not follow the table is refused with a
+``ProtocolError`` before anything reaches a gripper.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+from dataclasses import dataclass, field
+from typing import Any
+
+from ..errors import GripperError, ProtocolError
+
+PROTOCOL_VERSION = 1
+PREFIX = "grippers"
+MAX_PAYLOAD = 64 * 1024  # bytes; a request is a few hundred, anything larger is refused unread
+NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,63}$")  # one key chunk, no wildcards or separators
+
+
+def check_name(name: str) -> str:
+    """A served name is one Zenoh key chunk: ``*``, ``$``, ``#``, ``?`` and ``/`` would change the key's
+    meaning (wildcards, selectors, extra chunks)."""
+    if not NAME_RE.match(name or ""):
+        raise ValueError(
+            f"served name {name!r}: letters, digits, '.', '_' and '-' only (1-64, not starting with . _ -)"
+        )
+    return name
+
+
+def token_key(name: str) -> str:
+    """Liveliness token of a served gripper: present while it is served (presence and discovery)."""
+    return f"{PREFIX}/{name}"
+
+
+def state_key(name: str) -> str:
+    """States published at the server's rate and on every change; also a queryable (latest reading)."""
+    return f"{PREFIX}/{name}/state"
+
+
+def info_key(name: str) -> str:
+    return f"{PREFIX}/{name}/info"
+
+
+def command_key(name: str, command: str) -> str:
+    return f"{PREFIX}/{name}/cmd/{command}"
+
+
+def client_key(name: str, client: str) -> str:
+    """Liveliness token of a connected client; the control lease is held by it."""
+    return f"{PREFIX}/{name}/client/{client}"
+
+
+def all_clients_key(name: str) -> str:
+    return f"{PREFIX}/{name}/client/*"
+
+
+DISCOVERY_KEY = f"{PREFIX}/*"
+
+
+# --- commands ---------------------------------------------------------------------------------------------
+
+NUMBER, OPT_NUMBER, TEXT, ACTION = "number", "number?", "text", "action"
+
+
+@dataclass(frozen=True)
+class Command:
+    """One command: its arguments (name -> kind) and how it meets the control lease.
+
+    ``lease``: "take" (a motion: takes a free lease), "check" (changes the device: refused while another
+    client holds the lease, does not take it), "free" (anyone, always: stop, fast_stop, reads).
+    ``motion``: replies ``pending`` at once, then the final result when the motion ends.
+    """
+
+    args: dict[str, str] = field(default_factory=dict)
+    lease: str = "free"
+    motion: bool = False
+
+
+COMMANDS: dict[str, Command] = {
+    "home": Command({"timeout": OPT_NUMBER}, "take", True),
+    "move": Command({"width": NUMBER, "speed": OPT_NUMBER, "timeout": OPT_NUMBER}, "take", True),
+    "grasp": Command(
+        {"width": NUMBER, "speed": OPT_NUMBER, "force": OPT_NUMBER, "timeout": OPT_NUMBER}, "take", True
+    ),
+    "release": Command({"width": OPT_NUMBER, "speed": OPT_NUMBER, "timeout": OPT_NUMBER}, "take", True),
+    "stop": Command(),
+    "fast_stop": Command(),
+    "acknowledge": Command(lease="check"),
+    "temperature": Command(),
+    "device_tag": Command(),
+    "set_device_tag": Command({"tag": TEXT}, "check"),
+    "set_soft_limits": Command({"min_width": NUMBER, "max_width": NUMBER}, "check"),
+    "clear_soft_limits": Command(lease="check"),
+    # The lease itself: acquire (with g.control()) and release; never touches the gripper.
+    "control": Command({"action": ACTION}),
+}
+CONTROL_ACTIONS = ("acquire", "release")
+
+
+@dataclass(frozen=True)
+class Request:
+    command: str
+    client: str
+    label: str
+    args: dict[str, Any]
+
+
+def _number(value: Any, name: str, command: str) -> float:
+    # bool is an int in Python, but true is not a width.
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+        raise ProtocolError(f"argument {name!r} must be a finite number, not {value!r}", command=command)
+    return float(value)
+
+
+def decode_json(data: bytes, command: str) -> Any:
+    if len(data) > MAX_PAYLOAD:
+        raise ProtocolError(f"payload of {len(data)} bytes exceeds {MAX_PAYLOAD}", command=command)
+    try:
+        return json.loads(data.decode("utf-8"), parse_constant=_no_constant)
+    except (UnicodeDecodeError, ValueError, RecursionError) as exc:
+        raise ProtocolError(f"payload is not UTF-8 JSON: {exc}", command=command) from None
+
+
+def _no_constant(name: str) -> Any:
+    raise ValueError(f"{name} is not JSON")
+
+
+def parse_request(command: str, data: bytes) -> Request:
+    """A request payload checked against the command table; ProtocolError names what is wrong."""
+    spec = COMMANDS.get(command)
+    if spec is None:
+        raise ProtocolError(f"unknown command {command!r}", command=command)
+    doc = decode_json(data, command) if data else {}
+    if not isinstance(doc, dict):
+        raise ProtocolError(f"a request is a JSON object, not {type(doc).__name__}", command=command)
+    unknown = set(doc) - {"v", "client", "label", "args"}
+    if unknown:
+        raise ProtocolError(f"unknown field(s) {', '.join(sorted(unknown))}", command=command)
+    version = doc.get("v", PROTOCOL_VERSION)
+    if version != PROTOCOL_VERSION:
+        raise ProtocolError(
+            f"protocol version {version!r}; this server speaks {PROTOCOL_VERSION}", command=command
+        )
+    client, label = doc.get("client", ""), doc.get("label", "")
+    if not isinstance(client, str) or len(client) > 128 or not isinstance(label, str) or len(label) > 256:
+        raise ProtocolError("client and label must be short strings", command=command)
+    raw = doc.get("args", {})
+    if not isinstance(raw, dict):
+        raise ProtocolError("args must be a JSON object", command=command)
+    extra = set(raw) - set(spec.args)
+    if extra:
+        known = ", ".join(spec.args) or "none"
+        raise ProtocolError(
+            f"unknown argument(s) {', '.join(sorted(extra))} (takes: {known})", command=command
+        )
+    args: dict[str, Any] = {}
+    for name, kind in spec.args.items():
+        value = raw.get(name)
+        if value is None:
+            if kind in (NUMBER, TEXT, ACTION):
+                raise ProtocolError(f"missing argument {name!r}", command=command)
+            args[name] = None
+        elif kind in (NUMBER, OPT_NUMBER):
+            args[name] = _number(value, name, command)
+        elif kind == TEXT:
+            if not isinstance(value, str) or len(value) > 256:
+                raise ProtocolError(f"argument {name!r} must be a string", command=command)
+            args[name] = value
+        else:
+            if value not in CONTROL_ACTIONS:
+                raise ProtocolError(f"action must be one of {', '.join(CONTROL_ACTIONS)}", command=command)
+            args[name] = value
+    if spec.lease != "free" and not client:
+        raise ProtocolError("a command that needs the lease must name its client", command=command)
+    return Request(command, client, label, args)
+
+
+def encode_request(client: str, label: str, args: dict[str, Any]) -> bytes:
+    return dumps({"v": PROTOCOL_VERSION, "client": client, "label": label, "args": args})
+
+
+def dumps(doc: Any) -> bytes:
+    # allow_nan=False: NaN is not JSON, and a reader in another language would choke on it.
+    return json.dumps(doc, separators=(",", ":"), allow_nan=False, default=str).encode()
+
+
+# --- replies ----------------------------------------------------------------------------------------------
+
+PENDING = "pending"
+DONE = "done"
+
+
+def encode_reply(status: str, result: Any = None) -> bytes:
+    return dumps({"v": PROTOCOL_VERSION, "status": status, "result": result})
+
+
+def parse_reply(data: bytes, command: str) -> tuple[str, Any]:
+    doc = decode_json(data, command)
+    if not isinstance(doc, dict) or doc.get("status") not in (PENDING, DONE):
+        raise ProtocolError(
+            f"reply is not a grippers/{PROTOCOL_VERSION} reply: {data[:200]!r}", command=command
+        )
+    return doc["status"], doc.get("result")
+
+
+# --- errors -----------------------------------------------------------------------------------------------
+
+
+def encode_error(exc: BaseException, command: str) -> bytes:
+    """An error as its class name, message and command; the client raises the same class again."""
+    if isinstance(exc, GripperError):
+        doc: dict[str, Any] = {
+            "error": type(exc).__name__,
+            "message": exc.message,
+            "command": exc.command or command,
+            "device": exc.device,
+        }
+        for extra in ("status", "status_name", "holder"):
+            if getattr(exc, extra, None) is not None:
+                doc[extra] = getattr(exc, extra)
+    else:  # a bug on the server: said as such, never as a device error
+        doc = {
+            "error": "GripperError",
+            "message": f"server error: {type(exc).__name__}: {exc}",
+            "command": command,
+        }
+    doc["v"] = PROTOCOL_VERSION
+    return dumps(doc)
+
+
+def error_classes() -> dict[str, type[GripperError]]:
+    """The exception classes that cross the wire by name; anything else arrives as a GripperError."""
+    from .. import errors
+    from ..gripper import FastStopActive
+
+    table: dict[str, type[GripperError]] = {"FastStopActive": FastStopActive}
+    for name in errors.__all__:
+        cls = getattr(errors, name)
+        if isinstance(cls, type) and issubclass(cls, GripperError):
+            table[name] = cls
+    return table
+
+
+def decode_error(data: bytes, command: str, device: str) -> GripperError:
+    try:
+        doc = decode_json(data, command)
+    except ProtocolError:
+        doc = None
+    if not isinstance(doc, dict) or not isinstance(doc.get("error"), str):
+        return ProtocolError(f"undecodable error reply: {data[:200]!r}", device=device, command=command)
+    name, message = doc["error"], str(doc.get("message", ""))
+    cmd = doc.get("command") if isinstance(doc.get("command"), str) else command
+    cls = error_classes().get(name)
+    if cls is None:
+        return GripperError(f"{name}: {message}", device=device, command=cmd)
+    kwargs: dict[str, Any] = {"device": device, "command": cmd}
+    if cls.__name__ == "CommandFailed":
+        kwargs["status"] = doc.get("status")
+        kwargs["status_name"] = doc.get("status_name")
+    if cls.__name__ == "AccessDenied":
+        kwargs["holder"] = doc.get("holder")
+    try:
+        return cls(message, **kwargs)
+    except TypeError:  # a class with another constructor: keep the name and the message
+        return GripperError(f"{name}: {message}", device=device, command=cmd)

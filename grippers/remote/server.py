@@ -1,0 +1,397 @@
+"""``grippers serve``: open grippers, serve each one under ``grippers/<name>/…`` (docs/remote.md).
+
+Threads, and why: Zenoh calls our callbacks on its own network threads (``indirect=False``: no extra Python
+thread per queryable), which only hand the query over. Reads and settings run on a shared pool; stop and
+fast_stop on a pool of their own so they never queue behind reads; each motion runs on its own thread,
+which answers ``pending`` at once and the result when the motion ends. One publisher thread per gripper
+reads the state at the rate, publishes it and watches the lease.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from concurrent.futures import ThreadPoolExecutor
+from typing import Any
+
+from ..errors import ConnectionLost, GripperError, ProtocolError
+from ..gripper import Gripper
+from . import payloads, protocol
+from .lease import Lease
+from .session import DEFAULT_LISTEN, import_zenoh, make_config, open_session, own_locators
+
+log = logging.getLogger(__name__)
+
+CLOSE_JOIN_S = 5.0
+
+
+class ServedGripper:
+    """One gripper on the key space: its token, state publisher, queryables and control lease."""
+
+    def __init__(self, server: Server, name: str, gripper: Gripper) -> None:
+        self.server = server
+        self.name = name
+        self.gripper = gripper
+        self.lease = Lease(server.lease_timeout)
+        self._lease_lock = threading.Lock()
+        self._pub_lock = threading.Lock()
+        self._seq = 0
+        self._latest: bytes | None = None
+        self._lost: GripperError | None = None
+        self._stop = threading.Event()
+        self._kick = threading.Event()
+        self._motions: dict[threading.Thread, str] = {}  # running motion -> the client that started it
+        self._motions_lock = threading.Lock()
+        self._declared: list[Any] = []
+        self._token: Any = None
+        self._info_doc: bytes | None = None
+        self._thread = threading.Thread(target=self._publish_loop, name=f"grippers-serve-{name}", daemon=True)
+
+    # -- set-up and tear-down -----------------------------------------------------------------------------
+
+    def start(self) -> None:
+        zenoh = import_zenoh()
+        session = self.server.session
+        callback = zenoh.handlers.Callback
+        info = self.gripper.info()
+        caps = sorted(c.value for c in self.gripper.capabilities)
+        profile_data = self.gripper.profile.model_dump(mode="json")
+        self._info_doc = protocol.dumps(payloads.info_doc(self.name, info, caps, profile_data))
+        self._publisher = session.declare_publisher(protocol.state_key(self.name))
+        self._declared.append(self._publisher)
+        self._declared.append(
+            session.declare_queryable(
+                protocol.state_key(self.name), callback(self._on_state, indirect=False), complete=True
+            )
+        )
+        self._declared.append(
+            session.declare_queryable(
+                protocol.info_key(self.name), callback(self._on_info, indirect=False), complete=True
+            )
+        )
+        for command in protocol.COMMANDS:
+            key = protocol.command_key(self.name, command)
+            handler = callback(lambda q, c=command: self._on_command(q, c), indirect=False)
+            self._declared.append(session.declare_queryable(key, handler, complete=True))
+        self._declared.append(
+            session.liveliness().declare_subscriber(
+                protocol.all_clients_key(self.name), callback(self._on_client, indirect=False), history=True
+            )
+        )
+        self._refresh()
+        self._thread.start()
+        self._token = session.liveliness().declare_token(protocol.token_key(self.name))
+
+    def close(self) -> None:
+        self._stop.set()
+        self._withdraw()
+        if self._thread.is_alive():
+            self._thread.join(CLOSE_JOIN_S)
+        for entity in self._declared:
+            try:
+                entity.undeclare()
+            except Exception:  # already undeclared with a closed session
+                pass
+        self._declared.clear()
+        with self._motions_lock:
+            running = list(self._motions)
+        if running and self._lost is None:
+            # No one will see these motions end: a served gripper does not keep moving once unserved.
+            try:
+                self.gripper.stop()
+            except GripperError as exc:
+                log.error("%s: stop at shutdown failed: %s", self.name, exc)
+        for t in running:
+            t.join(CLOSE_JOIN_S)
+
+    def _withdraw(self) -> None:
+        token, self._token = self._token, None
+        if token is not None:
+            try:
+                token.undeclare()
+            except Exception:
+                pass
+
+    # -- state ----------------------------------------------------------------------------------------------
+
+    def _refresh(self) -> None:
+        """Read, publish and cache one state; a lost gripper withdraws its token (clients: ConnectionLost)."""
+        if self._lost is not None:
+            return
+        with self._pub_lock:
+            try:
+                state = self.gripper.state()
+            except ConnectionLost as exc:
+                self._lose(exc)
+                return
+            except GripperError as exc:  # one missed reading (a timeout): the next tick tries again
+                log.warning("%s: state read failed: %s", self.name, exc)
+                return
+            self._seq += 1
+            data = protocol.dumps(payloads.state_doc(state, self._seq))
+            self._latest = data
+            self._publisher.put(data)
+
+    def _lose(self, exc: GripperError) -> None:
+        self._lost = ConnectionLost(f"the served gripper is gone: {exc.message}", device=self.name)
+        log.error("%s: gripper lost (%s); no longer served", self.name, exc)
+        self._withdraw()
+
+    def _publish_loop(self) -> None:
+        period = 1.0 / self.server.rate
+        next_at = time.monotonic()
+        while not self._stop.is_set() and self._lost is None:
+            self._refresh()
+            with self._lease_lock:
+                expired = self.lease.expired(time.monotonic())
+            if expired is not None:
+                self._stop_motions_of(expired)
+            next_at += period
+            delay = next_at - time.monotonic()
+            if delay < 0:
+                next_at, delay = time.monotonic(), 0.0
+            if self._kick.wait(delay):
+                self._kick.clear()
+
+    # -- queries ------------------------------------------------------------------------------------------
+
+    def _on_state(self, query: Any) -> None:
+        # Answered on Zenoh's thread: the latest reading is in memory, nothing blocks.
+        with query:
+            if self._lost is not None:
+                query.reply_err(protocol.encode_error(self._lost, "state"))
+            elif self._latest is None:
+                query.reply_err(
+                    protocol.encode_error(GripperError("no state read yet", device=self.name), "state")
+                )
+            else:
+                query.reply(query.key_expr, self._latest)
+
+    def _on_info(self, query: Any) -> None:
+        with query:
+            if self._lost is not None:
+                query.reply_err(protocol.encode_error(self._lost, "info"))
+            else:
+                query.reply(query.key_expr, self._info_doc)
+
+    def _on_command(self, query: Any, command: str) -> None:
+        pool = self.server.urgent if command in ("stop", "fast_stop") else self.server.pool
+        try:
+            pool.submit(self._answer, query, command)
+        except RuntimeError:  # shutting down
+            with query:
+                query.reply_err(protocol.encode_error(ConnectionLost("the server is closing"), command))
+
+    def _answer(self, query: Any, command: str) -> None:
+        try:
+            payload = query.payload
+            request = protocol.parse_request(command, payload.to_bytes() if payload is not None else b"")
+            if self._lost is not None:
+                raise self._lost
+            spec = protocol.COMMANDS[command]
+            if spec.lease != "free":
+                with self._lease_lock:
+                    self.lease.check(
+                        request.client,
+                        request.label,
+                        command,
+                        spec.lease == "take",
+                        time.monotonic(),
+                        self.name,
+                    )
+            if spec.motion:
+                self._start_motion(query, request)
+                return  # the motion thread answers and finishes the query
+            result = self._execute(request)
+        except Exception as exc:
+            self._reply_error(query, exc, command)
+            query.drop()
+            return
+        try:
+            query.reply(query.key_expr, protocol.encode_reply(protocol.DONE, payloads.result_doc(result)))
+        finally:
+            query.drop()
+
+    def _reply_error(self, query: Any, exc: BaseException, command: str) -> None:
+        if not isinstance(exc, GripperError):
+            log.exception("%s %s: unexpected error", self.name, command)
+        try:
+            query.reply_err(protocol.encode_error(exc, command))
+        except Exception:  # the client is gone: nothing to tell
+            pass
+
+    def _execute(self, request: Any) -> Any:
+        g, a, command = self.gripper, request.args, request.command
+        if command == "control":
+            with self._lease_lock:
+                if a["action"] == "acquire":
+                    self.lease.acquire(request.client, request.label, time.monotonic(), self.name)
+                else:
+                    self.lease.release(request.client)
+            return None
+        try:
+            if command == "stop":
+                return g.stop()
+            if command == "fast_stop":
+                return g.fast_stop()
+            if command == "acknowledge":
+                return g.acknowledge()
+            if command == "temperature":
+                return g.temperature()
+            if command == "device_tag":
+                return g.device_tag()
+            if command == "set_device_tag":
+                return g.set_device_tag(a["tag"])
+            if command == "set_soft_limits":
+                return g.set_soft_limits(a["min_width"], a["max_width"])
+            if command == "clear_soft_limits":
+                return g.clear_soft_limits()
+        finally:
+            self._refresh()  # every change is published before the reply
+        raise ProtocolError(f"unknown command {command!r}", command=command)
+
+    # -- motions ------------------------------------------------------------------------------------------
+
+    def _start_motion(self, query: Any, request: Any) -> None:
+        thread = threading.Thread(
+            target=self._run_motion,
+            args=(query, request),
+            name=f"grippers-serve-{self.name}-{request.command}",
+        )
+        thread.daemon = True
+        with self._motions_lock:
+            self._motions[thread] = request.client
+        thread.start()
+
+    def _run_motion(self, query: Any, request: Any) -> None:
+        g, a = self.gripper, request.args
+        try:
+            query.reply(query.key_expr, protocol.encode_reply(protocol.PENDING, None))
+            self._kick.set()
+            if request.command == "home":
+                result: Any = g.home(timeout=a["timeout"])
+            elif request.command == "move":
+                result = g.move(a["width"], a["speed"], timeout=a["timeout"])
+            elif request.command == "grasp":
+                result = g.grasp(a["width"], a["speed"], a["force"], timeout=a["timeout"])
+            else:
+                result = g.release(a["width"], a["speed"], timeout=a["timeout"])
+            self._refresh()
+            query.reply(query.key_expr, protocol.encode_reply(protocol.DONE, payloads.result_doc(result)))
+        except Exception as exc:
+            self._refresh()
+            self._reply_error(query, exc, request.command)
+        finally:
+            query.drop()
+            with self._motions_lock:
+                self._motions.pop(threading.current_thread(), None)
+
+    # -- clients and the lease ------------------------------------------------------------------------------
+
+    def _on_client(self, sample: Any) -> None:
+        client = str(sample.key_expr).rsplit("/", 1)[-1]
+        zenoh = import_zenoh()
+        if sample.kind == zenoh.SampleKind.PUT:
+            with self._lease_lock:
+                self.lease.client_seen(client)
+            return
+        try:
+            self.server.urgent.submit(self._client_gone, client)
+        except RuntimeError:
+            pass
+
+    def _client_gone(self, client: str) -> None:
+        with self._lease_lock:
+            held = self.lease.client_gone(client)
+        if held:
+            self._stop_motions_of(client)
+
+    def _stop_motions_of(self, client: str) -> None:
+        """The holder vanished: stop what it started (a motion no one watches must not go on)."""
+        with self._motions_lock:
+            mine = [t for t, owner in self._motions.items() if owner == client]
+        if not mine:
+            return
+        log.warning("%s: client %s vanished mid-motion; stopping", self.name, client)
+        try:
+            self.gripper.stop()
+        except GripperError as exc:
+            log.error("%s: stop after the holder vanished failed: %s", self.name, exc)
+        self._kick.set()
+
+
+class Server:
+    """A Zenoh session serving several grippers. ``close()`` withdraws them and closes every gripper."""
+
+    def __init__(
+        self,
+        grippers: dict[str, Gripper],
+        *,
+        listen: list[str] | None = None,
+        connect: list[str] | None = None,
+        config_file: str | None = None,
+        scout: bool = False,
+        rate: float = 50.0,
+        lease_timeout: float = 1.0,
+    ) -> None:
+        for name in grippers:
+            protocol.check_name(name)
+        if not rate > 0 or not lease_timeout > 0:
+            raise ValueError("rate and lease timeout must be above 0")
+        self.grippers = grippers
+        self.rate = rate
+        self.lease_timeout = lease_timeout
+        if listen is None and not config_file:
+            listen = [DEFAULT_LISTEN]
+        self._listen = listen or []
+        self._config = make_config(
+            mode="peer",
+            listen=listen,
+            connect=connect,
+            config_file=config_file,
+            scout=scout,
+            lease_s=lease_timeout,
+        )
+        n = len(grippers)
+        self.pool = ThreadPoolExecutor(max_workers=4 + 2 * n, thread_name_prefix="grippers-serve")
+        self.urgent = ThreadPoolExecutor(max_workers=2 + n, thread_name_prefix="grippers-serve-stop")
+        self.session: Any = None
+        self.served: list[ServedGripper] = []
+        self.locators: list[str] = []
+
+    def start(self) -> None:
+        self.session = open_session(self._config, "grippers serve")
+        try:
+            for name, gripper in self.grippers.items():
+                served = ServedGripper(self, name, gripper)
+                self.served.append(served)
+                served.start()
+            given = [e for e in self._listen if e.rsplit(":", 1)[-1] != "0"]
+            self.locators = own_locators(self.session) or given
+        except BaseException:
+            self.close()
+            raise
+
+    def url(self, name: str) -> str:
+        """The URL that opens a served gripper from another process (the first endpoint we listen on)."""
+        if self.locators:
+            return f"zenoh://{name}?connect={self.locators[0]}"
+        return f"zenoh://{name}"
+
+    def close(self) -> None:
+        for served in self.served:
+            served.close()
+        self.urgent.shutdown(wait=True, cancel_futures=True)
+        self.pool.shutdown(wait=True, cancel_futures=True)
+        if self.session is not None:
+            try:
+                self.session.close()
+            except Exception:
+                pass
+            self.session = None
+        for gripper in self.grippers.values():
+            try:
+                gripper.close()
+            except Exception as exc:  # every gripper is closed, even after one fails
+                log.error("closing %s: %s", gripper, exc)

@@ -1,0 +1,98 @@
+"""The pure parts: request parsing, errors across the wire, the lease bookkeeping (no Zenoh involved)."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+import grippers
+from grippers.remote import protocol
+from grippers.remote.lease import Lease
+
+
+@pytest.mark.parametrize("name", sorted(protocol.error_classes()))
+def test_every_known_error_class_comes_back_as_itself(name: str) -> None:
+    cls = protocol.error_classes()[name]
+    kwargs = {"holder": "ui"} if name == "AccessDenied" else {}
+    if name == "CommandFailed":
+        kwargs = {"status": 18, "status_name": "E_CMD_FAILED"}
+    exc = cls("it went wrong", device="server-side", command="move", **kwargs)
+    back = protocol.decode_error(protocol.encode_error(exc, "move"), "move", "client-side")
+    assert type(back) is cls
+    assert back.message == "it went wrong" and back.command == "move" and back.device == "client-side"
+    for attr, value in kwargs.items():
+        assert getattr(back, attr) == value
+
+
+def test_unknown_and_foreign_errors() -> None:
+    doc = json.dumps({"error": "SomethingNew", "message": "m", "command": "move"}).encode()
+    back = protocol.decode_error(doc, "move", "dev")
+    assert type(back) is grippers.GripperError and "SomethingNew" in str(back)
+    bug = protocol.decode_error(protocol.encode_error(KeyError("x"), "move"), "move", "dev")
+    assert type(bug) is grippers.GripperError and "server error" in str(bug)
+    assert isinstance(protocol.decode_error(b"\x00garbage", "move", "dev"), grippers.ProtocolError)
+
+
+def test_request_parsing() -> None:
+    req = protocol.parse_request("move", protocol.encode_request("c1", "ui", {"width": 0.05}))
+    assert req.args == {"width": 0.05, "speed": None, "timeout": None} and req.client == "c1"
+    with pytest.raises(grippers.ProtocolError, match="needs the lease"):
+        protocol.parse_request("move", b'{"args": {"width": 0.05}}')
+    assert protocol.parse_request("stop", b"").args == {}
+    with pytest.raises(grippers.ProtocolError, match="unknown command"):
+        protocol.parse_request("explode", b"")
+    with pytest.raises(grippers.ProtocolError, match="not JSON"):
+        protocol.parse_request("move", b'{"client": "c", "args": {"width": Infinity}}')
+    with pytest.raises(grippers.ProtocolError, match="finite"):
+        protocol.parse_request("move", b'{"client": "c", "args": {"width": 1e999}}')
+
+
+@pytest.mark.parametrize("name", ["a/b", "*", "**", "a$b", "", "x" * 65, "-a", "a?b", "a#b"])
+def test_served_names_are_one_plain_key_chunk(name: str) -> None:
+    with pytest.raises(ValueError):
+        protocol.check_name(name)
+
+
+def test_lease_bookkeeping() -> None:
+    lease = Lease(timeout=1.0)
+    lease.check("a", "robot", "move", take=True, now=0.0, device="g")
+    lease.check("a", "robot", "move", take=True, now=0.1, device="g")
+    with pytest.raises(grippers.AccessDenied, match="robot") as denied:
+        lease.check("b", "ui", "move", take=True, now=0.2, device="g")
+    assert denied.value.holder == "robot"
+    assert lease.expired(0.5) is None
+    assert lease.expired(1.5) == "a"  # its token never seen: freed after the timeout
+    lease.check("b", "ui", "home", take=True, now=2.0, device="g")
+    lease.client_seen("b")
+    assert lease.expired(10.0) is None  # alive: held as long as it lives
+    assert lease.client_gone("b") is True and lease.holder is None
+    assert lease.client_gone("b") is False
+
+
+def test_help_and_import_do_not_load_zenoh() -> None:
+    import subprocess
+    import sys
+
+    code = (
+        "import sys, grippers, grippers.errors\n"
+        "from grippers.cli import build_parser\n"
+        "build_parser().format_help()\n"
+        "import grippers.remote.protocol, grippers.remote.lease\n"
+        "print('zenoh' in sys.modules)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "False"
+
+
+def test_remote_benchmarks_are_registered() -> None:
+    import sys
+    from pathlib import Path
+
+    repo = Path(__file__).resolve().parents[2]
+    if str(repo) not in sys.path:
+        sys.path.insert(0, str(repo))
+    from benchmarks import run
+
+    assert {8, 9, 10} <= set(run._targets())
