@@ -186,6 +186,57 @@ class WsgGripper(Gripper):
     def _close(self) -> None:
         self._client.close()
 
+    # -- streamed targets and reconnection (hooks of grippers/servo.py and grippers/reconnect.py) -------
+
+    def _servo_begin(self) -> None:
+        self._servo_pending: Any = None
+        self._servo_force: float | None = None
+
+    def _servo(self, target: Any) -> bool:
+        c = self._client
+        if target.force is not None and target.force != self._servo_force:
+            c.set_force_limit(target.force)  # 32h: preposition itself has no force argument
+            self._servo_force = target.force
+        pending = self._servo_pending
+        if pending is not None and not pending.done():
+            # WSG manual 4.0.x and 2.2.0 §3.2.2: a motion command while another runs is refused with
+            # E_ALREADY_RUNNING ("Issue a STOP command, first"). STOP (22h, §3.2.3) ends the running one at
+            # once; its final reply (E_CMD_ABORTED) comes before STOP's own, so the 21h slot is free after it.
+            c.stop()
+        try:
+            self._servo_pending = c.preposition(target.width * 1000, target.speed * 1000, wait=False)
+        except CommandFailed as exc:
+            if exc.status != Status.E_ALREADY_RUNNING:
+                raise
+            c.stop()  # a motion we did not start (another program, the web interface) was running
+            self._servo_pending = c.preposition(target.width * 1000, target.speed * 1000, wait=False)
+        return True
+
+    def _servo_end(self) -> None:
+        pending = getattr(self, "_servo_pending", None)
+        if pending is not None and not pending.done():
+            self._client.stop()  # the next motion command would meet E_ALREADY_RUNNING otherwise
+        self._servo_pending = None
+
+    def _link_alive(self) -> bool:
+        return self._client.connection_lost is None and not self._client.closed
+
+    def _reconnect(self) -> None:
+        old = self._client
+        new = WsgClient.from_url(self.url, device=old.device, timeout=old.timeout,
+                                 motion_timeout=old.motion_timeout)
+        try:
+            new.system_info()  # the firmware version decides which commands exist
+            # Manual 4.0.x §1.4.2: a TCP connection closed without 07h leaves the gripper in FAST STOP.
+            fast = bool(new.system_state() & SystemFlags.SF_FAST_STOP)
+        except BaseException:
+            new.close()
+            raise
+        self._client = new
+        self._fast_stopped = fast
+        self._servo_pending = None
+        old.close()
+
 
 def _narrow(limits: Limits, device: SystemLimits) -> Limits:
     """The profile's limits within the device's own 53h limits (mm, mm/s, N in; SI out)."""
