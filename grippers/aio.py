@@ -14,6 +14,7 @@ device before ``CancelledError`` propagates.
 from __future__ import annotations
 
 import asyncio
+import dataclasses
 import math
 import os
 import queue
@@ -21,7 +22,7 @@ import threading
 from collections.abc import AsyncIterator, Awaitable, Callable, Generator
 from typing import Any, Generic, TypeVar
 
-from .errors import GripperError, GripperTimeout
+from .errors import ConnectionLost, GripperError, GripperTimeout
 from .gripper import DeviceInfo, GraspResult, Gripper, GripperState, MotionResult
 
 __all__ = ["AsyncGripper", "AsyncMotionHandle", "open"]
@@ -279,13 +280,24 @@ class AsyncGripper:
         period = 1.0 / rate_hz
         loop = asyncio.get_running_loop()
         next_at = loop.time()
-        read = getattr(self.sync, "_stream_read", None) or self.sync.state
+        gap = False
         while not self._closed:
             try:
-                item = await self._call(read)
+                item: GripperState | None = await self._call(self.sync.state)
             except GripperTimeout:
                 item = None
+            except ConnectionLost:
+                if self.sync._watch is None:
+                    raise
+                while not self.sync.connected:  # reconnect=true: pause, no worker held, until it is back
+                    if self._closed or self.sync._closed:
+                        return
+                    await asyncio.sleep(min(period, 0.05))
+                gap, next_at = True, loop.time()
+                continue
             if item is not None:
+                if gap:
+                    item, gap = dataclasses.replace(item, gap=True), False
                 yield item
             next_at += period
             delay = next_at - loop.time()

@@ -66,6 +66,7 @@ class GripperState:
     referenced: bool
     faults: tuple[str, ...]
     timestamp: float  # time.time() when the snapshot was taken
+    gap: bool = False  # the first state after a reconnection: states were missed before it (reconnect=true)
 
     @property
     def fast_stopped(self) -> bool:
@@ -494,7 +495,13 @@ class Gripper(ABC):
         """States at ``rate_hz``; an iterator, or calls ``callback`` from a background thread. Close it."""
         with self._lock:  # registered atomically with the closed check, so close() stops every stream
             self._check_open("stream")
-            s = StateStream(self._state, rate_hz, callback, on_close=self._forget_stream)
+            read: Callable[[], GripperState] = self._state
+            if self._watch is not None:  # reconnect=true: the stream pauses over an outage and marks the gap
+                holder: list[StateStream] = []
+                read = self._watch.stream_reader(read, lambda: bool(holder) and holder[0]._stop.is_set())
+            s = StateStream(read, rate_hz, callback, on_close=self._forget_stream)
+            if self._watch is not None:
+                holder.append(s)
             self._streams.append(s)
         return s
 

@@ -223,6 +223,7 @@ class WsgGripper(Gripper):
 
     def _reconnect(self) -> None:
         old = self._client
+        old.close()  # first: a UDP or serial link must free its port for the new one
         new = WsgClient.from_url(self.url, device=old.device, timeout=old.timeout,
                                  motion_timeout=old.motion_timeout)
         try:
@@ -235,7 +236,6 @@ class WsgGripper(Gripper):
         self._client = new
         self._fast_stopped = fast
         self._servo_pending = None
-        old.close()
 
 
 def _narrow(limits: Limits, device: SystemLimits) -> Limits:
