@@ -36,7 +36,14 @@ def _targets() -> dict[int, Callable[[bool], list[Result]]]:
         5: stepfoc_bus.run,
         6: startup.run,
         7: lambda quick: [wsg_client.memory(quick)],
+        10: _servo,  # issue 15 (benchmarks/servo.py)
     }
+
+
+def _servo(quick: bool) -> list[Result]:
+    from benchmarks import servo
+
+    return servo.run(quick)
 
 
 def main(argv: list[str] | None = None) -> int:

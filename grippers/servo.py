@@ -22,6 +22,7 @@ from .errors import GripperError
 log = logging.getLogger(__name__)
 
 IDLE_WAIT = 0.5  # s: the sender thread's longest sleep; ending servoing wakes it at once anyway
+RETRY = 0.005  # s: a deferred target is offered to the backend again this often (unless a newer one comes)
 
 
 @dataclass(frozen=True, slots=True)
@@ -41,6 +42,7 @@ class ServoStats:
     sent: int = 0
     coalesced: int = 0
     unchanged: int = 0  # equal to what the device already heads for: nothing to send (MSG's 61 latch)
+    deferred: int = 0  # offers the backend put off (WSG: close to the running motion's target)
     failed: int = 0
 
     @property
@@ -53,16 +55,18 @@ class ServoLoop:
 
     ``send`` is the backend's non-blocking primitive: it puts one target on the wire and returns once the
     device has accepted it (WSG: E_CMD_PENDING; MSG: the 60 reply), never waiting for the motion; it returns
-    False when the target needed no frame at all (the device already heads for exactly that).
+    False when the target needed no frame at all (the device already heads for exactly that), and None to put
+    it off (the loop offers it again every :data:`RETRY` seconds until a newer target replaces it).
     """
 
-    def __init__(self, name: str, send: Callable[[ServoTarget], bool]) -> None:
+    def __init__(self, name: str, send: Callable[[ServoTarget], bool | None]) -> None:
         self._send = send
         self._cond = threading.Condition()
         self._slot: ServoTarget | None = None
         self._error: GripperError | None = None
         self._ended = False
         self._busy = False
+        self._deferring = False  # a target put off by the backend waits to be offered again
         self.stats = ServoStats()
         self.last_sent: ServoTarget | None = None
         self._thread = threading.Thread(target=self._run, name=f"grippers-servo {name}", daemon=True)
@@ -87,14 +91,24 @@ class ServoLoop:
             self._cond.notify()
 
     def _run(self) -> None:
+        deferred: ServoTarget | None = None
         while True:
             with self._cond:
-                while self._slot is None and not self._ended:
+                if deferred is not None and self._slot is None and not self._ended:
+                    self._cond.wait(RETRY)
+                while self._slot is None and deferred is None and not self._ended:
                     self._cond.wait(IDLE_WAIT)
                 if self._ended:
                     return
-                target, self._slot = self._slot, None
+                if self._slot is not None:
+                    if deferred is not None:
+                        self.stats.coalesced += 1  # the put-off target never went out: a newer one did
+                    target, self._slot, deferred = self._slot, None, None
+                else:
+                    assert deferred is not None
+                    target, deferred = deferred, None
                 self._busy = True
+                self._deferring = False
             try:
                 on_wire = self._send(target)
             except GripperError as exc:
@@ -107,11 +121,15 @@ class ServoLoop:
                     self.stats.failed += 1
             else:
                 with self._cond:
-                    if on_wire:
+                    if on_wire is None:
+                        deferred = target
+                        self._deferring = True
+                        self.stats.deferred += 1
+                    elif on_wire:
                         self.stats.sent += 1
+                        self.last_sent = target
                     else:
                         self.stats.unchanged += 1
-                    self.last_sent = target
             finally:
                 with self._cond:
                     self._busy = False
@@ -120,9 +138,10 @@ class ServoLoop:
     def flush(self, timeout: float) -> bool:
         """Wait until the slot is empty and no send is in flight (tests, benchmarks); False on timeout."""
         with self._cond:
-            return self._cond.wait_for(
-                lambda: self._ended or (self._slot is None and not self._busy), timeout
-            )
+            def idle() -> bool:
+                return self._ended or (self._slot is None and not self._busy and not self._deferring)
+
+            return self._cond.wait_for(idle, timeout)
 
     def end(self, timeout: float = 5.0) -> GripperError | None:
         """Drop the unsent target and stop the thread (after the send in flight, bounded by ``timeout``);

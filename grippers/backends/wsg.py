@@ -188,17 +188,30 @@ class WsgGripper(Gripper):
 
     # -- streamed targets and reconnection (hooks of grippers/servo.py and grippers/reconnect.py) -------
 
+    # A running servo motion is not interrupted for a new target within this distance (m) of its own: STOP
+    # halts the fingers at once (manual §3.2.3), so re-targeting every control step would restart from rest
+    # each time and never reach speed. The new target is offered again when the motion ends (latest wins).
+    servo_tolerance = 0.002
+
     def _servo_begin(self) -> None:
         self._servo_pending: Any = None
+        self._servo_aim: tuple[float, float] | None = None  # (width, speed) of the running servo motion
         self._servo_force: float | None = None
 
-    def _servo(self, target: Any) -> bool:
+    def _servo(self, target: Any) -> bool | None:
         c = self._client
         if target.force is not None and target.force != self._servo_force:
             c.set_force_limit(target.force)  # 32h: preposition itself has no force argument
             self._servo_force = target.force
         pending = self._servo_pending
-        if pending is not None and not pending.done():
+        running = pending is not None and not pending.done()
+        if running and self._servo_aim is not None:
+            width, speed = self._servo_aim
+            if abs(target.width - width) <= self.servo_tolerance and target.speed == speed:
+                return None  # heading close by already; offered again once this motion has ended
+        elif not running and self._servo_aim == (target.width, target.speed):
+            return False  # already there
+        if running:
             # WSG manual 4.0.x and 2.2.0 §3.2.2: a motion command while another runs is refused with
             # E_ALREADY_RUNNING ("Issue a STOP command, first"). STOP (22h, §3.2.3) ends the running one at
             # once; its final reply (E_CMD_ABORTED) comes before STOP's own, so the 21h slot is free after it.
@@ -210,6 +223,7 @@ class WsgGripper(Gripper):
                 raise
             c.stop()  # a motion we did not start (another program, the web interface) was running
             self._servo_pending = c.preposition(target.width * 1000, target.speed * 1000, wait=False)
+        self._servo_aim = (target.width, target.speed)
         return True
 
     def _servo_end(self) -> None:
