@@ -114,7 +114,7 @@ class LinkWatch:
             self.attempts = 0
             self.last_error = error
             self._cond.notify_all()
-        log.warning("%s: link lost (%s); reconnecting", self._g.name, error)
+        log.info("%s: link lost (%s); reconnecting", self._g.name, error)
         self._tell(False)
 
     def wait_connected(self, timeout: float) -> bool:
@@ -191,7 +191,7 @@ class LinkWatch:
                     self._connected = True
                     self.epoch += 1
                     self._cond.notify_all()
-                log.warning("%s: link back after %d attempt(s)", self._g.name, self.attempts + 1)
+                log.info("%s: link back after %d attempt(s)", self._g.name, self.attempts + 1)
                 self._tell(True)
                 return
             self.attempts += 1
