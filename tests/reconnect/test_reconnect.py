@@ -136,3 +136,23 @@ def test_a_backend_without_the_hook_refuses_reconnect() -> None:
     assert Gripper._reconnect is not None
     with grippers.open("sim://wsg50?time_scale=20") as g, pytest.raises(GripperError):
         Gripper._reconnect(g)
+
+
+def test_wsg_udp_simulator_restarted_on_the_same_port(restartable) -> None:  # noqa: ANN001
+    """UDP has no connection to lose: a device that stops answering is lost after two missed heartbeats."""
+    import socket
+
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    sim = restartable("wsg", "--listen", f"udp://127.0.0.1:{port}", "--time-scale", "20")
+    with grippers.open(f"{sim.url}&reconnect=true&{FAST}", timeout=0.2) as g:
+        g.home()
+        sim.kill()
+        wait_for(lambda: not g.connected)
+        with pytest.raises(ConnectionLost):
+            g.move(0.02)
+        sim.start()
+        wait_for(lambda: g.connected)
+        g.home()
+        assert abs(g.move(0.02).width - 0.02) < 1e-3
