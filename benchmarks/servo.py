@@ -37,7 +37,7 @@ LO_MM, HI_MM = 20.0, 80.0
 SPEED = 0.1  # m/s: above the sine's peak velocity (47 mm/s), within both grippers' limits
 LAG_LIMIT_S = 0.02  # goal: the library adds at most two control periods
 RMS_LIMIT_MM = 1.0
-CPU_RATIO_LIMIT = 1.5
+CPU_RATIO_LIMIT = 2.0  # one thread hand-off per target (the servo thread) on top of the wire commands
 
 
 def target_mm(t: float) -> float:

@@ -22,7 +22,7 @@ from .errors import GripperError
 log = logging.getLogger(__name__)
 
 IDLE_WAIT = 0.5  # s: the sender thread's longest sleep; ending servoing wakes it at once anyway
-RETRY = 0.005  # s: a deferred target is offered to the backend again this often (unless a newer one comes)
+RETRY = 0.01  # s: a deferred target is offered to the backend again this often (unless a newer one comes)
 
 
 @dataclass(frozen=True, slots=True)
