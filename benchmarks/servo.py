@@ -10,9 +10,9 @@ itself can do. Reported per simulator:
 - RMS error: between the library-driven path and the ideal path (both sampled in simulated time);
 - CPU per target: this process's CPU in the threads that call ``servo`` and send (the caller inside
   ``servo()``, the servo thread, the driver's reader), per target received and per target sent; baseline: the
-  backend's ``_servo`` primitive called synchronously with targets far apart, so that every call goes on the
-  wire (the wire commands alone, no latest-wins loop); the ratio compares servo's CPU per target received
-  with that cost of putting every target on the wire synchronously;
+  backend's ``_servo`` primitive called synchronously at the same 100 Hz with targets far apart, so that
+  every call goes on the wire (the wire commands alone, no latest-wins loop); the ratio compares servo's
+  CPU per target received with that cost of putting every target on the wire synchronously;
 - wire share: the targets that went on the wire (the rest were coalesced or needed no frame).
 """
 
@@ -207,10 +207,13 @@ def _drive(url: str, seconds: float) -> dict[str, Any]:
         g._servo_loop.end()  # its thread's CPU clock is not read any more
         g.stop()
         # Baseline: the backend's primitive, called synchronously, for as many targets.
-        base_n = min(n, 500)
+        # Paced at the same 100 Hz (a loop that sleeps between calls runs colder than a tight one).
+        base_n = min(n, 300)
         cpu = _threads_cpu(g, servo=False)
-        c1 = cpu()
+        c1, w1 = cpu(), time.perf_counter()
         for k in range(base_n):
+            while (delay := w1 + k / RATE_HZ - time.perf_counter()) > 0:
+                time.sleep(delay)
             # far apart, so that every call goes on the wire (WSG: STOP + 21h; MSG: one 61)
             g._servo(ServoTarget((30.0 + 30.0 * (k % 2)) / 1000, SPEED, None))
         base_cpu = cpu() - c1
