@@ -1,14 +1,14 @@
 """The asyncio face: ``async with grippers.aio.open(url) as g: await g.move(0.05)``.
 
-Which way, and why: the awaitables bridge to the ordinary :class:`grippers.Gripper` rather than re-
-implementing each protocol over asyncio streams. The backends are where units change and where the grasp
-outcome, the MSG's motion detection and the WSG's pending/final matching are decided; a second, asyncio-
-native client per family and transport (TCP, UDP, serial, CAN, zenoh) would duplicate all of it, and the
-sans-IO cores alone do not cover it. What the bridge must not do is spend a thread per call: each
-:class:`AsyncGripper` owns a small, fixed set of worker threads started at open (:data:`WORKERS`), and any
-number of concurrent awaits queue for them, so 100 concurrent calls leave the thread count where it was.
-Streams are plain coroutines (no thread), and cancelling a task that awaits a motion stops the motion on the
-device before ``CancelledError`` propagates.
+Which way, and why: the awaitables bridge to the ordinary :class:`grippers.Gripper` rather than
+re-implementing each protocol over asyncio streams. The backends are where units change and where the grasp
+outcome, the MSG's motion detection and the WSG's pending/final matching are decided; a second,
+asyncio-native client per family and transport (TCP, UDP, serial, CAN, zenoh) would duplicate all of it, and
+the sans-IO cores alone do not cover it. What the bridge must not do is spend a thread per call: each
+:class:`AsyncGripper` owns a small, fixed set of worker threads started at open (:data:`WORKERS`, plus one
+that runs only stop, fast stop and acknowledge), and any number of concurrent awaits queue for them, so 100
+concurrent calls leave the thread count where it was. Streams are plain coroutines (no thread), and
+cancelling a task that awaits a motion stops the motion on the device before ``CancelledError`` propagates.
 """
 
 from __future__ import annotations
@@ -29,7 +29,8 @@ __all__ = ["AsyncGripper", "AsyncMotionHandle", "open"]
 
 T = TypeVar("T")
 
-# One worker runs a motion, one a stop or a fast stop while it runs, the others serve state queries meanwhile.
+# Workers for ordinary calls (a motion blocks one while it runs; state queries take the others), plus one
+# that only ever runs stop, fast stop and acknowledge, so a cancel can always reach the device at once.
 WORKERS = 3
 STOP_GRACE = 2.0  # s beyond the gripper's timeout for a cancelled motion to report back after the stop
 
@@ -132,14 +133,15 @@ class AsyncGripper:
     def __init__(self, gripper: Gripper, workers: _Workers) -> None:
         self.sync = gripper
         self._workers = workers
+        self._control = _Workers(f"{gripper.name} control", 1)
         self._closed = False
 
     # -- plumbing ------------------------------------------------------------------------------------------
 
-    def _call(self, fn: Callable[[], T]) -> asyncio.Future[T]:
+    def _call(self, fn: Callable[[], T], *, control: bool = False) -> asyncio.Future[T]:
         if self._closed:
             raise GripperError("the gripper is closed", device=self.sync.name)
-        return self._workers.submit(fn)
+        return (self._control if control else self._workers).submit(fn)
 
     async def _motion(self, name: str, fn: Callable[[], T]) -> T:
         fut = self._call(fn)
@@ -152,7 +154,7 @@ class AsyncGripper:
 
     async def _stop_after_cancel(self, fut: asyncio.Future[Any]) -> None:
         """Stop the device, then let the blocking motion call report (bounded) before the cancel goes on."""
-        stop = self._call(self.sync.stop)
+        stop = self._call(self.sync.stop, control=True)
         try:
             await asyncio.wait({stop}, timeout=self.sync.timeout + STOP_GRACE)
             await asyncio.wait({fut}, timeout=self.sync.timeout + STOP_GRACE)
@@ -236,13 +238,13 @@ class AsyncGripper:
         return await started if wait else started  # type: ignore[misc]
 
     async def stop(self) -> None:
-        await self._call(self.sync.stop)
+        await self._call(self.sync.stop, control=True)
 
     async def fast_stop(self) -> None:
-        await self._call(self.sync.fast_stop)
+        await self._call(self.sync.fast_stop, control=True)
 
     async def acknowledge(self) -> None:
-        await self._call(self.sync.acknowledge)
+        await self._call(self.sync.acknowledge, control=True)
 
     async def state(self) -> GripperState:
         return await self._call(self.sync.state)
@@ -315,6 +317,7 @@ class AsyncGripper:
             await asyncio.shield(closing)
         finally:
             self._workers.close()
+            self._control.close()
 
     async def __aenter__(self) -> AsyncGripper:
         return self

@@ -115,6 +115,9 @@ class LinkWatch:
             self.last_error = error
             self._cond.notify_all()
         log.info("%s: link lost (%s); reconnecting", self._g.name, error)
+        # Servoing ends with the link: after the outage the device may stand elsewhere or be in FAST STOP,
+        # so streaming targets again is the application's decision (a new servo() call starts it).
+        self._g._end_servo(stop_device=False)
         self._tell(False)
 
     def wait_connected(self, timeout: float) -> bool:

@@ -156,3 +156,20 @@ def test_wsg_udp_simulator_restarted_on_the_same_port(restartable) -> None:  # n
         wait_for(lambda: g.connected)
         g.home()
         assert abs(g.move(0.02).width - 0.02) < 1e-3
+
+
+def test_a_lost_link_ends_servoing_and_servo_starts_afresh_after_it() -> None:
+    with grippers.open(f"sim://wsg50?time_scale=20&reconnect=true&{FAST}") as g:
+        g.home()
+        g.servo(0.03)
+        assert g._servo_loop.flush(2.0)
+        epoch = g._watch.epoch
+        g.simulator.faults.request_close()
+        wait_for(lambda: g._watch.epoch > epoch and g.connected)
+        assert g._servo_loop is None  # ended with the link: no stale target or error carried over
+        with pytest.raises(FastStopActive):
+            g.servo(0.04)
+        g.acknowledge()
+        g.servo(0.04)
+        assert g._servo_loop.flush(2.0)
+        wait_for(lambda: abs(g.state().width - 0.04) < 1e-3 and not g.state().moving)
