@@ -237,20 +237,37 @@ class WsgGripper(Gripper):
 
     def _reconnect(self) -> None:
         old = self._client
-        old.close()  # first: a UDP or serial link must free its port for the new one
-        new = WsgClient.from_url(self.url, device=old.device, timeout=old.timeout,
-                                 motion_timeout=old.motion_timeout)
+        if old.connection_lost is None and not old.closed:
+            # UDP, CAN, or a serial line that is still open: the link never broke, the device went silent.
+            # It answering again is the reconnection; the same client (and its bound port) carries on.
+            new = old
+        else:
+            old.close()  # a serial port must be free before it is opened again
+            new = self._reopen(old)
         try:
             new.system_info()  # the firmware version decides which commands exist
             # Manual 4.0.x §1.4.2: a TCP connection closed without 07h leaves the gripper in FAST STOP.
             fast = bool(new.system_state() & SystemFlags.SF_FAST_STOP)
         except BaseException:
-            new.close()
+            if new is not old:
+                new.close()
             raise
         self._client = new
         self._fast_stopped = fast
         self._servo_pending = None
 
+    def _reopen(self, old: WsgClient) -> WsgClient:
+        """A client like ``old`` on the same URL (a serial port keeps the framing ``old`` used)."""
+        common: dict[str, Any] = {
+            "device": old.device, "timeout": old.timeout, "motion_timeout": old.motion_timeout
+        }
+        t: Any = old._transport
+        port = getattr(t, "_port", None)
+        if port is not None and hasattr(port, "get_settings"):  # pyserial: keep the framing that was used
+            framing = port.get_settings()
+            return WsgClient.serial(port.port, baudrate=framing["baudrate"], bytesize=framing["bytesize"],
+                                    parity=framing["parity"], stopbits=framing["stopbits"], **common)
+        return WsgClient.from_url(self.url, **common)
 
 def _narrow(limits: Limits, device: SystemLimits) -> Limits:
     """The profile's limits within the device's own 53h limits (mm, mm/s, N in; SI out)."""
