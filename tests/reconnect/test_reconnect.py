@@ -173,3 +173,20 @@ def test_a_lost_link_ends_servoing_and_servo_starts_afresh_after_it() -> None:
         g.servo(0.04)
         assert g._servo_loop.flush(2.0)
         wait_for(lambda: abs(g.state().width - 0.04) < 1e-3 and not g.state().moving)
+
+
+def test_a_profile_connection_table_switches_reconnection_on(tmp_path) -> None:  # noqa: ANN001
+    from pathlib import Path
+
+    source = grippers.load_profile("wsg50").path
+    assert source is not None
+    text = Path(source).read_text()
+    text = text.replace('name = "wsg50"', 'name = "wsg50-cell"').replace('aliases = ["wsg-50", "WSG 50"]', "")
+    text += "\n[connection]\nreconnect = true\nheartbeat_s = 0.25\nacknowledge_on_reconnect = true\n"
+    path = tmp_path / "wsg50-cell.toml"
+    path.write_text(text)
+    with grippers.open(path, url="sim://?time_scale=20") as g:
+        assert g._watch is not None
+        assert g._watch.policy.heartbeat_s == 0.25 and g._watch.policy.acknowledge_on_reconnect
+    with grippers.open(path, url="sim://?time_scale=20", reconnect=False) as g:
+        assert g._watch is None  # the keyword wins over the profile
