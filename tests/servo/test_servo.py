@@ -56,7 +56,9 @@ def test_a_new_target_takes_effect_without_waiting_for_the_motion(gripper: gripp
     time.sleep(0.02)
     gripper.servo(0.055)
     seen = _settle(gripper, 0.055, timeout=3.0)
-    assert min(seen) > 0.04  # waiting for the first target would have taken the fingers to 5 mm
+    # Waiting for the first target would have taken the fingers to 5 mm (a loaded machine may let them travel
+    # some way before the second target lands, hence the margin).
+    assert min(seen) > 0.015
 
 
 def test_limits_are_checked_on_every_call_and_nothing_is_sent(gripper: grippers.Gripper) -> None:
