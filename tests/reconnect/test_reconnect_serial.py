@@ -1,4 +1,4 @@
-"""MSG over its UART: the simulator process is killed and restarted behind a stable device path.
+"""Serial links (MSG UART, WSG RS-232): the simulator process is killed and restarted behind a stable path.
 
 A pty gets a new name at every start, so the test points a symlink at it, as udev does for a USB serial
 adapter that re-enumerates (/dev/serial/by-id/...): the gripper, opened on the symlink, finds the new pty.
@@ -51,3 +51,21 @@ def test_msg_uart_killed_and_restarted_behind_a_stable_path(
         assert not g.state().referenced  # a restarted MSG has lost its calibration (PROTOCOL-NOTES §2)
         g.home()
         assert abs(g.move(0.05).width - 0.05) < 2e-3
+
+
+def test_wsg_serial_killed_and_restarted_behind_a_stable_path(
+    restartable: Callable[..., Restartable], tmp_path: Path
+) -> None:
+    link = tmp_path / "ttyWSG"
+    sim = restartable("wsg", "--listen", "pty", "--time-scale", "20")
+    _point(link, sim)
+    with grippers.open(f"wsg+serial://{link}?reconnect=true&{FAST}", timeout=0.2) as g:
+        g.home()
+        sim.kill()
+        wait_for(lambda: not g.connected)
+        sim.start()
+        _point(link, sim)
+        wait_for(lambda: g.connected)
+        assert not g.state().fast_stopped  # FAST STOP on a drop is a TCP rule (manual 4.0.x §1.4.2)
+        g.home()
+        assert abs(g.move(0.03).width - 0.03) < 1e-3
