@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import socket
-import subprocess
-import sys
 from collections.abc import Callable, Iterator
 
 import pytest
@@ -64,4 +62,4 @@ def wsg_port_sim(restartable: Callable[..., Restartable]) -> Restartable:
     return restartable("wsg", "--listen", f"tcp://127.0.0.1:{free_port()}", "--time-scale", "20")
 
 
-__all__ = ["FAST", "Restartable", "free_port", "subprocess", "sys"]
+__all__ = ["FAST", "Restartable", "free_port"]
