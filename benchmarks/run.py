@@ -39,7 +39,14 @@ def _targets() -> dict[int, Callable[[bool], list[Result]]]:
         8: lambda quick: [remote.state_round_trip(quick)],
         9: lambda quick: [remote.publish_load(quick)],
         10: lambda quick: [remote.lease_failover(quick)],
+        11: _servo,  # issue 15 (benchmarks/servo.py)
     }
+
+
+def _servo(quick: bool) -> list[Result]:
+    from benchmarks import servo
+
+    return servo.run(quick)
 
 
 def main(argv: list[str] | None = None) -> int:

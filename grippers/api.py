@@ -53,6 +53,9 @@ def open(target: str | os.PathLike[str], **overrides: Any) -> Gripper:  # noqa: 
 
 def _finish(gripper: Gripper, settings: Settings) -> None:
     try:
+        from .reconnect import attach
+
+        attach(gripper, settings)  # reconnect=true and its settings (grippers/reconnect.py)
         settings.finish()
     except Exception:
         gripper.close()

@@ -67,6 +67,7 @@ class GripperState:
     referenced: bool
     faults: tuple[str, ...]
     timestamp: float  # time.time() when the snapshot was taken
+    gap: bool = False  # the first state after a reconnection: states were missed before it (reconnect=true)
 
     @property
     def fast_stopped(self) -> bool:
@@ -252,6 +253,8 @@ class Gripper(ABC):
         self._streams: list[StateStream] = []
         self._on_close: list[Callable[[], None]] = []
         self.simulator: Any = None  # the in-process simulator server behind a sim:// gripper
+        self._servo_loop: Any = None  # grippers.servo.ServoLoop while servoing
+        self._watch: Any = None  # grippers.reconnect.LinkWatch when opened with reconnect=true
 
     # -- what a backend provides (device units are its business) -------------------------------------------
 
@@ -307,9 +310,13 @@ class Gripper(ABC):
     def _check_open(self, command: str) -> None:
         if self._closed:
             raise GripperError("the gripper is closed", device=self.name, command=command)
+        if self._watch is not None:
+            self._watch.check(command)  # during an outage: ConnectionLost at once, nothing waits
 
     def _check_motion(self, command: str) -> None:
         self._check_open(command)
+        if command != "servo" and self._servo_loop is not None:
+            self._end_servo(stop_device=True)  # a motion command takes over from servoing
         if self._fast_stopped:
             raise FastStopActive(
                 "fast stop is active: call acknowledge() before moving", device=self.name, command=command
@@ -482,12 +489,14 @@ class Gripper(ABC):
         The WSG keeps its motor on; the MSG clears its action bit (CAN) or, having no other way over UART,
         deactivates the motor, so a held part is no longer squeezed."""
         self._check_open("stop")
+        self._end_servo(stop_device=False)  # stop() ends servoing; the stop below halts its motion
         self._motions.abort("stop()")
 
     def fast_stop(self) -> None:
         """Stop at once; further motion is refused until :meth:`acknowledge`. A running motion raises
         CommandFailed "aborted by fast_stop()"."""
         self._check_open("fast_stop")
+        self._end_servo(stop_device=False)
         # Refuse motion from here on, even if the reply is lost or another thread starts a move meanwhile:
         # the user asked for a stop, and acknowledge() is the one way out.
         self._fast_stopped = True
@@ -517,7 +526,13 @@ class Gripper(ABC):
         """States at ``rate_hz``; an iterator, or calls ``callback`` from a background thread. Close it."""
         with self._lock:  # registered atomically with the closed check, so close() stops every stream
             self._check_open("stream")
-            s = StateStream(self._state, rate_hz, callback, on_close=self._forget_stream)
+            read: Callable[[], GripperState] = self._state
+            if self._watch is not None:  # reconnect=true: the stream pauses over an outage and marks the gap
+                holder: list[StateStream] = []
+                read = self._watch.stream_reader(read, lambda: bool(holder) and holder[0]._stop.is_set())
+            s = StateStream(read, rate_hz, callback, on_close=self._forget_stream)
+            if self._watch is not None:
+                holder.append(s)
             self._streams.append(s)
         return s
 
@@ -525,6 +540,85 @@ class Gripper(ABC):
         with self._lock:
             if s in self._streams:
                 self._streams.remove(s)
+
+    # -- streamed targets (grippers/servo.py) ------------------------------------------------------------
+
+    def servo(self, width: float, speed: float | None = None, force: float | None = None) -> None:
+        """Head for ``width`` (m) now, without waiting: the latest target wins, targets that come faster than
+        the device takes them are coalesced. Limits are checked here, on every call; an error the device
+        reported for an earlier target is raised here too. stop() (or any motion command) ends servoing."""
+        from .servo import ServoLoop, ServoTarget
+
+        w, s = self._width(width, "servo"), self._speed(speed, "servo")
+        f = None if force is None else self._force(force, "servo")
+        self._check_motion("servo")
+        with self._lock:
+            self._check_open("servo")
+            loop = self._servo_loop
+            if loop is None:
+                self._servo_begin()
+                loop = self._servo_loop = ServoLoop(self.name, self._servo)
+        loop.submit(ServoTarget(w, s, f))
+
+    @property
+    def servo_stats(self) -> Any:
+        """Counts of the current (or last) servoing: received, sent, coalesced, unchanged, failed."""
+        loop = self._servo_loop or getattr(self, "_last_servo_loop", None)
+        return None if loop is None else loop.stats
+
+    def _end_servo(self, *, stop_device: bool) -> None:
+        with self._lock:
+            loop, self._servo_loop = self._servo_loop, None
+        if loop is None:
+            return
+        self._last_servo_loop = loop
+        loop.end(self.timeout + 1.0)
+        if stop_device:
+            self._servo_end()
+
+    # Backends that can servo override these three (grippers/backends/wsg.py, stepfoc.py).
+    def _servo_begin(self) -> None:
+        """Called (under the lock) before the first target of a servoing; NotSupported by default."""
+        raise NotSupported("this backend cannot stream targets", device=self.name, command="servo")
+
+    def _servo(self, target: Any) -> bool:
+        """Put one target on the wire without waiting for the motion; False if nothing needed sending."""
+        raise NotSupported("this backend cannot stream targets", device=self.name, command="servo")
+
+    def _servo_end(self) -> None:
+        """Servoing ended for another motion command: leave the device ready to take it."""
+        return None
+
+    # -- connection (grippers/reconnect.py) -------------------------------------------------------------
+
+    @property
+    def connected(self) -> bool:
+        """False while a lost link is being re-established (reconnect=true) or after close()."""
+        if self._closed:
+            return False
+        return True if self._watch is None else self._watch.connected
+
+    def on_connection(self, callback: Callable[[bool], Any]) -> Callable[[], None]:
+        """Call ``callback(connected)`` from a background thread whenever the link is lost or back; returns
+        a function that unregisters it. Without reconnect=true only a loss at close() is reported."""
+        if self._watch is not None:
+            return self._watch.add_listener(callback)
+        def at_close() -> None:
+            callback(False)
+        self._on_close.append(at_close)
+        def remove() -> None:
+            if at_close in self._on_close:
+                self._on_close.remove(at_close)
+        return remove
+
+    # Backends that can re-establish their link override these two (reconnect=true).
+    def _link_alive(self) -> bool:
+        """Cheap, no traffic: whether the driver has noticed its link is gone."""
+        return True
+
+    def _reconnect(self) -> None:
+        """Open a fresh driver on the same URL and swap it in; GripperError while the device is not back."""
+        raise NotSupported("this backend cannot reconnect", device=self.name, command="reconnect")
 
     def require(self, capability: Capability, command: str) -> None:
         if capability not in self.capabilities:
@@ -586,6 +680,12 @@ class Gripper(ABC):
             self._closed = True
             streams, self._streams = list(self._streams), []
             handles = self._motions.take_all()
+            servo, self._servo_loop = self._servo_loop, None
+            link, self._watch = self._watch, None
+        if servo is not None:
+            servo.end(self.timeout + 1.0)
+        if link is not None:
+            link.close()
         for s in streams:
             s.close()
         try:

@@ -128,6 +128,16 @@ class Limits(_Model):
         return self.max_width - self.min_width
 
 
+class Connection(_Model):
+    """Automatic reconnection (grippers/reconnect.py); URL parameters and keywords of the same names win."""
+
+    reconnect: bool = False
+    reconnect_backoff_s: Positive = 0.1  # first retry after this, doubling up to the maximum
+    reconnect_backoff_max_s: Positive = 5.0
+    heartbeat_s: Positive = 0.5  # a state query this often notices a link that died while idle
+    acknowledge_on_reconnect: bool = False  # a safety decision: off unless the application says so
+
+
 class ProfileBase(_Model):
     name: Annotated[str, Field(pattern=r"^[a-z0-9][a-z0-9._-]*$")]
     family: str
@@ -139,6 +149,7 @@ class ProfileBase(_Model):
     url: str  # default connection URL
     mechanics: Mechanics
     safety: Safety = Safety()
+    connection: Connection = Connection()
     path: Annotated[str | None, Field(exclude=True)] = None  # the file it was read from
     # The profile this one was built on (docs/profiles.md "extends"); resolved at load, not part of a dump.
     extends: Annotated[str | None, Field(exclude=True)] = None

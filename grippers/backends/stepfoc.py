@@ -565,6 +565,60 @@ class MsgGripper(Gripper):
     def _close(self) -> None:
         self._link.close()
 
+    # -- streamed targets and reconnection (hooks of grippers/servo.py and grippers/reconnect.py) -------
+
+    def _servo_begin(self) -> None:
+        self._servo_first = True
+        self._servo_last: tuple[int, int, int] | None = None
+
+    def _servo(self, target: Any) -> bool:
+        position, speed = self._position_byte(target.width), self._speed_byte(target.speed)
+        current = self._maps.default_current_ma if target.force is None else self._current_ma(target.force)
+        link = self._link
+        if isinstance(link, _CanLink):
+            node = link.driver
+            cmd = node.make_command(position, speed, current)
+            if cmd == node.last_command:
+                if not self._servo_first:
+                    return False  # the gripper already heads there; the firmware would take it as "same"
+                # PROTOCOL-NOTES §2, "same command" latch: a 5-byte 61 equal to the previous one does not
+                # restart a motion (and after a calibration reports "at position" at once). The first frame
+                # of a servoing must be a new command, so its speed byte moves by one step.
+                cmd = node.make_command(position, speed - 1 if speed > 0 else 1, current)
+            node.send_command(cmd)  # one 61 per target; returns with its 60 reply
+        else:
+            if (position, speed, current) == self._servo_last and not self._servo_first:
+                return False
+            link.go(position, speed, current)  # UART: Gripvel, Gripcur, Grippos (PROTOCOL-NOTES §2)
+        self._servo_first = False
+        self._servo_last = (position, speed, current)
+        self._mode, self._held = "move", False
+        return True
+
+    def _link_alive(self) -> bool:
+        link = self._link
+        if isinstance(link, _CanLink):
+            bus, _ = _CanLink._buses.get(link._key, (None, 0))
+            return bus is not None and bus.alive
+        return not link.driver.closed
+
+    def _reconnect(self) -> None:
+        link = self._link
+        if isinstance(link, _UartLink):
+            d = link.driver
+            fresh = _UartLink(link.port, d._ser.baudrate, d.current_limit_ma, self.timeout)
+            try:
+                fresh.status()
+            except BaseException:
+                fresh.close()
+                raise
+            self._link, old = fresh, link
+            old.close()
+        else:
+            link.status()  # the bus stays open: the node answering again is the reconnection
+        # A gripper that was power-cycled has lost its calibration (PROTOCOL-NOTES §2) and anything it held.
+        self._mode, self._held = "idle", False
+
 
 class StepfocBackend:
     family = "stepfoc"

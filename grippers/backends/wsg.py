@@ -194,6 +194,88 @@ class WsgGripper(Gripper):
     def _close(self) -> None:
         self._client.close()
 
+    # -- streamed targets and reconnection (hooks of grippers/servo.py and grippers/reconnect.py) -------
+
+    # A running servo motion is not interrupted for a new target within this distance (m) of its own: STOP
+    # halts the fingers at once (manual §3.2.3), so re-targeting every control step would restart from rest
+    # each time and never reach speed. The new target is offered again when the motion ends (latest wins).
+    servo_tolerance = 0.002
+
+    def _servo_begin(self) -> None:
+        self._servo_pending: Any = None
+        self._servo_aim: tuple[float, float] | None = None  # (width, speed) of the running servo motion
+        self._servo_force: float | None = None
+
+    def _servo(self, target: Any) -> bool | None:
+        c = self._client
+        if target.force is not None and target.force != self._servo_force:
+            c.set_force_limit(target.force)  # 32h: preposition itself has no force argument
+            self._servo_force = target.force
+        pending = self._servo_pending
+        running = pending is not None and not pending.done()
+        if running and self._servo_aim is not None:
+            width, speed = self._servo_aim
+            if abs(target.width - width) <= self.servo_tolerance and target.speed == speed:
+                return None  # heading close by already; offered again once this motion has ended
+        elif not running and self._servo_aim == (target.width, target.speed):
+            return False  # already there
+        if running:
+            # WSG manual 4.0.x and 2.2.0 §3.2.2: a motion command while another runs is refused with
+            # E_ALREADY_RUNNING ("Issue a STOP command, first"). STOP (22h, §3.2.3) ends the running one at
+            # once; its final reply (E_CMD_ABORTED) comes before STOP's own, so the 21h slot is free after it.
+            c.stop()
+        try:
+            self._servo_pending = c.preposition(target.width * 1000, target.speed * 1000, wait=False)
+        except CommandFailed as exc:
+            if exc.status != Status.E_ALREADY_RUNNING:
+                raise
+            c.stop()  # a motion we did not start (another program, the web interface) was running
+            self._servo_pending = c.preposition(target.width * 1000, target.speed * 1000, wait=False)
+        self._servo_aim = (target.width, target.speed)
+        return True
+
+    def _servo_end(self) -> None:
+        pending = getattr(self, "_servo_pending", None)
+        if pending is not None and not pending.done():
+            self._client.stop()  # the next motion command would meet E_ALREADY_RUNNING otherwise
+        self._servo_pending = None
+
+    def _link_alive(self) -> bool:
+        return self._client.connection_lost is None and not self._client.closed
+
+    def _reconnect(self) -> None:
+        old = self._client
+        if old.connection_lost is None and not old.closed:
+            # UDP, CAN, or a serial line that is still open: the link never broke, the device went silent.
+            # It answering again is the reconnection; the same client (and its bound port) carries on.
+            new = old
+        else:
+            old.close()  # a serial port must be free before it is opened again
+            new = self._reopen(old)
+        try:
+            new.system_info()  # the firmware version decides which commands exist
+            # Manual 4.0.x §1.4.2: a TCP connection closed without 07h leaves the gripper in FAST STOP.
+            fast = bool(new.system_state() & SystemFlags.SF_FAST_STOP)
+        except BaseException:
+            if new is not old:
+                new.close()
+            raise
+        self._client = new
+        self._fast_stopped = fast
+        self._servo_pending = None
+
+    def _reopen(self, old: WsgClient) -> WsgClient:
+        """A client like ``old`` on the same URL (a serial port keeps the framing ``old`` used)."""
+        common: dict[str, Any] = {
+            "device": old.device, "timeout": old.timeout, "motion_timeout": old.motion_timeout
+        }
+        t: Any = old._transport
+        port = getattr(t, "_port", None)
+        if port is not None and hasattr(port, "get_settings"):  # pyserial: keep the framing that was used
+            framing = port.get_settings()
+            return WsgClient.serial(port.port, baudrate=framing["baudrate"], bytesize=framing["bytesize"],
+                                    parity=framing["parity"], stopbits=framing["stopbits"], **common)
+        return WsgClient.from_url(self.url, **common)
 
 def _narrow(limits: Limits, device: SystemLimits, profile: str) -> tuple[Limits, list[str]]:
     """The profile's limits within the device's own 53h limits (mm, mm/s, N in; SI out), and warnings.

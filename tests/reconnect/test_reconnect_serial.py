@@ -1,0 +1,71 @@
+"""Serial links (MSG UART, WSG RS-232): the simulator process is killed and restarted behind a stable path.
+
+A pty gets a new name at every start, so the test points a symlink at it, as udev does for a USB serial
+adapter that re-enumerates (/dev/serial/by-id/...): the gripper, opened on the symlink, finds the new pty.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+from pathlib import Path
+
+import grippers
+from grippers import ConnectionLost
+
+from .conftest import FAST, Restartable
+from .test_reconnect import wait_for
+
+
+def _point(link: Path, sim: Restartable) -> None:
+    assert sim.sim is not None
+    target = sim.sim.url.split("://", 1)[1].split("?", 1)[0]
+    tmp = link.with_suffix(".new")
+    os.symlink(target, tmp)
+    os.replace(tmp, link)
+
+
+def test_msg_uart_killed_and_restarted_behind_a_stable_path(
+    restartable: Callable[..., Restartable], tmp_path: Path
+) -> None:
+    link = tmp_path / "ttyMSG"
+    sim = restartable("msg", "--listen", "pty", "--time-scale", "50")
+    _point(link, sim)
+    events: list[bool] = []
+    with grippers.open(f"stepfoc+serial://{link}?reconnect=true&{FAST}", timeout=0.2) as g:
+        g.on_connection(events.append)
+        g.home()
+        assert g.state().referenced
+        sim.kill()
+        wait_for(lambda: not g.connected)
+        try:
+            g.move(0.05)
+        except ConnectionLost:
+            pass
+        else:
+            raise AssertionError("a move during the outage did not raise ConnectionLost")
+        sim.start()
+        _point(link, sim)
+        wait_for(lambda: g.connected)
+        assert events == [False, True]
+        assert not g.state().referenced  # a restarted MSG has lost its calibration (PROTOCOL-NOTES §2)
+        g.home()
+        assert abs(g.move(0.05).width - 0.05) < 2e-3
+
+
+def test_wsg_serial_killed_and_restarted_behind_a_stable_path(
+    restartable: Callable[..., Restartable], tmp_path: Path
+) -> None:
+    link = tmp_path / "ttyWSG"
+    sim = restartable("wsg", "--listen", "pty", "--time-scale", "20")
+    _point(link, sim)
+    with grippers.open(f"wsg+serial://{link}?reconnect=true&{FAST}", timeout=0.2) as g:
+        g.home()
+        sim.kill()
+        wait_for(lambda: not g.connected)
+        sim.start()
+        _point(link, sim)
+        wait_for(lambda: g.connected)
+        assert not g.state().fast_stopped  # FAST STOP on a drop is a TCP rule (manual 4.0.x §1.4.2)
+        g.home()
+        assert abs(g.move(0.03).width - 0.03) < 1e-3
