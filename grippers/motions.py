@@ -113,6 +113,9 @@ class MotionHandle(Generic[T]):
             if self._abort is not None:
                 if error is not None and error is not self._abort and self._abort.__cause__ is None:
                     self._abort.__cause__ = error  # the device's own words stay reachable
+                    if isinstance(error, CommandFailed) and self._abort.status is None:
+                        # and its status code (a WSG's E_CMD_ABORTED), for code that checks .status
+                        self._abort.status, self._abort.status_name = error.status, error.status_name
                 result, error = None, self._abort
             self._result, self._error = result, error
             self._done.set()

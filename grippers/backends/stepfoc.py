@@ -30,6 +30,10 @@ POLL_PERIOD = 0.01  # s between status polls while waiting for a motion; a CAN r
 # commanded speed), the wait ends with "aborted".
 STALL_MIN_S = 0.5
 STALL_BYTES_TIME = 4
+# state().moving: the bits alone would say "moving" for ever once the driver was idled (clear error, idle,
+# watchdog) with the stored 61's activate and action bits still set and detection 0 (the firmware's "idle or
+# disabled" branch). While no motion of ours waits, the jaws decide: standing still this long is not moving.
+STILL_S = 0.3
 
 
 @dataclass(frozen=True, slots=True)
@@ -300,6 +304,10 @@ class MsgGripper(Gripper):
         )
         self._mode = "idle"  # what the last motion was, to name what the detection bits mean
         self._held = False  # a grasp found its part; detection 3 afterwards means the part was lost
+        self._waits = 0  # motion waits in progress (state().moving trusts the bits while one runs)
+        self._waits_lock = threading.Lock()
+        self._seen_position: int | None = None  # the last position read and when it last changed
+        self._seen_change = 0.0
 
     @property
     def driver(self) -> Any:
@@ -372,6 +380,17 @@ class MsgGripper(Gripper):
         """Poll until ``done(status)``. Ends early, never reporting success, when this backend started a
         newer motion or a stop, the device shows an e-stop or an error, the action or activate bit was
         cleared by someone else, or (``stall_s``) the jaws stood still for that long while "moving"."""
+        with self._waits_lock:
+            self._waits += 1
+        try:
+            return self._poll_until(command, motion, timeout, done, stall_s)
+        finally:
+            with self._waits_lock:
+                self._waits -= 1
+
+    def _poll_until(
+        self, command: str, motion: int, timeout: float, done: Any, stall_s: float | None
+    ) -> _Status:
         deadline = time.monotonic() + timeout
         still_since: float | None = None
         last_position: int | None = None
@@ -530,11 +549,19 @@ class MsgGripper(Gripper):
             force=None,
             current=None if st.current_ma is None else abs(st.current_ma) / 1000,
             grasp=self._grasp_state(st),
-            moving=st.detection == Detection.MOVING and st.activated and st.action and st.calibrated,
+            moving=self._moving(st),
             referenced=st.calibrated,
             faults=st.faults,
             timestamp=time.time(),
         )
+
+    def _moving(self, st: _Status) -> bool:
+        now = time.monotonic()
+        if st.position != self._seen_position:
+            self._seen_position, self._seen_change = st.position, now
+        if not (st.detection == Detection.MOVING and st.activated and st.action and st.calibrated):
+            return False
+        return self._waits > 0 or now - self._seen_change < STILL_S
 
     def _info(self) -> DeviceInfo:
         ident = self._link.identity()

@@ -37,7 +37,7 @@ def run(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, Any, str]:
 
 def test_every_command_over_zenoh(server: ServeProcess, capsys: pytest.CaptureFixture[str]) -> None:
     url = server.urls["left"]
-    assert run(capsys, "home", url, "--json")[1]["state"]["homed"] is True
+    assert run(capsys, "home", url, "--json")[1]["state"]["referenced"] is True
     code, doc, _ = run(capsys, "move", url, "40", "--speed", "50", "--json")
     assert code == 0 and doc["result"]["width_mm"] == pytest.approx(40.0, abs=0.5)
     assert run(capsys, "state", url, "--json")[1]["state"]["width_mm"] == pytest.approx(40.0, abs=0.5)

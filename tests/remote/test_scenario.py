@@ -43,7 +43,9 @@ def test_scenario(pair: ServeProcess, name: str, profile: str) -> None:
         result = g.move(top * 0.95)
         assert result.width == pytest.approx(top * 0.95, abs=0.002)
 
-        handle = g.move(top * 0.5, g.limits.max_speed / 4, wait=False)
+        # Slow enough that the served state (refreshed at 50 Hz) shows the motion at time scale 50.
+        slow = max(g.limits.min_speed, g.limits.max_speed / 40)
+        handle = g.move(top * 0.5, slow, wait=False)
         seen_moving, widths = False, []
         while not handle.done():
             st = g.state()

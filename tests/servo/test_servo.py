@@ -9,6 +9,7 @@ import pytest
 
 import grippers
 from grippers import ConnectionLost, GripperError, LimitError
+from grippers.drivers.stepfoc.sim.model import Mode
 
 WSG = ["sim://wsg50?time_scale=10", "sim://wsg50?time_scale=10&firmware=2.2.0"]
 MSG = ["sim://msg-150?time_scale=10", "sim://msg-150?time_scale=10&transport=pty"]
@@ -105,21 +106,21 @@ def test_an_error_on_the_device_is_raised_by_the_next_call() -> None:
 
 
 def test_msg_first_target_equal_to_the_last_61_still_moves() -> None:
-    """PROTOCOL-NOTES §2: a 5-byte 61 equal to the previous one is "same command" and ignored."""
+    """docs/protocols.md §2: a 5-byte 61 equal to the previous one is "same command" and ignored."""
     with grippers.open(MSG[0]) as g:
         g.home()
         g.move(0.04)
         node, model = g.driver, g.simulator.model
         g.driver.idle()  # command 12: the motor idles with the 61 it last got still stored
         g.state()  # a round trip: the idle frame (no reply) has been handled before it
-        assert not model.action
+        assert model.mode is Mode.IDLE  # the firmware idles the driver; the stored 61 keeps its action bit
         same = node.last_command
         speed = round(g.profile.mechanics.default_speed_mm_s / 1000, 6)
         g.servo(0.04, speed=speed)
         assert g._servo_loop.flush(2.0)
         assert node.last_command.position == same.position
         assert node.last_command != same  # made to differ, so the firmware takes it
-        assert model.action  # taken: the gripper holds its target again
+        assert model.mode is Mode.GRIPPER and model.action  # taken: the gripper holds its target again
 
 
 def test_closed_gripper_refuses_servo() -> None:
