@@ -2,7 +2,7 @@
 
 Two ways in: CAN (:mod:`.can_protocol`, sans-IO; :mod:`.can_client`, python-can) and the UART text protocol
 (:mod:`.uart_protocol`, :mod:`.uart_client`). :mod:`.sim` holds the device model both simulators share.
-PROTOCOL-NOTES §2 overrides the MSG document on byte order, bit order and the object-detection bits.
+docs/protocols.md §2 overrides the MSG document on byte order, bit order and the object-detection bits.
 """
 
 from .can_client import StepfocBus, StepfocNode, open_node

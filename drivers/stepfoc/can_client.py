@@ -67,7 +67,7 @@ log = logging.getLogger(__name__)
 _READ_POLL_S = 0.05  # the reader's longest block, so close() returns promptly
 DUPLICATE_WINDOW_S = 0.05  # two nodes with one id answer one request within microseconds of each other
 
-# End of a RE-calibration, read from the 60 frames (PROTOCOL-NOTES §2 "Firmware behaviour a client must
+# End of a RE-calibration, read from the 60 frames (docs/protocols.md §2 "Firmware behaviour a client must
 # survive": the calibrated bit stays set, so the jaws tell): they leave the closed stop, travel to the open
 # stop and back, and the driver idles at the closed stop (position 255, motor current ~0 after Brake_Coast).
 CAL_LEFT_CLOSED = 245  # a position below this: the calibration is under way
@@ -372,7 +372,7 @@ class StepfocBus:
 
     def node(self, n: int, *, current_limit_ma: int = 1000, timeout: float = 0.5) -> StepfocNode:
         """A handle for node ``n`` (0..15). ``current_limit_ma``: the profile's limit; larger requests are
-        clamped to it before sending (PROTOCOL-NOTES §2: the firmware itself does not clamp)."""
+        clamped to it before sending (docs/protocols.md §2: the firmware itself does not clamp)."""
         return StepfocNode(self, n, current_limit_ma=current_limit_ma, timeout=timeout)
 
     def subscribe(self, callback: Callable[[can.Message], None]) -> Callable[[], None]:
@@ -477,7 +477,7 @@ class StepfocNode:
     # ------------------------------------------------------------------------------------------ gripper
 
     def poll(self, timeout: float | None = None) -> GripperStatus:
-        """Empty 61 -> 60: the status, changing nothing (safe during calibration, PROTOCOL-NOTES §2)."""
+        """Empty 61 -> 60: the status, changing nothing (safe during calibration, docs/protocols.md §2)."""
         return self._status_request(b"", timeout, "poll")
 
     def make_command(
@@ -506,7 +506,8 @@ class StepfocNode:
                 ) from None
             if current < 0:
                 raise LimitError(f"current {current} mA is negative", device=self.device, command="command")
-            current = min(current, self.current_limit_ma)  # PROTOCOL-NOTES §2: clamp to the profile's limit
+            # docs/protocols.md §2: clamp to the profile's limit
+            current = min(current, self.current_limit_ma)
         return GripperCommand(position, speed, current, bool(activate), bool(action), bool(estop))
 
     def command(
@@ -533,7 +534,7 @@ class StepfocNode:
         A motion command (action set) is never sent byte-identical to the previous 61 of this handle: the
         firmware treats such a frame as "same command" and keeps its at-position latch, so after a
         calibration, a clear error or a stop from elsewhere the node would report detection 3 at once while
-        the jaws still travel (PROTOCOL-NOTES §2, "Firmware behaviour a client must survive"). The current
+        the jaws still travel (docs/protocols.md §2, "Firmware behaviour a client must survive"). The current
         limit is moved by 1 mA instead, which changes nothing a user can measure."""
         last = self.last_command
         if cmd.action and last is not None and encode_command(cmd) == encode_command(last):
@@ -548,7 +549,7 @@ class StepfocNode:
     def fault(self, st: GripperStatus, timeout: float | None = None) -> str | None:
         """Why the node reports an error, or None. The 60 frame names the gripper's estop, watchdog and
         temperature errors; an e-stop by command 0 (another host, a bus tool) only sets the identifier's error
-        bit, so frame 26 is asked for the driver's cause (PROTOCOL-NOTES §2). Names: ``estop`` for either
+        bit, so frame 26 is asked for the driver's cause (docs/protocols.md §2). Names: ``estop`` for either
         e-stop, ``watchdog``, ``temperature``, ``encoder``, ``vbus``, ``driver``, ``velocity``, ``current``;
         ``error`` when the driver names no cause."""
         if st.estop_error:
@@ -680,11 +681,11 @@ class StepfocNode:
         """Clear errors so that they stay cleared, in the order the firmware needs.
 
         Command 1 alone is not enough: if the stored 61 had the estop bit the error comes back at the next
-        control step (PROTOCOL-NOTES §2, command 1). So a 61 goes FIRST: estop 0, the last command's position,
-        speed, current and activate bit, action 0; then 1, which clears every error and idles the driver
-        (firmware): nothing moves until the next 5-byte 61. ``resume=True`` then re-sends the last motion
-        command (made to differ from the one before, see :meth:`send_command`), which is all the firmware
-        allows: the motion restarts from where the jaws are. The returned status is a fresh poll;
+        control step (docs/protocols.md §2, command 1). So a 61 goes FIRST: estop 0, the last command's
+        position, speed, current and activate bit, action 0; then 1, which clears every error and idles the
+        driver (firmware): nothing moves until the next 5-byte 61. ``resume=True`` then re-sends the last
+        motion command (made to differ from the one before, see :meth:`send_command`), which is all the
+        firmware allows: the motion restarts from where the jaws are. The returned status is a fresh poll;
         CommandFailed if an error is still active."""
         last = self.last_command
         if last is None:
@@ -756,7 +757,7 @@ class StepfocNode:
         self.send(Cmd.SAVE_CONFIG)
 
     def reset(self) -> None:
-        """Command 14: the driver reboots and loses its calibration (PROTOCOL-NOTES §2)."""
+        """Command 14: the driver reboots and loses its calibration (docs/protocols.md §2)."""
         self.send(Cmd.RESET)
         self.last_command = None
 

@@ -4,9 +4,9 @@ Sans-IO: everything here maps (arbitration id, data bytes, remote flag) to typed
 the simulator and the CLI monitor all go through the same table (:data:`COMMANDS`), so a layout is written
 once.
 
-Byte order, bit order and the object-detection bits follow PROTOCOL-NOTES §2, which overrides the MSG document
-(`seeds/004_…`): integers are big-endian, a flag byte's "bit 0" is its most significant bit (0x80), and the
-status frame's detection value has its bit 0 at 0x20 and its bit 1 at 0x10.
+Byte order, bit order and the object-detection bits follow docs/protocols.md §2, which overrides the MSG
+document (`seeds/004_…`): integers are big-endian, a flag byte's "bit 0" is its most significant bit (0x80),
+and the status frame's detection value has its bit 0 at 0x20 and its bit 1 at 0x10.
 
 A frame whose length does not fit its command raises :class:`FrameLengthError` (a :class:`ProtocolError`); it
 is never padded or cut to fit.
@@ -50,13 +50,13 @@ __all__ = [
     "unpack_id",
 ]
 
-MAX_NODE = 15  # 4 node bits: PROTOCOL-NOTES §2 / MSG document "Bits 10 - 7"
+MAX_NODE = 15  # 4 node bits: docs/protocols.md §2 / MSG document "Bits 10 - 7"
 MAX_COMMAND = 63  # 6 command bits
-DEFAULT_BITRATE = 1_000_000  # PROTOCOL-NOTES §2: 1 Mbit/s
+DEFAULT_BITRATE = 1_000_000  # docs/protocols.md §2: 1 Mbit/s
 
 
 class Cmd(IntEnum):
-    """Command ids of the driver family that the gripper uses (PROTOCOL-NOTES §2 table, MSG document)."""
+    """Command ids of the driver family that the gripper uses (docs/protocols.md §2 table, MSG document)."""
 
     ESTOP = 0
     CLEAR_ERROR = 1
@@ -90,7 +90,7 @@ class Direction(Enum):
 
 
 class Detection(IntEnum):
-    """Object detection value of the status frame (PROTOCOL-NOTES §2; the vendor library swaps 1 and 2)."""
+    """Object detection value of the status frame (docs/protocols.md §2; the vendor library swaps 1 and 2)."""
 
     MOVING = 0
     CLOSING_OBJECT = 1
@@ -125,7 +125,7 @@ class FrameLengthError(ProtocolError):
 
 
 def pack_id(node: int, command: int, error: bool = False) -> int:
-    """11-bit identifier ``node << 7 | command << 1 | error`` (PROTOCOL-NOTES §2)."""
+    """11-bit identifier ``node << 7 | command << 1 | error`` (docs/protocols.md §2)."""
     if not 0 <= node <= MAX_NODE:
         raise LimitError(f"node {node} outside 0..{MAX_NODE}")
     if not 0 <= command <= MAX_COMMAND:
@@ -166,7 +166,7 @@ class GripperCommand:
     activate: bool
     action: bool
     estop: bool
-    release: bool = False  # "release direction", unused by the firmware (PROTOCOL-NOTES §2)
+    release: bool = False  # "release direction", unused by the firmware (docs/protocols.md §2)
 
 
 @dataclass(slots=True, unsafe_hash=True)
@@ -187,7 +187,7 @@ class GripperStatus:
 
 @dataclass(frozen=True, slots=True)
 class DeviceInfo:
-    """Reply to remote request 25: 7 bytes (PROTOCOL-NOTES §2)."""
+    """Reply to remote request 25: 7 bytes (docs/protocols.md §2)."""
 
     hardware_version: int
     batch_date: int
@@ -197,7 +197,7 @@ class DeviceInfo:
 
 @dataclass(frozen=True, slots=True)
 class ErrorState:
-    """Reply to remote request 26: two flag bytes, most significant bit first (PROTOCOL-NOTES §2)."""
+    """Reply to remote request 26: two flag bytes, most significant bit first (docs/protocols.md §2)."""
 
     error: bool = False
     temperature: bool = False
@@ -243,13 +243,13 @@ class CanFrame(NamedTuple):
 
 # --------------------------------------------------------------------------------------------- fast codecs
 
-_COMMAND = struct.Struct(">BBhB")  # 61: position u8, speed u8, current i16, flags (PROTOCOL-NOTES §2)
+_COMMAND = struct.Struct(">BBhB")  # 61: position u8, speed u8, current i16, flags (docs/protocols.md §2)
 _STATUS = struct.Struct(">BhB")  # 60: position u8, current i16, flags
 _pack_command, _unpack_status = _COMMAND.pack, _STATUS.unpack  # bound once: these run for every frame
 _new_object = object.__new__
 _STATUS_ID = int(Cmd.GRIPPER_STATUS)  # plain ints: comparing with an IntEnum member costs a method call
 
-# 61 flag bits; the document's "bit 0" is 0x80 (PROTOCOL-NOTES §2)
+# 61 flag bits; the document's "bit 0" is 0x80 (docs/protocols.md §2)
 F_ACTIVATE, F_ACTION, F_ESTOP, F_RELEASE = 0x80, 0x40, 0x20, 0x10
 # 60 flag bits
 S_ACTIVATED, S_ACTION, S_DET_BIT0, S_DET_BIT1 = 0x80, 0x40, 0x20, 0x10
@@ -496,7 +496,7 @@ _TEMPERATURE = _scalar(">h", "C", "temperature", (-273, 32767))  # below absolut
 _VOLTAGE = _scalar(">h", "mV", "voltage", (0, 32767))  # a supply voltage is not negative
 _H, _N, _R = Direction.HOST_TO_NODE, Direction.NODE_TO_HOST, Direction.REMOTE
 
-# PROTOCOL-NOTES §2 (table and the 60/61 layouts); MSG document for 60, 61, 62, 11, 13, 14, 1
+# docs/protocols.md §2 (table and the 60/61 layouts); MSG document for 60, 61, 62, 11, 13, 14, 1
 COMMANDS: dict[int, CommandSpec] = {
     s.cmd: s
     for s in (

@@ -44,7 +44,8 @@ from .uart_protocol import (
     parse_mode,
 )
 
-CAL_AT_CLOSED = 250  # a calibration ends with the jaws at the closed stop (position 255, PROTOCOL-NOTES §2)
+# a calibration ends with the jaws at the closed stop (position 255, docs/protocols.md §2)
+CAL_AT_CLOSED = 250
 
 T = TypeVar("T")
 
@@ -138,7 +139,7 @@ class StepfocUart:
     def __repr__(self) -> str:
         return f"StepfocUart({self.port!r}{', closed' if self._closed else ''})"
 
-    # -- gripper commands (PROTOCOL-NOTES §2 UART) ----------------------------------------------------------
+    # -- gripper commands (docs/protocols.md §2 UART) --------------------------------------------------------
 
     def gripper(self, mode: int | bool | None = None, *, timeout: float | None = None) -> int:
         """Get or set 'am I a gripper' (1 = gripper mode)."""
@@ -147,7 +148,7 @@ class StepfocUart:
     def calibrate(self, *, wait: bool = False, timeout: float | None = None, poll: float = 0.05) -> None:
         """Start calibration (``#Gripcal``); with ``wait`` poll until it has really ended.
 
-        The calibrated bit stays set while a calibrated gripper recalibrates (PROTOCOL-NOTES §2, "Firmware
+        The calibrated bit stays set while a calibrated gripper recalibrates (docs/protocols.md §2, "Firmware
         behaviour a client must survive"), so the end is read from ``#Mode`` (:meth:`calibration_ended`).
         ``timeout`` bounds the whole wait (default 30 s) when waiting, else the answer line.
         """

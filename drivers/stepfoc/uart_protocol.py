@@ -6,12 +6,12 @@ reads and renders the answers the simulator prints. The multi-line answers (``#G
 their own line tables, :data:`GRIPINFO_FIELDS` and :data:`INFO_HEADER` / :data:`INFO_STATUS`, used the same
 three ways.
 
-Wire facts (PROTOCOL-NOTES §2 "UART text interface", which wins over the MSG document ``004_…``): a command is
-``#Name`` (get) or ``#Name N`` (set) ended by ``\\n``; ``#`` resets the device's receiver; name and argument
-together are at most 20 characters; no echo; every known gripper command answers with one line (``Gripinfo``
-with eleven) ending in ``\\r\\n``; unknown names get nothing or ``Unknown command``. The ``#Info`` status
-lines and the ``Clear`` command are not in the notes; they are read from the public STEPFOC firmware
-(``communication.cpp``), and a line we do not know is kept raw rather than guessed at.
+Wire facts (docs/protocols.md §2 "UART text interface", which wins over the MSG document ``004_…``): a
+command is ``#Name`` (get) or ``#Name N`` (set) ended by ``\\n``; ``#`` resets the device's receiver; name
+and argument together are at most 20 characters; no echo; every known gripper command answers with one line
+(``Gripinfo`` with eleven) ending in ``\\r\\n``; unknown names get nothing or ``Unknown command``. The
+``#Info`` status lines and the ``Clear`` command are not in the notes; they are read from the public STEPFOC
+firmware (``communication.cpp``), and a line we do not know is kept raw rather than guessed at.
 """
 
 from __future__ import annotations
@@ -24,12 +24,12 @@ from typing import Any
 from ..errors import LimitError, ProtocolError
 from .can_protocol import Detection
 
-BAUDRATE = 256_000  # PROTOCOL-NOTES §2 UART
-MAX_COMMAND_CHARS = 20  # name + argument, PROTOCOL-NOTES §2 UART
+BAUDRATE = 256_000  # docs/protocols.md §2 UART
+MAX_COMMAND_CHARS = 20  # name + argument, docs/protocols.md §2 UART
 MAX_NAME_CHARS = 19  # the firmware reads the name with sscanf("%19s")
-UNKNOWN_COMMAND = "Unknown command"  # PROTOCOL-NOTES §2 UART
+UNKNOWN_COMMAND = "Unknown command"  # docs/protocols.md §2 UART
 LINE_END = "\r\n"  # the firmware prints with Arduino println
-# the driver can push 2800 mA and the firmware never clamps (PROTOCOL-NOTES §2, physical facts)
+# the driver can push 2800 mA and the firmware never clamps (docs/protocols.md §2, physical facts)
 MAX_CURRENT_MA = 2800
 
 _NAME_RE = re.compile(r"[A-Za-z][A-Za-z0-9_]*")
@@ -162,7 +162,7 @@ def _spec(*args: Any, **kw: Any) -> tuple[str, CommandSpec]:
     return spec.name, spec
 
 
-# PROTOCOL-NOTES §2 UART (answers) and the MSG document 004_… (ranges); "Clear" from the public firmware.
+# docs/protocols.md §2 UART (answers) and the MSG document 004_… (ranges); "Clear" from the public firmware.
 COMMANDS: dict[str, CommandSpec] = dict(
     [
         _spec("Gripper", "Gripper: ", True, (0, 1), doc="set/get 'am I a gripper'"),
@@ -184,7 +184,7 @@ COMMANDS: dict[str, CommandSpec] = dict(
 
 # The names the firmware's parser passes on (public STEPFOC firmware, SerialPacketParser.cpp ``parse``): one
 # list for "#NAME ARG", one for "#NAME". A line whose name is not in its list is dropped without an answer;
-# a listed name that communication.cpp does not dispatch is answered "Unknown command" (PROTOCOL-NOTES §2,
+# a listed name that communication.cpp does not dispatch is answered "Unknown command" (docs/protocols.md §2,
 # "Firmware behaviour a client must survive").
 PARSER_NAMES_WITH_ARG = frozenset(
     (
@@ -274,7 +274,8 @@ def format_command(name: str, value: int | None = None) -> bytes:
             if not lo <= value <= hi:
                 raise LimitError(f"argument {value} outside {lo}..{hi}", command=name)
         text = f"{name} {value}"
-    # PROTOCOL-NOTES §2: command and argument together at most 20 characters (the firmware drops longer lines)
+    # docs/protocols.md §2: command and argument together at most 20 characters (the firmware drops
+    # longer lines)
     if len(text) - (value is not None) > MAX_COMMAND_CHARS:
         raise LimitError(
             f"command and argument longer than {MAX_COMMAND_CHARS} characters: {text!r}", command=name
@@ -375,7 +376,7 @@ class LineSplitter:
 
 @dataclass(frozen=True, slots=True)
 class GripInfo:
-    """The eleven lines of ``#Gripinfo`` as one record (PROTOCOL-NOTES §2 UART)."""
+    """The eleven lines of ``#Gripinfo`` as one record (docs/protocols.md §2 UART)."""
 
     is_gripper: bool
     calibrated: bool
@@ -390,9 +391,10 @@ class GripInfo:
     max_closed_position: int
 
 
-GRIPINFO_FIRST_LINE = {True: "I am a gripper", False: "I am not a gripper "}  # PROTOCOL-NOTES §2 UART
+GRIPINFO_FIRST_LINE = {True: "I am a gripper", False: "I am not a gripper "}  # docs/protocols.md §2 UART
 
-# (field, line prefix) of Gripinfo lines 2..11, in the order the firmware prints them (PROTOCOL-NOTES §2 UART)
+# (field, line prefix) of Gripinfo lines 2..11, in the order the firmware prints them
+# (docs/protocols.md §2 UART)
 GRIPINFO_FIELDS: tuple[tuple[str, str], ...] = (
     ("calibrated", "Gripper calibrated is: "),
     ("activated", "Gripper activated is: "),
@@ -407,8 +409,8 @@ GRIPINFO_FIELDS: tuple[tuple[str, str], ...] = (
 )
 _BOOL_FIELDS = frozenset({"calibrated", "activated", "estop", "action"})
 _I32 = (-(2**31), 2**31 - 1)
-# Protocol ranges of the Gripinfo values (PROTOCOL-NOTES §2: bytes 0..255, current 0..2800 mA, detection 0..3,
-# flags 0/1; the calibrated end stops are encoder ticks, C ints in the firmware)
+# Protocol ranges of the Gripinfo values (docs/protocols.md §2: bytes 0..255, current 0..2800 mA, detection
+# 0..3, flags 0/1; the calibrated end stops are encoder ticks, C ints in the firmware)
 GRIPINFO_RANGES: dict[str, tuple[int, int]] = {
     "calibrated": (0, 1),
     "activated": (0, 1),
@@ -516,7 +518,7 @@ def parse_gripinfo(lines: Iterable[str]) -> GripInfo:
 
 @dataclass(frozen=True, slots=True)
 class UartInfo:
-    """``#Info``: the four identification lines of PROTOCOL-NOTES §2 plus the status lines.
+    """``#Info``: the four identification lines of docs/protocols.md §2 plus the status lines.
 
     The status lines are not in the notes; the fields below are the ones the public firmware prints
     (``communication.cpp``), None when a line was absent. Lines we do not recognise stay in ``unknown_lines``
@@ -542,7 +544,7 @@ class UartInfo:
     unknown_lines: tuple[str, ...] = field(default=())
 
 
-# The identification values are the bytes of CAN frame 25 and the 4-bit node id (PROTOCOL-NOTES §2)
+# The identification values are the bytes of CAN frame 25 and the 4-bit node id (docs/protocols.md §2)
 INFO_RANGES: dict[str, tuple[float, float]] = {
     "hardware_version": (0, 255),
     "batch_date": (0, 255),
@@ -553,7 +555,7 @@ INFO_RANGES: dict[str, tuple[float, float]] = {
     "pole_pairs": (0, 1000),
 }
 
-# (field, line prefix) of the identification lines, in order (PROTOCOL-NOTES §2 UART)
+# (field, line prefix) of the identification lines, in order (docs/protocols.md §2 UART)
 INFO_HEADER: tuple[tuple[str, str], ...] = (
     ("hardware_version", "Hardware version: "),
     ("batch_date", "Batch date: "),

@@ -90,9 +90,9 @@ __all__ = ["Pending", "Subscription", "WsgClient"]
 log = logging.getLogger(__name__)
 
 _POLL = 0.05  # the reader's receive timeout: bounds how long close() waits for the reader to notice
-# PROTOCOL-NOTES §1: a half-received packet is dropped after a silent gap of tens of milliseconds.
+# docs/protocols.md §1: a half-received packet is dropped after a silent gap of tens of milliseconds.
 _SILENT_GAP = 0.05
-_MIN_PERIOD_MS = 10  # PROTOCOL-NOTES §1: auto-update period minimum
+_MIN_PERIOD_MS = 10  # docs/protocols.md §1: auto-update period minimum
 _MAX_TAG = 64  # WSG manual 4.0.x §3.5.2
 _MAX_LOOP = 256  # WSG manual 4.0.x §3.1.1
 
@@ -308,9 +308,9 @@ class WsgClient:
             verify_checksum=verify_checksum, stale_ttl=stale_ttl, stale_final_ttl=stale_final_ttl
         )
         self._silent_gap = silent_gap
-        # PROTOCOL-NOTES §1 / docs/protocols.md §1: only a serial line ends a packet by a pause. A TCP stream
-        # may pause 40 ms inside a reply (delayed ACK) and CAN frames may be spaced: there the size field and
-        # the parser's per-id bound end a packet, never a gap.
+        # docs/protocols.md §1 / docs/protocols.md §1: only a serial line ends a packet by a pause. A TCP
+        # stream may pause 40 ms inside a reply (delayed ACK) and CAN frames may be spaced: there the size
+        # field and the parser's per-id bound end a packet, never a gap.
         self._gap_rule = bool(getattr(transport, "silent_gap", False))
         self._drain = getattr(transport, "recv_nowait", None)
         # Whether anything may have arrived: a poll() bound method where the transport has one, so the drain
@@ -1072,7 +1072,7 @@ class WsgClient:
         self._call(Cmd.FAST_STOP, timeout=timeout)
 
     def acknowledge_fast_stop(self, key: bytes = b"ack", *, timeout: float | None = None) -> None:
-        """Leave FAST STOP (24h); the key is "ack" (PROTOCOL-NOTES §1)."""
+        """Leave FAST STOP (24h); the key is "ack" (docs/protocols.md §1)."""
         self._call(Cmd.ACK_FAST_STOP, timeout=timeout, key=key)
 
     # ----------------------------------------------------------------------------------------- settings
@@ -1119,7 +1119,8 @@ class WsgClient:
         self._call(Cmd.OVERDRIVE, timeout=timeout, enable=bool(on))
 
     def tare(self, *, timeout: float | None = None) -> None:
-        """Zero the force sensor (38h); E_NOT_AVAILABLE without force-sensing fingers (PROTOCOL-NOTES §1)."""
+        """Zero the force sensor (38h); E_NOT_AVAILABLE without force-sensing fingers (docs/protocols.md
+        §1)."""
         self._call(Cmd.TARE, timeout=timeout)
 
     # -------------------------------------------------------------------------------------------- state

@@ -2,7 +2,7 @@
 
 Every command of the 4.0.x and 2.2.0 manuals is described once in :data:`COMMANDS`; request builders and
 decoders (client and simulator), reply builders and decoders, and the monitor's one-line text all read that
-table, so a layout cannot drift between the two sides. Errata of PROTOCOL-NOTES §1 are applied and marked.
+table, so a layout cannot drift between the two sides. Errata of docs/protocols.md §1 are applied and marked.
 """
 
 from __future__ import annotations
@@ -131,7 +131,7 @@ class GraspingState(IntEnum):
 
 
 class DeviceType(IntEnum):
-    """Device type of 50h, WSG manual 4.0.x §3.5.1 and PROTOCOL-NOTES §1."""
+    """Device type of 50h, WSG manual 4.0.x §3.5.1 and docs/protocols.md §1."""
 
     UNKNOWN = 0
     WSG50 = 1
@@ -423,7 +423,7 @@ class CommandSpec:
 
 
 def _f32(name: str, unit: str = "") -> Field:
-    # PROTOCOL-NOTES §1 errata: every "float" is 4 bytes, even where the 4.0.x manual prints "Byte 0".
+    # docs/protocols.md §1 errata: every "float" is 4 bytes, even where the 4.0.x manual prints "Byte 0".
     return Field(name, "f", unit)
 
 
@@ -438,7 +438,8 @@ def _temperature_to_wire(celsius: float) -> int:
     return round(_finite(celsius) * 10)
 
 
-# PROTOCOL-NOTES §1: auto-update parameters: byte 0 flags (D0 on, D1 only on change), bytes 1..2 period (u16).
+# docs/protocols.md §1: auto-update parameters: byte 0 flags (D0 on, D1 only on change), bytes 1..2
+# period (u16).
 _AUTO_UPDATE_FIELDS = (
     Field("flags", "B", bits=(("auto_update", 0), ("changes_only", 1))),
     Field("period_ms", "H", "ms", default=0),
@@ -457,7 +458,7 @@ def _finger(base: int, n: int) -> list[CommandSpec]:
     return [
         CommandSpec(
             base, f"GET_FINGER{n}_INFO", f"Get Finger {n} Info", f"3.6.{section}", Layout(),
-            # PROTOCOL-NOTES §1 erratum: SIZE is bytes 1..2 (4.0.x §3.6.1 prints 2..3).
+            # docs/protocols.md §1 erratum: SIZE is bytes 1..2 (4.0.x §3.6.1 prints 2..3).
             Layout(Field("finger_type", "B", from_wire=_enum_or_int(FingerType), to_wire=int),
                    Field("data_size", "H", "bytes")),
             min_firmware_major=3, result=FingerInfo,
@@ -468,7 +469,7 @@ def _finger(base: int, n: int) -> list[CommandSpec]:
             min_firmware_major=3,
         ),
         CommandSpec(
-            # PROTOCOL-NOTES §1 erratum: the ON/OFF parameter is byte 0 (4.0.x §3.6.3 prints "Byte 1").
+            # docs/protocols.md §1 erratum: the ON/OFF parameter is byte 0 (4.0.x §3.6.3 prints "Byte 1").
             base + 2, f"FINGER{n}_POWER", f"Finger {n} Power Control", f"3.6.{section + 2}",
             Layout(Field("power", "B", to_wire=lambda on: 1 if on else 0, from_wire=bool)), Layout(),
             is_async=True, min_firmware_major=3,
@@ -481,7 +482,7 @@ def _finger(base: int, n: int) -> list[CommandSpec]:
     ]
 
 
-# Firmware 2.2.0 has neither 46h nor the finger commands (PROTOCOL-NOTES §1); 4.0.x documents them.
+# Firmware 2.2.0 has neither 46h nor the finger commands (docs/protocols.md §1); 4.0.x documents them.
 # The 3.x manuals are not among our sources, so 3.x is assumed to have them: a device that lacks one answers
 # E_CMD_UNKNOWN, which is harmless, while refusing a command a device has would not be.
 _SPECS: list[CommandSpec] = [
@@ -493,14 +494,14 @@ _SPECS: list[CommandSpec] = [
                 Layout(Field("direction", "B", default=0)), Layout(), is_async=True,
                 doc="direction 0: configured default, 1: positive (external), 2: negative (internal)"),
     CommandSpec(Cmd.PREPOSITION, "PREPOSITION", "Pre-position Fingers", "3.2.2",
-                # PROTOCOL-NOTES §1: D0 = relative motion, D1 = stop on block (the manual is right).
+                # docs/protocols.md §1: D0 = relative motion, D1 = stop on block (the manual is right).
                 Layout(Field("flags", "B", bits=(("relative", 0), ("stop_on_block", 1))),
                        _f32("width", "mm"), _f32("speed", "mm/s")),
                 Layout(), is_async=True),
     CommandSpec(Cmd.STOP, "STOP", "Stop", "3.2.3", Layout(), Layout()),
     CommandSpec(Cmd.FAST_STOP, "FAST_STOP", "Issue FAST STOP", "3.2.4", Layout(), Layout()),
     CommandSpec(Cmd.ACK_FAST_STOP, "ACK_FAST_STOP", "Acknowledge FAST STOP", "3.2.5",
-                # PROTOCOL-NOTES §1: the key is the three ASCII bytes "ack".
+                # docs/protocols.md §1: the key is the three ASCII bytes "ack".
                 Layout(Field("key", "3s", default=b"ack",
                              to_wire=lambda k: k.encode("ascii") if isinstance(k, str) else bytes(k))),
                 Layout()),
@@ -528,7 +529,7 @@ _SPECS: list[CommandSpec] = [
                 Layout(*_AUTO_UPDATE_FIELDS), Layout(_SYSTEM_FLAGS), auto_update=True),
     CommandSpec(Cmd.GET_GRASPING_STATE, "GET_GRASPING_STATE", "Get Gripper State", "3.4.2",
                 Layout(*_AUTO_UPDATE_FIELDS), Layout(_GRASPING_STATE), auto_update=True),
-    # PROTOCOL-NOTES §1 erratum: the id is 42h (both manuals print "Command ID: 40h").
+    # docs/protocols.md §1 erratum: the id is 42h (both manuals print "Command ID: 40h").
     CommandSpec(Cmd.GET_GRASPING_STATISTICS, "GET_GRASPING_STATISTICS", "Get Gripping Statistics", "3.4.3",
                 Layout(Field("flags", "B", bits=(("reset", 0),))),
                 Layout(Field("total", "I"), Field("no_part", "H"), Field("lost_part", "H")),
@@ -539,7 +540,7 @@ _SPECS: list[CommandSpec] = [
                 Layout(_f32("speed", "mm/s")), auto_update=True),
     CommandSpec(Cmd.GET_FORCE, "GET_FORCE", "Get Force", "3.4.6", Layout(*_AUTO_UPDATE_FIELDS),
                 Layout(_f32("force", "N")), auto_update=True),
-    # PROTOCOL-NOTES §1: i16 in 0.1 °C; decoded to °C as a float.
+    # docs/protocols.md §1: i16 in 0.1 °C; decoded to °C as a float.
     CommandSpec(Cmd.GET_TEMPERATURE, "GET_TEMPERATURE", "Get Temperature", "3.4.7", Layout(),
                 Layout(Field("temperature", "h", "°C", from_wire=lambda raw: raw / 10.0,
                              to_wire=_temperature_to_wire)),

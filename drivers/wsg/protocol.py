@@ -47,7 +47,7 @@ MAX_PAYLOAD = 1024
 _HEADER = struct.Struct("<3sBH")
 _U16 = struct.Struct("<H")
 
-# PROTOCOL-NOTES §1 "Framing and checksum": the manuals' table is the MSB-first table of polynomial 0x1021,
+# docs/protocols.md §1 "Framing and checksum": the manuals' table is the MSB-first table of polynomial 0x1021,
 # applied with a right-shifting update starting at 0xFFFF. Generated here rather than transcribed, because the
 # printed 4.0.x table has a typo at 0x59 (0xcdbc for 0xcbdc).
 CRC_POLYNOMIAL = 0x1021
@@ -75,7 +75,7 @@ def crc16(data: bytes | bytearray | memoryview, crc: int = CRC_INIT) -> int:
     return crc
 
 
-# PROTOCOL-NOTES §1: the state after the three preamble bytes; lets the parser skip them on every packet.
+# docs/protocols.md §1: the state after the three preamble bytes; lets the parser skip them on every packet.
 CRC_AFTER_PREAMBLE = crc16(PREAMBLE)
 
 
@@ -200,7 +200,7 @@ ParseEvent = ChecksumError | BadLength | Discarded
 class PacketParser:
     """Incremental WSG packet parser: feed it any chunks, get packets and events back; never raises.
 
-    Resynchronisation (PROTOCOL-NOTES §1): a preamble is the LAST three bytes of a run of 0xAA (so a stray
+    Resynchronisation (docs/protocols.md §1): a preamble is the LAST three bytes of a run of 0xAA (so a stray
     0xAA before a packet costs nothing; command id 0xAA cannot be framed, and no WSG command uses it).
     Nothing is consumed until a packet checks out: on a checksum failure or an impossible size the scan
     restarts right after the false preamble, so a false preamble in noise never swallows the real packets
@@ -329,7 +329,7 @@ class PacketParser:
 
 
 def can_frames(packet: bytes, frame_size: int = 8) -> list[bytes]:
-    """Cut a whole packet into CAN data fields of 8 bytes, the last one shorter (PROTOCOL-NOTES §1, CAN).
+    """Cut a whole packet into CAN data fields of 8 bytes, the last one shorter (docs/protocols.md §1, CAN).
 
     The receiver reassembles by feeding the frames' data to a :class:`PacketParser`, which ends a packet by
     its size field, not by a short frame (a packet whose length is a multiple of 8 ends on a full frame).

@@ -10,7 +10,7 @@ that id space, and this module decides which is which:
   motion is pending.
 * **E_CMD_PENDING, then the final reply** (WSG manual 4.0.x §1.3). A PENDING reply moves the exchange to the
   pending phase; the next packet of that id is its final reply. The slot of that id stays busy until then.
-* **Auto updates** (40h, 41h, 43h-45h; PROTOCOL-NOTES §1) reuse the id of their command. A packet of a
+* **Auto updates** (40h, 41h, 43h-45h; docs/protocols.md §1) reuse the id of their command. A packet of a
   subscribed id is an update whenever no request of that id is outstanding; while one is outstanding, the next
   packet of that id is taken as its reply. The two carry the same data (the current value), so the only
   consequence of an update overtaking a reply is that the reply itself is then delivered as an update.

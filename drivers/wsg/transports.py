@@ -35,7 +35,7 @@ __all__ = [
     "UdpTransport",
 ]
 
-# PROTOCOL-NOTES §1, "Transport defaults" (from public drivers, not from the manuals).
+# docs/protocols.md §1, "Transport defaults" (from public drivers, not from the manuals).
 DEFAULT_TCP_PORT = 1000
 DEFAULT_UDP_PORT = 1500
 DEFAULT_UDP_LOCAL_PORT = 1501
@@ -72,7 +72,7 @@ class Transport(Protocol):
     name: str
     #: True where the WSG knows about connections (TCP): the client then announces its disconnect with 07h.
     connection_oriented: bool
-    #: True on a serial line only: there a pause ends a half-received packet (PROTOCOL-NOTES §1,
+    #: True on a serial line only: there a pause ends a half-received packet (docs/protocols.md §1,
     #: docs/protocols.md §1). A TCP stream may pause inside a reply (a delayed ACK) and still be whole.
     silent_gap: bool
 
@@ -269,7 +269,7 @@ class SerialTransport:
     ) -> None:
         self.name = f"serial:{port}"
         try:
-            # PROTOCOL-NOTES §1: 115200 baud, 8N1 by default; one public driver uses 2 stop bits.
+            # docs/protocols.md §1: 115200 baud, 8N1 by default; one public driver uses 2 stop bits.
             self._port = serial.serial_for_url(
                 port, baudrate=baudrate, bytesize=bytesize, parity=parity, stopbits=stopbits,
                 timeout=0.05, write_timeout=write_timeout,
@@ -312,8 +312,9 @@ class SerialTransport:
 class CanTransport:
     """WSG packets over CAN: cut into 8-byte frames on ``send_id``, reassembled from ``recv_id`` frames.
 
-    PROTOCOL-NOTES §1 (CAN): the whole packet, preamble to checksum, travels in consecutive frames; the end of
-    a packet is found by its size field, which the client's parser does, so ``recv`` just returns frame data.
+    docs/protocols.md §1 (CAN): the whole packet, preamble to checksum, travels in consecutive frames; the
+    end of a packet is found by its size field, which the client's parser does, so ``recv`` just returns
+    frame data.
     """
 
     connection_oriented = False

@@ -243,7 +243,7 @@ class _UartLink(_Link):
             d.velocity(speed)
             d.current(current_ma)
             if action:
-                d.position(position)  # a set also activates and starts the motion (PROTOCOL-NOTES §2)
+                d.position(position)  # a set also activates and starts the motion (docs/protocols.md §2)
             else:
                 d.activate(0)  # the UART has no action bit: deactivating is its only way to stop
 
@@ -313,7 +313,7 @@ class MsgGripper(Gripper):
     def driver(self) -> Any:
         return self._link.driver
 
-    # -- unit maps (profile maps; PROTOCOL-NOTES §2 for the byte meanings) ---------------------------------
+    # -- unit maps (profile maps; docs/protocols.md §2 for the byte meanings) --------------------------------
 
     def _position_byte(self, width: float) -> int:
         m = self._maps
@@ -440,7 +440,7 @@ class MsgGripper(Gripper):
         with self._send_lock:  # a stop() cannot land between the number and the frames and be undone
             motion = self._begin(f"superseded by a newer motion before it ended ({command})")
             self._link.go(position, self._speed_byte(speed), current_ma)
-        # The immediate reply to a new command still carries the previous detection value (PROTOCOL-NOTES
+        # The immediate reply to a new command still carries the previous detection value (docs/protocols.md
         # §2), so a fresh poll decides; detection 0 means moving. The client never repeats a 61 byte for byte,
         # so the firmware's at-position latch cannot report 3 for a motion that has not arrived.
         stall = self._stall_s(speed)
@@ -451,7 +451,7 @@ class MsgGripper(Gripper):
             motion = self._begin("superseded by a newer motion before it ended (home)")
             self._mode, self._held = "home", False
             self._link.calibrate()
-        # Polls only (empty 61 / UART gets): a 5-byte 61 would abort the calibration (PROTOCOL-NOTES §2).
+        # Polls only (empty 61 / UART gets): a 5-byte 61 would abort the calibration (docs/protocols.md §2).
         self._wait("home", motion, timeout, self._link.calibration_done)
         self._mode = "idle"
 
@@ -608,7 +608,7 @@ class MsgGripper(Gripper):
             if cmd == node.last_command:
                 if not self._servo_first:
                     return False  # the gripper already heads there; the firmware would take it as "same"
-                # PROTOCOL-NOTES §2, "same command" latch: a 5-byte 61 equal to the previous one does not
+                # docs/protocols.md §2, "same command" latch: a 5-byte 61 equal to the previous one does not
                 # restart a motion (and after a calibration reports "at position" at once). The first frame
                 # of a servoing must be a new command, so its speed byte moves by one step.
                 cmd = node.make_command(position, speed - 1 if speed > 0 else 1, current)
@@ -616,7 +616,7 @@ class MsgGripper(Gripper):
         else:
             if (position, speed, current) == self._servo_last and not self._servo_first:
                 return False
-            link.go(position, speed, current)  # UART: Gripvel, Gripcur, Grippos (PROTOCOL-NOTES §2)
+            link.go(position, speed, current)  # UART: Gripvel, Gripcur, Grippos (docs/protocols.md §2)
         self._servo_first = False
         self._servo_last = (position, speed, current)
         self._mode, self._held = "move", False
@@ -643,7 +643,8 @@ class MsgGripper(Gripper):
             old.close()
         else:
             link.status()  # the bus stays open: the node answering again is the reconnection
-        # A gripper that was power-cycled has lost its calibration (PROTOCOL-NOTES §2) and anything it held.
+        # A gripper that was power-cycled has lost its calibration (docs/protocols.md §2) and anything
+        # it held.
         self._mode, self._held = "idle", False
 
 

@@ -2,7 +2,7 @@
 
 Output is checked against the --json schemas (grippers/cli/schemas.py, via the ``cli_json`` fixture) and the
 exit codes of docs/cli.md. The CAN tests use python-can's udp_multicast bus between processes with node ids
-and WSG CAN ids of their own (PROTOCOL-NOTES §2: multicast groups do not isolate on Linux).
+and WSG CAN ids of their own (docs/protocols.md §2: multicast groups do not isolate on Linux).
 """
 
 from __future__ import annotations

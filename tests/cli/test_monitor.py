@@ -101,7 +101,7 @@ def test_missing_capture_is_a_usage_error(tmp_path: Path, cli) -> None:
 
 
 def test_candump_log_of_stepfoc_frames(tmp_path: Path, cli) -> None:
-    # id = node << 7 | command << 1 | error (PROTOCOL-NOTES §2); node 2: 61 poll, 60 reply, 10 ping (RTR).
+    # id = node << 7 | command << 1 | error (docs/protocols.md §2); node 2: 61 poll, 60 reply, 10 ping (RTR).
     node = 2
     poll = node << 7 | 61 << 1
     reply = node << 7 | 60 << 1
@@ -118,7 +118,7 @@ def test_candump_log_of_stepfoc_frames(tmp_path: Path, cli) -> None:
     assert [d["command"] for d in docs] == ["gripper_command", "gripper_status", "ping"]
     assert [d["direction"] for d in docs] == ["host->gripper", "gripper->host", "host->gripper"]
     assert docs[2]["raw"] == "R"
-    # 80 FE0C 41: position 128, -500 mA (big-endian), flags action + calibrated (PROTOCOL-NOTES §2)
+    # 80 FE0C 41: position 128, -500 mA (big-endian), flags action + calibrated (docs/protocols.md §2)
     assert docs[1]["fields"]["position"] == 128 and docs[1]["fields"]["current_ma"] == -500
     assert docs[1]["fields"]["calibrated"] is True and docs[1]["fields"]["detection"] == "MOVING"
 

@@ -1,6 +1,6 @@
 """MSG over python-can's udp_multicast bus: the simulator process is killed and restarted on the same bus.
 
-Run under ``flock /tmp/grippers-udp-mcast.lock`` (host-wide bus, PROTOCOL-NOTES §2 "Testing without CAN
+Run under ``flock /tmp/grippers-udp-mcast.lock`` (host-wide bus, docs/protocols.md §2 "Testing without CAN
 hardware"); a random node id keeps this test apart from others on the bus anyway.
 """
 
@@ -45,6 +45,6 @@ def test_msg_node_killed_and_restarted_on_the_same_bus(restartable: Callable[...
             time.sleep(0.01)
         assert events == [False, True]
         st = g.state()
-        assert not st.referenced  # a power-cycled MSG has lost its calibration (PROTOCOL-NOTES §2)
+        assert not st.referenced  # a power-cycled MSG has lost its calibration (docs/protocols.md §2)
         g.home()
         assert abs(g.move(0.05).width - 0.05) < 2e-3

@@ -48,7 +48,7 @@ def test_msg_uart_killed_and_restarted_behind_a_stable_path(
         _point(link, sim)
         wait_for(lambda: g.connected)
         assert events == [False, True]
-        assert not g.state().referenced  # a restarted MSG has lost its calibration (PROTOCOL-NOTES §2)
+        assert not g.state().referenced  # a restarted MSG has lost its calibration (docs/protocols.md §2)
         g.home()
         assert abs(g.move(0.05).width - 0.05) < 2e-3
 

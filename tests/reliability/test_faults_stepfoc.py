@@ -186,7 +186,7 @@ def test_uart_bad_answer_then_service_continues(msg_uart_sim, fault: str) -> Non
 
 def test_delayed_reply_times_out_and_the_next_request_gets_a_value_of_its_kind(node) -> None:
     """CAN replies carry no sequence number: a late reply can answer the next request with the same key
-    (PROTOCOL-NOTES §2; documented in can_client). It is always the same kind of value, never another's."""
+    (docs/protocols.md §2; documented in can_client). It is always the same kind of value, never another's."""
     server, n = node
     server.faults.delay_replies(0.4)
     with pytest.raises(GripperTimeout, match="device_info: no reply within 0.2 s"):

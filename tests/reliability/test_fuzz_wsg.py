@@ -36,7 +36,7 @@ SENTINEL = encode_packet(0x06, b"sentinel \x00\xaa\xaa\xaa\xff")
 
 packets = st.builds(
     encode_packet,
-    st.integers(0, 0xFF).filter(lambda c: c != 0xAA),  # id 0xAA cannot be framed (PROTOCOL-NOTES §1)
+    st.integers(0, 0xFF).filter(lambda c: c != 0xAA),  # id 0xAA cannot be framed (docs/protocols.md §1)
     st.binary(max_size=48),
 )
 mutation = st.tuples(

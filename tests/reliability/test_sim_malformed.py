@@ -117,7 +117,7 @@ def _frames(raw: can.BusABC, wait: float = 0.1) -> list[can.Message]:
 
 @pytest.mark.parametrize("length", range(9))
 def test_msg_sim_answers_a_61_of_any_length_with_a_60(can_node, length: int) -> None:
-    """PROTOCOL-NOTES §2: every 61 frame, whatever its length, is answered by a status frame."""
+    """docs/protocols.md §2: every 61 frame, whatever its length, is answered by a status frame."""
     server, raw = can_node
     ident = pack_id(2, Cmd.GRIPPER_COMMAND)
     raw.send(can.Message(arbitration_id=ident, data=bytes(length), is_extended_id=False))
@@ -193,7 +193,7 @@ def _read_until(fd: int, marker: bytes, timeout: float = 3.0) -> bytes:
 @given(garbage=st.binary(max_size=300))
 def test_uart_sim_survives_garbage_and_answers_the_next_command(uart_port, garbage: bytes) -> None:
     """The firmware's receiver: '#' restarts a line, over-long lines are dropped, unknown names get
-    'Unknown command' (PROTOCOL-NOTES §2 UART); the next command is answered."""
+    'Unknown command' (docs/protocols.md §2 UART); the next command is answered."""
     server, fd = uart_port
     garbage = garbage.replace(b"#", b"")  # a garbage command could legitimately change the gripper
     os.write(fd, garbage + b"#Gripper\n")

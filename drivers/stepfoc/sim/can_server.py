@@ -7,7 +7,7 @@ thread.
 
 Reach: python-can's ``udp_multicast`` bus binds to all interfaces and sends with TTL / hop limit 1, so its
 frames stay on the local link but are NOT confined to loopback; on Linux every bus on the host with the same
-port sees every group (PROTOCOL-NOTES §2, "Testing without CAN hardware"). Use ``virtual`` in-process.
+port sees every group (docs/protocols.md §2, "Testing without CAN hardware"). Use ``virtual`` in-process.
 """
 
 from __future__ import annotations
@@ -202,7 +202,7 @@ def serve_can(
         model_list[0].node = model_list[0].saved_node = int(params["node"])
     nodes = [m.node for m in model_list]
     bad = [n for n in nodes if not 0 <= n <= MAX_NODE]
-    if bad:  # node << 7 would not fit the 11-bit standard identifier of PROTOCOL-NOTES §2
+    if bad:  # node << 7 would not fit the 11-bit standard identifier of docs/protocols.md §2
         raise ValueError(f"node ids {bad} do not fit an 11-bit standard identifier (0..{MAX_NODE})")
     if len(set(nodes)) != len(nodes):
         raise ValueError(f"two simulated nodes share a node id: {nodes}")

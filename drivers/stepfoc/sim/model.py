@@ -1,22 +1,22 @@
 """A firmware-faithful model of the MSG gripper on a STEPFOC driver, shared by the CAN and UART simulators.
 
 Pure: no sockets, threads or clocks. Every method takes ``now`` (simulated seconds); servers own the clock.
-The behaviour follows PROTOCOL-NOTES §2 (CAN, UART, physical facts). Choices the notes leave open, made here
-and kept in one place so a test can rely on them:
+The behaviour follows docs/protocols.md §2 (CAN, UART, physical facts). Choices the notes leave open, made
+here and kept in one place so a test can rely on them:
 
 * Scale: ``ticks_per_mm`` (default 200) encoder ticks per mm of jaw opening, so the 105 mm jaw of an MSG 150
-  is 21000 ticks; the speed byte maps linearly to 500..60000 ticks/s (PROTOCOL-NOTES §2), i.e. a full stroke
-  takes 42 s at speed 0 and 0.35 s at speed 255. There is no acceleration phase.
+  is 21000 ticks; the speed byte maps linearly to 500..60000 ticks/s (docs/protocols.md §2), i.e. a full
+  stroke takes 42 s at speed 0 and 0.35 s at speed 255. There is no acceleration phase.
 * Encoder ticks grow towards CLOSED. At power-up the encoder reads 0 wherever the jaws are (``start_mm`` of
   opening), so the calibrated end stops (``min_position`` open, ``max_position`` closed) are arbitrary
   numbers, as on the device.
-* Position bytes map to ticks with integer truncation in both directions (PROTOCOL-NOTES §2), so a commanded
-  128 reads back as 127 while detection says 3.
+* Position bytes map to ticks with integer truncation in both directions (docs/protocols.md §2), so a
+  commanded 128 reads back as 127 while detection says 3.
 * Driver mode, as the firmware keeps it (public STEPFOC firmware ``src/motor_control.cpp``, loop switch on
   ``Controller_mode``): IDLE (0, nothing moves), GRIPPER (11, set by every 5-byte 61 and UART ``Grippos N``),
   CALIBRATE (7, set by 62 / ``Gripcal``). Any active error forces IDLE at the next control step, and command 1
   (clear error), command 12, the end of a calibration and a watchdog trip also leave the driver IDLE: nothing
-  moves until a new 5-byte 61 arrives (PROTOCOL-NOTES §2, "Firmware behaviour a client must survive").
+  moves until a new 5-byte 61 arrives (docs/protocols.md §2, "Firmware behaviour a client must survive").
 * Calibration (``Calibrate_gripper``): open at ``calibration_speed`` with ``calibration_current_ma``, pause
   ``calibration_pause_s``, close, then calibrated and IDLE at the closed stop. It writes nothing else: the
   calibrated bit stays set while a calibrated gripper recalibrates, the detection value stays frozen, the
@@ -31,14 +31,14 @@ and kept in one place so a test can rely on them:
 * E-stop: command 0 sets only the DRIVER's e-stop error (identifier error bit, frame 26's estop bit), not
   the 60 frame's estop flag; a 61 with its estop bit sets the gripper's estop error (the 60 flag). Clear error
   (1) clears both, but if the stored 61 still has estop set the error comes back at the next control step
-  (PROTOCOL-NOTES §2 table, command 1), so "61 with estop 0, then 1" is the order that cannot race.
+  (docs/protocols.md §2 table, command 1), so "61 with estop 0, then 1" is the order that cannot race.
 * The watchdog (15) stores its action byte and never reads it: a trip always sets the timeout error and
   idles the driver.
 * Frame 26's byte 1 is the motor driver's own state: its FOC calibration (done at the factory, always set
   here) and its ``Activated`` flag (set only by the UART ``#Activate`` command, never by the gripper), not
   the gripper's bits of frame 60.
 * Detection is only recomputed by :meth:`advance` for times after the last new command, so the immediate 60
-  reply to a new 61 still carries the previous detection value (PROTOCOL-NOTES §2 "fine points"). In GRIPPER
+  reply to a new 61 still carries the previous detection value (docs/protocols.md §2, fine points). In GRIPPER
   mode with the action or activate bit off the firmware reports 0 (its "idle or disabled" branch); in IDLE and
   during calibration the value is frozen.
 
@@ -56,7 +56,7 @@ Not modelled (what the firmware does and this model does not):
 * the motor modes (data packs 2-5, UART ``#Iq N``, ``#V``, ``#P``…): their frames are ignored and the UART
   names are answered with ``unknown_reply``;
 * the firmware's heartbeat goes out with the identifier of command 27 (``Heartbeat_CAN`` in
-  ``communication_CAN.cpp``); this model sends command 9 as PROTOCOL-NOTES §2 and the vendor library say;
+  ``communication_CAN.cpp``); this model sends command 9 as docs/protocols.md §2 and the vendor library say;
 * the watchdog is reset here by every frame addressed to the node, in the firmware only by some commands.
 """
 
@@ -91,14 +91,14 @@ from ..can_protocol import (
 
 __all__ = ["Mode", "MsgModel", "Phase", "speed_ticks_per_s"]
 
-MIN_SPEED_TICKS = 500.0  # PROTOCOL-NOTES §2: speed byte 0..255 -> about 500..60000 ticks/s
+MIN_SPEED_TICKS = 500.0  # docs/protocols.md §2: speed byte 0..255 -> about 500..60000 ticks/s
 MAX_SPEED_TICKS = 60000.0
-AT_POSITION_TICKS = 5  # PROTOCOL-NOTES §2: "within about 5 encoder ticks of the target it reports 3"
+AT_POSITION_TICKS = 5  # docs/protocols.md §2: "within about 5 encoder ticks of the target it reports 3"
 POSITION_MODE_TICKS_S = MAX_SPEED_TICKS  # a latched "same command" travels in position mode (assumed: fast)
 
 
 def speed_ticks_per_s(speed: int) -> float:
-    """Encoder ticks per second for a speed byte (linear map, PROTOCOL-NOTES §2)."""
+    """Encoder ticks per second for a speed byte (linear map, docs/protocols.md §2)."""
     return MIN_SPEED_TICKS + (MAX_SPEED_TICKS - MIN_SPEED_TICKS) * speed / 255.0
 
 
@@ -138,14 +138,14 @@ class MsgModel:
         self,
         *,
         node: int = 0,
-        travel_mm: float = 105.0,  # MSG 150 (PROTOCOL-NOTES §2 "Physical facts")
+        travel_mm: float = 105.0,  # MSG 150 (docs/protocols.md §2 "Physical facts")
         part_width_mm: float | None = None,
         part_grip: str = "outside",
         hardware_version: int = 1,
         batch_date: int = 24,
         software_version: int = 12,
         serial: int = 100_001,
-        calibration_current_ma: int = 600,  # PROTOCOL-NOTES §2
+        calibration_current_ma: int = 600,  # docs/protocols.md §2
         calibration_speed: float = 4000.0,  # ticks/s: "slow, taking seconds"
         calibration_pause_s: float = 0.5,
         ticks_per_mm: float = 200.0,
@@ -232,7 +232,7 @@ class MsgModel:
 
     @property
     def position(self) -> int:
-        """Actual position byte 0 (open) .. 255 (closed), truncated (PROTOCOL-NOTES §2)."""
+        """Actual position byte 0 (open) .. 255 (closed), truncated (docs/protocols.md §2)."""
         span = self.max_position - self.min_position
         if span <= 0:
             return 0
@@ -410,7 +410,7 @@ class MsgModel:
         same = raw == self._last_command
         self._last_command = raw
         if self.calibrating:
-            self._stop(Phase.IDLE)  # a 5-byte 61 aborts calibration (PROTOCOL-NOTES §2)
+            self._stop(Phase.IDLE)  # a 5-byte 61 aborts calibration (docs/protocols.md §2)
         self.mode = Mode.GRIPPER
         if not same:
             self.at_position = False
@@ -428,7 +428,7 @@ class MsgModel:
         return not same
 
     def _apply(self, now: float) -> None:
-        """Start or stop motion from the stored setpoints (Gripper_mode, PROTOCOL-NOTES §2)."""
+        """Start or stop motion from the stored setpoints (Gripper_mode, docs/protocols.md §2)."""
         if self.mode is not Mode.GRIPPER:
             return  # idle or calibrating: the setpoints wait for the next 5-byte 61
         if self.error_active:
@@ -449,7 +449,7 @@ class MsgModel:
         self._set_motion(Phase.MOVING, speed, direction, self.current_setpoint)
 
     def start_calibration(self, now: float) -> None:
-        """Command 62 / UART Gripcal: only switches the driver to calibration mode (PROTOCOL-NOTES §2,
+        """Command 62 / UART Gripcal: only switches the driver to calibration mode (docs/protocols.md §2,
         "Firmware behaviour"): the calibrated bit, the detection value and the last 61 are left alone."""
         self._begin(now)
         if self.error_active:
@@ -492,7 +492,7 @@ class MsgModel:
         self.saved_node = self.node
 
     def reset(self, now: float) -> None:
-        """Command 14: reboot. Calibration is lost (PROTOCOL-NOTES §2); the encoder restarts at 0."""
+        """Command 14: reboot. Calibration is lost (docs/protocols.md §2); the encoder restarts at 0."""
         self.advance(now)
         shift = self._ticks
         self._open_stop -= round(shift)
@@ -513,7 +513,7 @@ class MsgModel:
         self.heartbeat_ms = ms
         self._next_heartbeat = now + ms / 1000.0 if ms else None
 
-    # UART setters (PROTOCOL-NOTES §2 UART): they edit the stored command directly
+    # UART setters (docs/protocols.md §2 UART): they edit the stored command directly
     def set_position(self, position: int, now: float) -> None:
         """UART Grippos N: set the setpoint, activate, reset the at-position latch and go to gripper mode
         (communication.cpp); the stored 61 bytes are not touched."""
@@ -604,7 +604,7 @@ class MsgModel:
         if spec is None or spec.direction is Direction.NODE_TO_HOST:
             return []
         if command == Cmd.GRIPPER_COMMAND and not is_remote:
-            # PROTOCOL-NOTES §2: any 61 frame, of any length, is answered with a 60 frame
+            # docs/protocols.md §2: any 61 frame, of any length, is answered with a 60 frame
             if len(data) == 5:
                 self.on_command(decode_command(bytes(data)), now)
             else:

@@ -221,14 +221,14 @@ class UartSimServer:
         elif fault.kind is FaultKind.TRUNCATE:
             self._queue(data[: len(data) // 2])
 
-    # -- the firmware's command dispatch (PROTOCOL-NOTES §2 UART; public firmware communication.cpp) --------
+    # -- the firmware's command dispatch (docs/protocols.md §2 UART; public firmware communication.cpp) ------
 
     def answer(self, req: Request, now: float) -> list[str] | None:
         """The lines the firmware prints for ``req`` after applying it to the model (None: no answer)."""
         m = self.model
         name = req.name
         if not parser_knows(req):
-            return None  # SerialPacketParser drops it: no answer at all (PROTOCOL-NOTES §2)
+            return None  # SerialPacketParser drops it: no answer at all (docs/protocols.md §2)
         # the firmware sets only when an argument is present, converting it with atoi
         has_arg = req.argument is not None
         value = atoi(req.argument) if req.argument is not None else 0
@@ -298,7 +298,7 @@ class UartSimServer:
             software_version=m.software_version,
             can_id=m.node,
             calibrated=True,  # the motor's own (FOC) calibration, done at the factory; not the gripper's
-            thermistor_enabled=False,  # off by default (PROTOCOL-NOTES §2 physical facts)
+            thermistor_enabled=False,  # off by default (docs/protocols.md §2 physical facts)
             vbus_mv=m.bus_voltage_mv,
             **SIM_MOTOR_INFO,
         )

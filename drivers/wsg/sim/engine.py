@@ -19,7 +19,7 @@ from ...simkit import FaultHooks, FaultKind, SimClock
 from ..protocol import ChecksumError, Packet, PacketParser
 from .model import WsgModel
 
-# PROTOCOL-NOTES §1 (docs/protocols.md §1): on a SERIAL line a device drops a half-received packet after a
+# docs/protocols.md §1 (docs/protocols.md §1): on a SERIAL line a device drops a half-received packet after a
 # silent gap of tens of milliseconds. Not on TCP (a request written in pieces, or paused 40 ms by a delayed
 # ACK, is still one request) nor on CAN: there the size field ends a packet.
 SILENT_GAP_S = 0.03

@@ -10,7 +10,7 @@ Connections: a gripper keeps per-connection state (07h, auto updates, where an a
 model numbers its connections. Connection 0 exists from the start and is connection-oriented (TCP-like); a
 server registers one per TCP client, UDP peer, pty or CAN bus with :meth:`WsgModel.connect`.
 
-Sources: WSG command set reference 4.0.x (``000_…``), 2.2.0 (``002_…``), PROTOCOL-NOTES §1. Choices the
+Sources: WSG command set reference 4.0.x (``000_…``), 2.2.0 (``002_…``), docs/protocols.md §1. Choices the
 manuals leave open are marked "sim choice" and listed in :data:`SIM_CHOICES`; what is left out is listed
 in :data:`NOT_MODELLED`.
 """
@@ -419,7 +419,7 @@ class WsgModel:
         handler = self._handlers.get(command)
         too_new = spec is not None and (spec.min_firmware_major or 0) > self.firmware_version.major
         if spec is None or handler is None or too_new:
-            # PROTOCOL-NOTES §1: firmware 2.2.0 has no 46h and no 60h–73h -> E_CMD_UNKNOWN.
+            # docs/protocols.md §1: firmware 2.2.0 has no 46h and no 60h–73h -> E_CMD_UNKNOWN.
             self._reply(conn, command, Status.E_CMD_UNKNOWN)
             return
         try:
@@ -680,7 +680,7 @@ class WsgModel:
             return
         self._prepare_motion()
         speed = self._clamp(speed, self.min_speed, self.max_speed)
-        # PROTOCOL-NOTES §1: the fingers may travel on by the clamping travel past the nominal width.
+        # docs/protocols.md §1: the fingers may travel on by the clamping travel past the nominal width.
         travel_end = self._clamp(width + direction * self.clamping_travel, 0.0, self.stroke)
         if self.soft_limits is not None:
             travel_end = self._clamp(travel_end, *self.soft_limits)
@@ -753,7 +753,7 @@ class WsgModel:
 
     def _tare(self, conn: int, f: dict, cmd: int) -> None:
         if not self.force_fingers:
-            self._reply(conn, cmd, Status.E_NOT_AVAILABLE)  # §3.3.9 / PROTOCOL-NOTES §1
+            self._reply(conn, cmd, Status.E_NOT_AVAILABLE)  # §3.3.9 / docs/protocols.md §1
         elif self.grasping_state == GraspingState.HOLDING:
             self._reply(conn, cmd, Status.E_ACCESS_DENIED)  # §3.3.9: not in force control mode
         else:

@@ -2,7 +2,7 @@
 
 Listen URLs (the simulator's side; it binds to loopback unless a host is given):
 
-- ``tcp://HOST:PORT`` (port 0: any free port; no port: 1000, the WSG default, PROTOCOL-NOTES §1)
+- ``tcp://HOST:PORT`` (port 0: any free port; no port: 1000, the WSG default, docs/protocols.md §1)
 - ``udp://HOST:PORT`` (no port: 1500)
 - ``pty`` (a new pseudo-terminal; ``.url`` names its slave path)
 - ``can://INTERFACE/CHANNEL?send_id=..&recv_id=..&bitrate=..&extended=1`` (any python-can interface; the ids
@@ -23,7 +23,7 @@ from .transports import CanSimServer, PtySimServer, TcpSimServer, UdpSimServer
 __all__ = ["SimServer", "serve"]
 
 LOOPBACK = "127.0.0.1"
-DEFAULT_PORTS = {"tcp": 1000, "udp": 1500}  # PROTOCOL-NOTES §1, transport defaults
+DEFAULT_PORTS = {"tcp": 1000, "udp": 1500}  # docs/protocols.md §1, transport defaults
 
 
 def _int(text: str) -> int:

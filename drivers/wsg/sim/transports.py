@@ -222,7 +222,7 @@ class PtySimServer(_SelectorServer):
 
 
 class CanSimServer(SimServer):
-    """WSG packets cut into 8-byte frames (PROTOCOL-NOTES §1, CAN) on any python-can bus.
+    """WSG packets cut into 8-byte frames (docs/protocols.md §1, CAN) on any python-can bus.
 
     ``send_id``/``recv_id`` are the CLIENT's ids, as in the family URL: the simulator receives on
     ``send_id`` and answers on ``recv_id``.
@@ -241,7 +241,7 @@ class CanSimServer(SimServer):
         extended_id: bool = False,
         time_scale: float,
     ) -> None:
-        # The WSG uses standard frames (PROTOCOL-NOTES §1, CAN): an 11-bit identifier is 0..0x7FF, a 29-bit
+        # The WSG uses standard frames (docs/protocols.md §1, CAN): an 11-bit identifier is 0..0x7FF, a 29-bit
         # one 0..0x1FFFFFFF; an id the frame format cannot carry is refused, never sent in another format.
         top = 0x1FFFFFFF if extended_id else 0x7FF
         for what, value in (("send_id", send_id), ("recv_id", recv_id)):

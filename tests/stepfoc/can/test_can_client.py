@@ -44,7 +44,7 @@ def test_calibrate_then_move_with_part(start_sim: Callable[..., CanSimServer], c
     st = node.calibrate(timeout=5.0)
     assert st is not None and st.calibrated and st.position == 255
     st = node.move(128, 255, 500, timeout=5.0)
-    assert st.detection is Detection.AT_POSITION and st.position == 127  # truncation (PROTOCOL-NOTES §2)
+    assert st.detection is Detection.AT_POSITION and st.position == 127  # truncation (docs/protocols.md §2)
     st = node.move(0, 255, timeout=5.0)
     assert st.position == 0 and st.detection is Detection.AT_POSITION
     st = node.move(255, 255, 600, timeout=5.0)
@@ -213,7 +213,7 @@ def test_several_nodes_one_bus_concurrently(
     for t in threads:
         t.join(10)
     assert errors == []
-    span = 21000  # 105 mm x 200 ticks/mm; both mappings truncate (PROTOCOL-NOTES §2)
+    span = 21000  # 105 mm x 200 ticks/mm; both mappings truncate (docs/protocols.md §2)
     expected = [((100 + n) * span // 255) * 255 // span for n in (1, 2, 3)]
     assert expected == [100, 102, 102]
     assert [canbus.node(n).poll().position for n in (1, 2, 3)] == expected
@@ -283,7 +283,7 @@ def test_immediate_reply_has_stale_detection(
     node.calibrate(timeout=5.0)
     assert node.move(100, 255, timeout=5.0).detection is Detection.AT_POSITION
     reply = node.command(10, 5)
-    assert reply.detection is Detection.AT_POSITION  # previous value (PROTOCOL-NOTES §2)
+    assert reply.detection is Detection.AT_POSITION  # previous value (docs/protocols.md §2)
     assert node.poll().detection is Detection.MOVING
 
 

@@ -1,4 +1,4 @@
-"""The CAN codec: identifiers, every command's layout, bit order, and wrong lengths (PROTOCOL-NOTES §2)."""
+"""The CAN codec: identifiers, every command's layout, bit order, and wrong lengths (docs/protocols.md §2)."""
 
 from __future__ import annotations
 
@@ -73,7 +73,7 @@ def test_every_identifier_splits_and_packs_back() -> None:
 
 
 def test_identifier_layout() -> None:
-    # PROTOCOL-NOTES §2: id = node << 7 | command << 1 | error
+    # docs/protocols.md §2: id = node << 7 | command << 1 | error
     assert pack_id(3, 61) == 0x1FA
     assert pack_id(15, 63, True) == 0x7FF
     assert unpack_id(0x079) == (0, 60, True)
@@ -122,7 +122,7 @@ def test_command_bytes_big_endian_and_msb_first_flags() -> None:
     ],
 )
 def test_status_detection_bits(flags: int, detection: Detection) -> None:
-    # PROTOCOL-NOTES §2: value bit 0 at 0x20, bit 1 at 0x10 (the vendor library reads them swapped)
+    # docs/protocols.md §2: value bit 0 at 0x20, bit 1 at 0x10 (the vendor library reads them swapped)
     assert decode_status(bytes([0, 0, 0, flags])).detection is detection
 
 
@@ -209,7 +209,7 @@ def test_error_state_round_trip(bits: list[bool]) -> None:
 
 
 def test_error_state_bit_order() -> None:
-    # PROTOCOL-NOTES §2: byte 0 = error, temperature, encoder, vbus, driver, velocity, current, estop
+    # docs/protocols.md §2: byte 0 = error, temperature, encoder, vbus, driver, velocity, current, estop
     es = decode_frame(pack_id(0, Cmd.ERROR_STATE), bytes([0x81, 0xA0])).value
     assert es.error and es.estop and es.calibrated and es.watchdog
     assert not (es.temperature or es.activated or es.current)

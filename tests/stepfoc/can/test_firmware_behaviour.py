@@ -1,5 +1,5 @@
-"""The MSG simulator behaves as the STEPFOC firmware does (issue 12 §1; PROTOCOL-NOTES §2 "Firmware behaviour
-a client must survive"). Driven by raw frames: identifiers and data bytes built by hand, no client code."""
+"""The MSG simulator behaves as the STEPFOC firmware does (issue 12 §1; docs/protocols.md §2 "Firmware
+behaviour a client must survive"). Driven by raw frames: identifiers and data bytes built by hand, no client code."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ from grippers.drivers.stepfoc.sim import MsgModel, serve_can
 
 NODE = 0
 ESTOP, CLEAR, IDLE, WATCHDOG, ERROR_STATE, CMD_61, STATUS_60, CALIBRATE = 0, 1, 12, 15, 26, 61, 60, 62
-ACTIVATE, ACTION, ESTOP_BIT = 0x80, 0x40, 0x20  # 61 flags (PROTOCOL-NOTES §2)
+ACTIVATE, ACTION, ESTOP_BIT = 0x80, 0x40, 0x20  # 61 flags (docs/protocols.md §2)
 F_ESTOP, F_CALIBRATED = 0x02, 0x01  # 60 flags
 
 

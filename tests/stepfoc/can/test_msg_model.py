@@ -1,4 +1,4 @@
-"""The pure MSG device model, driven with simulated time (no transport): PROTOCOL-NOTES §2 behaviour."""
+"""The pure MSG device model, driven with simulated time (no transport): docs/protocols.md §2 behaviour."""
 
 from __future__ import annotations
 
@@ -153,7 +153,7 @@ def test_part_closing_gives_detection_1_and_negative_current() -> None:
     m.advance(t + 0.1)
     st = m.status(t + 0.1)
     assert st.detection is Detection.CLOSING_OBJECT
-    assert st.current_ma < -0.8 * 600  # above 80 % of the limit (PROTOCOL-NOTES §2)
+    assert st.current_ma < -0.8 * 600  # above 80 % of the limit (docs/protocols.md §2)
     assert m.opening_mm == pytest.approx(40.0)
 
 

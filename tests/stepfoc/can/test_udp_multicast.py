@@ -1,7 +1,7 @@
 """The client against the simulator in ANOTHER process over python-can's ``udp_multicast`` bus.
 
 python-can binds every such bus to one UDP port and, on Linux, a socket receives every group joined on the
-host (PROTOCOL-NOTES §2, "Testing without CAN hardware"), so each test uses its own port AND its own node
+host (docs/protocols.md §2, "Testing without CAN hardware"), so each test uses its own port AND its own node
 ids, and the tests stay few. The simulator runs in a subprocess (``python -c`` calling ``serve_can``).
 """
 

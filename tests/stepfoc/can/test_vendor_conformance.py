@@ -2,7 +2,7 @@
 
 The vendor library drives our simulator over a python-can ``virtual`` bus; both sides must agree on every
 field, except the object-detection value, where the vendor library reads the two bits in the wrong order and
-reports 1 as 2 and 2 as 1 (PROTOCOL-NOTES §2; the firmware and we are right). That difference is asserted
+reports 1 as 2 and 2 as 1 (docs/protocols.md §2; the firmware and we are right). That difference is asserted
 explicitly.
 """
 

@@ -1,6 +1,6 @@
 """StepfocUart against a pty whose far end answers with exact firmware lines written by hand.
 
-These pin the client to the wire text of PROTOCOL-NOTES §2 independently of our simulator.
+These pin the client to the wire text of docs/protocols.md §2 independently of our simulator.
 """
 
 from __future__ import annotations

@@ -80,7 +80,7 @@ def test_format_refuses_invalid_names(name: str) -> None:
 
 
 def test_format_length_limit_counts_name_and_argument() -> None:
-    # 20 characters of name + argument is the most the firmware takes (PROTOCOL-NOTES §2)
+    # 20 characters of name + argument is the most the firmware takes (docs/protocols.md §2)
     assert format_command("A" * 15, 12345) == b"#" + b"A" * 15 + b" 12345\n"
     with pytest.raises(LimitError):
         format_command("A" * 16, 12345)

@@ -47,14 +47,14 @@ def test_calibrate_move_and_read(msg_sim) -> None:
         client.calibrate(wait=True, timeout=10)
         info = client.gripinfo()
         assert info.calibrated and info.max_open_position < info.max_closed_position
-        # calibration leaves the jaws at the closed stop (PROTOCOL-NOTES §2)
+        # calibration leaves the jaws at the closed stop (docs/protocols.md §2)
         assert client.position() == 255
         assert client.velocity(255) == 255
         assert client.current(800) == 800
         client.position(128)
         info = wait_for(lambda: (i := client.gripinfo()).detection is Detection.AT_POSITION and i)
         assert info.activated and info.action and info.position_setpoint == 128
-        assert client.position() in (127, 128)  # integer truncation (PROTOCOL-NOTES §2)
+        assert client.position() in (127, 128)  # integer truncation (docs/protocols.md §2)
         client.position(0)
         wait_for(lambda: client.position() == 0)
 
@@ -80,7 +80,7 @@ def test_uncalibrated_gripper_does_not_move(msg_sim) -> None:
         client.position(10)
         time.sleep(0.05)
         assert srv.model.ticks == before
-        assert client.gripinfo().activated  # Grippos N activates even so (PROTOCOL-NOTES §2)
+        assert client.gripinfo().activated  # Grippos N activates even so (docs/protocols.md §2)
 
 
 def test_estop_and_clear(msg_sim) -> None:
@@ -220,7 +220,7 @@ def test_close_releases_thread_and_fds(msg_sim) -> None:
 
 
 def test_raw_pty_exchange_with_cr_lf(msg_sim) -> None:
-    """A terminal program sending CR LF gets the same answer (PROTOCOL-NOTES §2: '\\r\\n works')."""
+    """A terminal program sending CR LF gets the same answer (docs/protocols.md §2: '\\r\\n works')."""
     srv = msg_sim()
     fd = os.open(srv.path, os.O_RDWR | os.O_NOCTTY)
     try:

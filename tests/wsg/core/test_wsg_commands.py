@@ -101,9 +101,9 @@ def test_the_table_covers_every_command_of_both_manuals() -> None:
            *range(0x60, 0x64), *range(0x70, 0x74)}
     assert set(COMMANDS) == ids == {int(c) for c in Cmd}
     assert {int(c[0]) for c in CASES} == ids
-    assert set(AUTO_UPDATE_COMMANDS) == {0x40, 0x41, 0x43, 0x44, 0x45}  # PROTOCOL-NOTES §1
+    assert set(AUTO_UPDATE_COMMANDS) == {0x40, 0x41, 0x43, 0x44, 0x45}  # docs/protocols.md §1
     assert {s.id for s in COMMANDS.values() if s.is_async} == {0x20, 0x21, 0x25, 0x26, 0x62, 0x72}
-    # Firmware 2.2.0 lacks 46h and 60h-73h (PROTOCOL-NOTES §1).
+    # Firmware 2.2.0 lacks 46h and 60h-73h (docs/protocols.md §1).
     assert {s.id for s in COMMANDS.values() if s.min_firmware_major > 2} == {0x46, *range(0x60, 0x64),
                                                                               *range(0x70, 0x74)}
 

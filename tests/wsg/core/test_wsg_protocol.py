@@ -36,7 +36,7 @@ def test_table_is_msb_first_table_of_polynomial_0x1021() -> None:
     assert CRC_TABLE[:8] == (0x0000, 0x1021, 0x2042, 0x3063, 0x4084, 0x50A5, 0x60C6, 0x70E7)
     assert CRC_TABLE[0xFF] == 0x1EF0
     assert CRC_TABLE[0x80] == 0x9188
-    # PROTOCOL-NOTES §1 erratum: 0x59 is 0xcbdc (the 4.0.x English manual prints 0xcdbc).
+    # docs/protocols.md §1 erratum: 0x59 is 0xcbdc (the 4.0.x English manual prints 0xcdbc).
     assert CRC_TABLE[0x59] == 0xCBDC
 
 
@@ -67,7 +67,7 @@ def test_printed_tables_differ_from_the_polynomial_only_at_typos(seeds_dir, name
 
 
 def test_state_after_preamble_and_receive_check() -> None:
-    assert crc16(PREAMBLE) == CRC_AFTER_PREAMBLE == 0x50F5  # PROTOCOL-NOTES §1
+    assert crc16(PREAMBLE) == CRC_AFTER_PREAMBLE == 0x50F5  # docs/protocols.md §1
     packet = encode_packet(0x21, b"\x02" + bytes(8))
     assert crc16(packet) == 0
     assert crc16(packet[5:], crc16(packet[:5])) == 0  # incremental update

@@ -56,8 +56,8 @@ def test_can_custom_ids(start_server, open_wire, can_channel: str) -> None:
 
 
 def test_can_udp_multicast_bus(start_server, open_wire) -> None:
-    # PROTOCOL-NOTES §2 (testing without CAN hardware): every udp_multicast bus sees all traffic on the host,
-    # so this test isolates itself by ids, not by the group.
+    # docs/protocols.md §2 (testing without CAN hardware): every udp_multicast bus sees all traffic on the
+    # host, so this test isolates itself by ids, not by the group.
     send_id = 0x400 + (os.getpid() % 0x100) * 2
     listen = f"can://udp_multicast/239.74.163.2?send_id={send_id:#x}&recv_id={send_id + 1:#x}"
     try:
