@@ -1,5 +1,6 @@
 """The MSG simulator behaves as the STEPFOC firmware does (issue 12 §1; docs/protocols.md §2 "Firmware
-behaviour a client must survive"). Driven by raw frames: identifiers and data bytes built by hand, no client code."""
+behaviour a client must survive"). Driven by raw frames: identifiers and data bytes built by hand, no client
+code."""
 
 from __future__ import annotations
 
