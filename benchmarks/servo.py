@@ -264,7 +264,7 @@ def run(quick: bool) -> list[Result]:
         ratio = got["cpu"] / got["base_cpu"]
         passed = lag <= LAG_LIMIT_S and rms0 <= RMS_LIMIT_MM and ratio <= CPU_RATIO_LIMIT
         results.append(Result(
-            f"10 servo {name} (0.25 Hz sine @100 Hz)",
+            f"11 servo {name} (0.25 Hz sine @100 Hz)",
             f"lag {lag * 1000:.1f} ms, RMS {rms0:.2f} mm; {got['cpu'] * 1e6:.0f} us/target",
             f"ideal path; {got['base_cpu'] * 1e6:.0f} us/target sent sync",
             f"CPU {ratio:.2f}x",

@@ -605,14 +605,11 @@ class MsgGripper(Gripper):
         if isinstance(link, _CanLink):
             node = link.driver
             cmd = node.make_command(position, speed, current)
-            if cmd == node.last_command:
-                if not self._servo_first:
-                    return False  # the gripper already heads there; the firmware would take it as "same"
-                # docs/protocols.md §2, "same command" latch: a 5-byte 61 equal to the previous one does not
-                # restart a motion (and after a calibration reports "at position" at once). The first frame
-                # of a servoing must be a new command, so its speed byte moves by one step.
-                cmd = node.make_command(position, speed - 1 if speed > 0 else 1, current)
-            node.send_command(cmd)  # one 61 per target; returns with its 60 reply
+            if cmd == node.last_command and not self._servo_first:
+                return False  # the gripper already heads there; the firmware would take it as "same"
+            # One 61 per target; returns with its 60 reply. A first frame equal to the last 61 (the "same
+            # command" latch, docs/protocols.md §2) is made to differ by the node itself (send_command).
+            node.send_command(cmd)
         else:
             if (position, speed, current) == self._servo_last and not self._servo_first:
                 return False
