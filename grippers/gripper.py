@@ -109,6 +109,23 @@ class DeviceInfo:
         return self.limits.stroke
 
 
+
+def put_dropping_oldest(q: queue.Queue[Any], item: Any) -> int:
+    """Put ``item`` into a bounded queue, dropping the oldest entries to make room; returns how many went.
+
+    A state stream's reader that falls behind wants the newest states, never a producer that blocks."""
+    dropped = 0
+    while True:
+        try:
+            q.put_nowait(item)
+            return dropped
+        except queue.Full:
+            try:
+                q.get_nowait()
+                dropped += 1
+            except queue.Empty:
+                pass
+
 class StateStream:
     """States at ``rate_hz``: iterate over it, or pass a callback. Bounded: a slow reader drops the oldest."""
 
@@ -156,16 +173,7 @@ class StateStream:
             self._stop.wait(delay)
 
     def _put(self, item: GripperState | BaseException) -> None:
-        while True:
-            try:
-                self._queue.put_nowait(item)
-                return
-            except queue.Full:
-                try:
-                    self._queue.get_nowait()
-                    self.dropped += 1
-                except queue.Empty:
-                    pass
+        self.dropped += put_dropping_oldest(self._queue, item)
 
     def __iter__(self) -> Iterator[GripperState]:
         return self

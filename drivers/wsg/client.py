@@ -273,6 +273,22 @@ class Subscription:
         self.close()
 
 
+
+def _take_lock(lock: Any) -> BaseException | None:
+    """Take ``lock`` whatever happens and return the first interrupt that landed meanwhile (None if none).
+
+    A Ctrl-C (any BaseException) may interrupt the wait for the lock, or land just after it was taken; either
+    way the caller needs the lock to put its state back before it re-raises the interrupt."""
+    interrupt: BaseException | None = None
+    while True:
+        try:
+            lock.acquire()
+            return interrupt
+        except BaseException as exc:  # noqa: BLE001 - handed back to the caller, which re-raises it
+            interrupt = interrupt or exc
+            if lock._is_owned():  # interrupted after it was taken
+                return interrupt
+
 class WsgClient:
     """A WSG gripper over one transport. Units are the device's: mm, mm/s, mm/s², N, °C.
 
@@ -754,14 +770,8 @@ class WsgClient:
             lost = exc
         except BaseException as exc:  # noqa: BLE001 - KeyboardInterrupt: re-raised below
             interrupt = exc
-        while True:  # the lock back whatever happens: Ctrl-C may interrupt the wait for it
-            try:
-                lock.acquire()
-                break
-            except BaseException as exc:  # noqa: BLE001
-                interrupt = interrupt or exc
-                if lock._is_owned():  # type: ignore[attr-defined] - interrupted after it was taken
-                    break
+        late = _take_lock(lock)  # always taken, even when the recv itself was interrupted
+        interrupt = interrupt or late
         try:
             self._held_read = (data, lost)
             if data and interrupt is None:
@@ -811,13 +821,7 @@ class WsgClient:
         was read, give the reading role back if this thread holds it and abandon the exchange as a timeout
         does, so no command id and no reader stays taken (issue 13 item 1)."""
         lock = self._lock
-        while True:
-            try:
-                lock.acquire()
-                break
-            except BaseException:  # noqa: BLE001 - a second Ctrl-C: the first one is being raised
-                if lock._is_owned():  # type: ignore[attr-defined]
-                    break
+        _take_lock(lock)  # a second Ctrl-C here is dropped: the first one is being raised
         try:
             self._settle_read()
             if self._reading == get_ident():
@@ -904,14 +908,8 @@ class WsgClient:
                 lost = exc
             except BaseException as exc:  # noqa: BLE001 - KeyboardInterrupt: re-raised below
                 interrupt = exc
-            while True:  # the lock back whatever happens: Ctrl-C may interrupt the wait for it
-                try:
-                    lock.acquire()
-                    break
-                except BaseException as exc:  # noqa: BLE001
-                    interrupt = interrupt or exc
-                    if lock._is_owned():  # type: ignore[attr-defined]
-                        break
+            late = _take_lock(lock)  # always taken, even when the recv itself was interrupted
+            interrupt = interrupt or late
             self._held_read = (data, lost)
             self._settle_read()
             if interrupt is not None:

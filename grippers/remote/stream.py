@@ -17,7 +17,7 @@ from collections.abc import Callable, Iterator
 from typing import Any
 
 from ..errors import GripperError, GripperTimeout
-from ..gripper import GripperState
+from ..gripper import GripperState, put_dropping_oldest
 
 log = logging.getLogger(__name__)
 
@@ -85,16 +85,7 @@ class SubscribedStream:
         self._put(exc)
 
     def _put(self, item: GripperState | BaseException) -> None:
-        while True:
-            try:
-                self._queue.put_nowait(item)
-                return
-            except queue.Full:
-                try:
-                    self._queue.get_nowait()
-                    self.dropped += 1
-                except queue.Empty:
-                    pass
+        self.dropped += put_dropping_oldest(self._queue, item)
 
     def _deliver(self) -> None:
         while not self._stop.is_set():
