@@ -118,15 +118,24 @@ class _CanLink(_Link):
     _buses_lock = threading.Lock()
 
     def __init__(
-        self, interface: str, channel: str, bitrate: int, node: int, current_limit: int, timeout: float
+        self,
+        interface: str,
+        channel: str,
+        bitrate: int,
+        node: int,
+        current_limit: int,
+        timeout: float,
+        port: int | None = None,
     ):
         from grippers.drivers.stepfoc.can_client import StepfocBus
 
-        self._key = (interface, channel)
+        # udp_multicast's port= (python-can): a private port isolates a bus where groups do not (Linux)
+        extra = {} if port is None else {"port": port}
+        self._key = (interface, channel if port is None else f"{channel}:{port}")
         with self._buses_lock:
             bus, count = self._buses.get(self._key, (None, 0))
             if bus is None:
-                bus = StepfocBus(interface=interface, channel=channel, bitrate=bitrate)
+                bus = StepfocBus(interface=interface, channel=channel, bitrate=bitrate, **extra)
             self._buses[self._key] = (bus, count + 1)
         self.node_id = node
         try:
@@ -666,6 +675,7 @@ class StepfocBackend:
                 settings.int("node", t.node),
                 current_limit,
                 timeout,
+                settings.int("port", None),
             )
         elif url.transport == "serial":
             link = _UartLink(

@@ -89,3 +89,14 @@ def test_remote_two_nodes_one_bus(remote_sim: Callable[[list[int]], str]) -> Non
         assert not a.clear_error().error_bit
         with pytest.raises(GripperTimeout):
             bus.node(15).poll(timeout=0.2)
+
+
+def test_the_api_takes_the_port_as_the_driver_does(remote_sim: Callable[[list[int]], str]) -> None:
+    """Issue 12 §4: ``port=`` on a ``stepfoc+can://udp_multicast/…`` URL reaches the bus (it was refused or
+    dropped, so the API could not reach a simulator on a private port)."""
+    import grippers
+
+    url = remote_sim([12])
+    with grippers.open(url + "&node=12&profile=msg-150&timeout=1.0") as g:
+        assert g.info().extra["node"] == 12
+        assert g.state().width >= 0
