@@ -117,13 +117,14 @@ class RemoteGripper(Gripper):
 
     def _on_token(self, sample: Any) -> None:
         zenoh = import_zenoh()
-        if sample.kind == zenoh.SampleKind.DELETE:
-            self._lost = ConnectionLost(
-                f"the server withdrew {self.served_name!r} (server stopped or gripper disconnected)",
-                device=self.name,
-            )
-            for s in list(self._remote_streams):
-                s.fail(self._lost)
+        if sample.kind != zenoh.SampleKind.DELETE:
+            return
+        self._lost = ConnectionLost(
+            f"the server withdrew {self.served_name!r} (server stopped or gripper disconnected)",
+            device=self.name,
+        )
+        for s in list(self._remote_streams):
+            s.fail(self._lost)
 
     def _query(
         self,
@@ -246,6 +247,19 @@ class RemoteGripper(Gripper):
             device=self.name,
             command=command,
         )
+
+    # -- reconnect=true (grippers/reconnect.py): the Zenoh session re-establishes its links by itself (its
+    # connect retries); the served gripper is back when a server answers for it again. --------------------
+
+    def _link_alive(self) -> bool:
+        return self._lost is None  # the server withdrew the gripper's token; a silent one: the heartbeat
+
+    def _reconnect(self) -> None:
+        # Proof, not a flag: an info query that a server answers (ConnectionLost within the timeout if none).
+        doc = self._query(protocol.info_key(self.served_name), b"", "info", self.timeout)
+        self.limits = Limits.model_validate(doc["limits"])  # a restarted device may report other limits
+        self._info_doc = doc
+        self._lost = None
 
     def _info(self) -> DeviceInfo:
         doc = self._query(protocol.info_key(self.served_name), b"", "info", self.timeout)
