@@ -18,6 +18,7 @@ from typing import Any
 
 from ..errors import GripperError, GripperTimeout
 from ..gripper import GripperState, put_dropping_oldest
+from ..motions import wait_seconds
 
 log = logging.getLogger(__name__)
 
@@ -111,7 +112,8 @@ class SubscribedStream:
         """The next state; GripperTimeout when none comes within ``timeout`` (default: ten periods + 2 s)."""
         if self._stop.is_set() and self._queue.empty():
             raise StopIteration
-        wait = timeout if timeout is not None else 10 * self.period + 2.0
+        chosen = wait_seconds(timeout, "stream")  # the local stream's rule: no overflow, no NaN (issue 13)
+        wait = chosen if chosen is not None else 10 * self.period + 2.0
         try:
             item = self._queue.get(timeout=wait)
         except queue.Empty:

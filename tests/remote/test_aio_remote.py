@@ -41,3 +41,13 @@ def test_asyncio_over_zenoh(serve: Callable[..., ServeProcess]) -> None:
                 break
 
     asyncio.run(main())
+
+
+def test_a_remote_stream_takes_timeouts_as_a_local_one(serve: Callable[..., ServeProcess]) -> None:
+    """Issue 13 item 7 holds for zenoh:// streams too: a huge timeout is capped (no OverflowError), a NaN
+    one is a LimitError."""
+    server = serve(f"left={sim('wsg50')}")
+    with grippers.open(server.urls["left"]) as g, g.stream(rate_hz=50) as stream:
+        with pytest.raises(grippers.LimitError):
+            stream.get(float("nan"))
+        assert stream.get(1e10).width >= 0
