@@ -77,8 +77,10 @@ def main(argv: list[str] | None = None) -> int:
     if args.markdown:
         print()
         print(markdown_table(results))
-    print(f"\n{sum(r.passed for r in results)}/{len(results)} targets met "
-          f"({'quick' if args.quick else 'full'} run, {time.perf_counter() - t0:.0f} s)")
+    print(
+        f"\n{sum(r.passed for r in results)}/{len(results)} targets met "
+        f"({'quick' if args.quick else 'full'} run, {time.perf_counter() - t0:.0f} s)"
+    )
     if broken:
         return 2
     return 0 if all(r.passed for r in results) else 1

@@ -81,8 +81,9 @@ def _ideal_wsg(profile: Any, seconds: float, step: float) -> list[tuple[float, f
                 else:
                     if running:
                         model.handle(Packet(Cmd.STOP), s, conn)
-                    payload = encode_request(Cmd.PREPOSITION, relative=False, stop_on_block=True,
-                                             width=offer, speed=SPEED * 1000)
+                    payload = encode_request(
+                        Cmd.PREPOSITION, relative=False, stop_on_block=True, width=offer, speed=SPEED * 1000
+                    )
                     model.handle(Packet(Cmd.PREPOSITION, payload), s, conn)
                     aim, deferred = offer, None
                 offer = None
@@ -97,8 +98,9 @@ def _wsg_goto(model: Any, conn: int, mm: float, t: float) -> float:
         model.advance(t)
         if model._motion is None:
             break
-    payload = encode_request(Cmd.PREPOSITION, relative=False, stop_on_block=True, width=mm,
-                             speed=SPEED * 1000)
+    payload = encode_request(
+        Cmd.PREPOSITION, relative=False, stop_on_block=True, width=mm, speed=SPEED * 1000
+    )
     model.handle(Packet(Cmd.PREPOSITION, payload), t, conn)
     for _ in range(10_000):
         t += 0.01
@@ -147,11 +149,13 @@ def _sampler(g: Any) -> Callable[[], tuple[float, float]]:
     server = g.simulator
     model = server.model
     if hasattr(server, "lock"):  # WSG engine
+
         def read_wsg() -> tuple[float, float]:
             with server.lock:
                 now = server.clock.now()
                 m = model._motion
                 return now, (m.profile.position(now) if m is not None else model._x)
+
         return read_wsg
 
     def read_msg() -> tuple[float, float]:
@@ -159,6 +163,7 @@ def _sampler(g: Any) -> Callable[[], tuple[float, float]]:
             now = server.clock.now()
             model.advance(now)
             return now, model.opening_mm
+
     return read_msg
 
 
@@ -166,8 +171,9 @@ def _threads_cpu(g: Any, servo: bool = True, caller: bool = True) -> Callable[[]
     """CPU seconds of the calling thread, the servo thread and the driver's reader (not the simulator's)."""
     names = ("grippers-servo", "reader") if servo else ("reader",)
     idents = [threading.get_ident()] * caller + [
-        t.ident for t in threading.enumerate() if t.ident and any(n in t.name for n in names)
-        and "sim" not in t.name.lower()
+        t.ident
+        for t in threading.enumerate()
+        if t.ident and any(n in t.name for n in names) and "sim" not in t.name.lower()
     ]
     clocks = [thread_cpu_clock(i) for i in idents]
     return lambda: sum(c() for c in clocks)
@@ -218,8 +224,14 @@ def _drive(url: str, seconds: float) -> dict[str, Any]:
             g._servo(ServoTarget((30.0 + 30.0 * (k % 2)) / 1000, SPEED, None))
         base_cpu = cpu() - c1
         g.stop()
-        return {"gripper": g, "samples": samples, "cpu": cpu_used / n, "base_cpu": base_cpu / base_n,
-                "stats": stats, "n": n}
+        return {
+            "gripper": g,
+            "samples": samples,
+            "cpu": cpu_used / n,
+            "base_cpu": base_cpu / base_n,
+            "stats": stats,
+            "n": n,
+        }
 
 
 def _interp(path: list[tuple[float, float]], t: float) -> float:
@@ -263,18 +275,22 @@ def run(quick: bool) -> list[Result]:
         per_sent = got["cpu"] * stats.received / max(stats.sent, 1)
         ratio = got["cpu"] / got["base_cpu"]
         passed = lag <= LAG_LIMIT_S and rms0 <= RMS_LIMIT_MM and ratio <= CPU_RATIO_LIMIT
-        results.append(Result(
-            f"11 servo {name} (0.25 Hz sine @100 Hz)",
-            f"lag {lag * 1000:.1f} ms, RMS {rms0:.2f} mm; {got['cpu'] * 1e6:.0f} us/target",
-            f"ideal path; {got['base_cpu'] * 1e6:.0f} us/target sent sync",
-            f"CPU {ratio:.2f}x",
-            f"lag <= {LAG_LIMIT_S * 1000:.0f} ms, RMS <= {RMS_LIMIT_MM:g} mm, CPU <= {CPU_RATIO_LIMIT:g}x",
-            passed,
-            [f"{stats.received} targets in {seconds:g} simulated s: {stats.sent} on the wire "
-             f"({share:.1%}), {stats.coalesced} coalesced, {stats.unchanged} needed no frame, "
-             f"{stats.failed} failed; CPU {per_sent * 1e6:.0f} us per target that went on the wire",
-             f"against the sine itself: lag {lag_sine * 1000:.0f} ms, RMS {rms_sine:.2f} mm "
-             f"(the ideal path: lag {ideal_lag * 1000:.0f} ms, RMS {ideal_rms:.2f} mm; the device's own "
-             f"dynamics); RMS against the ideal path at the best lag {rms_lag:.2f} mm"],
-        ))
+        results.append(
+            Result(
+                f"11 servo {name} (0.25 Hz sine @100 Hz)",
+                f"lag {lag * 1000:.1f} ms, RMS {rms0:.2f} mm; {got['cpu'] * 1e6:.0f} us/target",
+                f"ideal path; {got['base_cpu'] * 1e6:.0f} us/target sent sync",
+                f"CPU {ratio:.2f}x",
+                f"lag <= {LAG_LIMIT_S * 1000:.0f} ms, RMS <= {RMS_LIMIT_MM:g} mm, CPU <= {CPU_RATIO_LIMIT:g}x",
+                passed,
+                [
+                    f"{stats.received} targets in {seconds:g} simulated s: {stats.sent} on the wire "
+                    f"({share:.1%}), {stats.coalesced} coalesced, {stats.unchanged} needed no frame, "
+                    f"{stats.failed} failed; CPU {per_sent * 1e6:.0f} us per target that went on the wire",
+                    f"against the sine itself: lag {lag_sine * 1000:.0f} ms, RMS {rms_sine:.2f} mm "
+                    f"(the ideal path: lag {ideal_lag * 1000:.0f} ms, RMS {ideal_rms:.2f} mm; the device's own "
+                    f"dynamics); RMS against the ideal path at the best lag {rms_lag:.2f} mm",
+                ],
+            )
+        )
     return results

@@ -58,8 +58,14 @@ class MsgSimProcess:
 
     def __init__(self, nodes: int, *, port: int) -> None:
         listen = f"can://udp_multicast/{self.GROUP}?port={port}"
-        cmd = [sys.executable, str(REPO / "benchmarks" / "simproc.py"), "--msg-nodes", str(nodes),
-               "--listen", listen]
+        cmd = [
+            sys.executable,
+            str(REPO / "benchmarks" / "simproc.py"),
+            "--msg-nodes",
+            str(nodes),
+            "--listen",
+            listen,
+        ]
         self._proc = subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
         assert self._proc.stdout is not None
         line = self._proc.stdout.readline().strip()

@@ -50,7 +50,9 @@ def run(quick: bool = False) -> list[Result]:
             f"+{extra * 1000:.0f} ms",
             f"<= +{LIMIT_S * 1000:.0f} ms",
             extra <= LIMIT_S,
-            [f"median of {n} alternating runs of `{Path(help_cmd[0]).name} {' '.join(help_cmd[1:])}`"
-             f"{env_note}"],
+            [
+                f"median of {n} alternating runs of `{Path(help_cmd[0]).name} {' '.join(help_cmd[1:])}`"
+                f"{env_note}"
+            ],
         )
     ]

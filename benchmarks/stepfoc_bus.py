@@ -136,11 +136,13 @@ def run(quick: bool = False) -> list[Result]:
             f"{share:.2f}",
             f"CPU < {CPU_SHARE_LIMIT:g} x bus",
             share < CPU_SHARE_LIMIT,
-            [f"{rate:.0f} round trips/s aggregate ({total} in {wall:.1f} s, python-can virtual bus, "
-             f"simulator in-process); 1 Mbit/s limit for these frames: {limit:.0f}/s "
-             f"({frame_bits(0)} + {frame_bits(4)} bits worst case)",
-             f"client threads' CPU {us(cpu_per_rt)}/rt (pollers and bus reader; best of {slices} slices, "
-             f"{us(max(client_cpu))} the worst) minus {us(raw)}/rt that a bare python-can send/recv loop "
-             f"spends on the virtual bus (best of {slices}) = own CPU"],
+            [
+                f"{rate:.0f} round trips/s aggregate ({total} in {wall:.1f} s, python-can virtual bus, "
+                f"simulator in-process); 1 Mbit/s limit for these frames: {limit:.0f}/s "
+                f"({frame_bits(0)} + {frame_bits(4)} bits worst case)",
+                f"client threads' CPU {us(cpu_per_rt)}/rt (pollers and bus reader; best of {slices} slices, "
+                f"{us(max(client_cpu))} the worst) minus {us(raw)}/rt that a bare python-can send/recv loop "
+                f"spends on the virtual bus (best of {slices}) = own CPU",
+            ],
         )
     ]

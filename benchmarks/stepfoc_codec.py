@@ -58,12 +58,25 @@ def motion_frames(n: int, seed: int = 4) -> tuple[list[GripperCommand], list[can
         pos = int(127.5 - 127.5 * math.cos(2 * math.pi * phase))
         moving = 0.05 < phase % 0.5 < 0.45
         current = int(rnd.gauss(400 if moving else 80, 25))
-        commands.append(GripperCommand(target, rnd.randrange(50, 256), rnd.randrange(100, 1000), True,
-                                       moving, False))
-        st = GripperStatus(pos, current, True, moving,
-                           Detection.MOVING if moving else Detection.AT_POSITION, False, False, False, True)
-        statuses.append(can.Message(arbitration_id=pack_id(NODE, Cmd.GRIPPER_STATUS),
-                                    data=encode_status(st), is_extended_id=False))
+        commands.append(
+            GripperCommand(target, rnd.randrange(50, 256), rnd.randrange(100, 1000), True, moving, False)
+        )
+        st = GripperStatus(
+            pos,
+            current,
+            True,
+            moving,
+            Detection.MOVING if moving else Detection.AT_POSITION,
+            False,
+            False,
+            False,
+            True,
+        )
+        statuses.append(
+            can.Message(
+                arbitration_id=pack_id(NODE, Cmd.GRIPPER_STATUS), data=encode_status(st), is_extended_id=False
+            )
+        )
     return commands, statuses
 
 
@@ -97,8 +110,10 @@ def vendor(args: list[tuple[int, ...]], statuses: list[can.Message]) -> int:
 
 
 def _vendor_args(commands: list[GripperCommand]) -> list[tuple[int, ...]]:
-    return [(c.position, c.speed, c.current_ma, int(c.activate), int(c.action), int(c.estop), int(c.release))
-            for c in commands]
+    return [
+        (c.position, c.speed, c.current_ma, int(c.activate), int(c.action), int(c.estop), int(c.release))
+        for c in commands
+    ]
 
 
 def check_same_frames(commands: list[GripperCommand], statuses: list[can.Message]) -> None:
@@ -150,8 +165,10 @@ def run(quick: bool = False) -> list[Result]:
             f"{fast / ref:.1f}x",
             f">= {RATIO_TARGET:g}x vendor",
             fast >= RATIO_TARGET * ref,
-            [f"{n} frames of a simulated motion, {distinct} distinct 60 frames; no decode cache",
-             f"with decode_frame (generic, builds a Message too): {rate(generic, 'pairs')} = "
-             f"{generic / ref2:.1f}x vendor ({rate(ref2, 'pairs')} in that comparison)"],
+            [
+                f"{n} frames of a simulated motion, {distinct} distinct 60 frames; no decode cache",
+                f"with decode_frame (generic, builds a Message too): {rate(generic, 'pairs')} = "
+                f"{generic / ref2:.1f}x vendor ({rate(ref2, 'pairs')} in that comparison)",
+            ],
         )
     ]

@@ -156,14 +156,16 @@ def round_trip(quick: bool) -> Result:
         f"{ratio:.2f}x",
         f"<= {LATENCY_RATIO_LIMIT}x raw",
         ratio <= LATENCY_RATIO_LIMIT,
-        [f"each exchange followed by a {PAUSE * 1e6:.0f} us pause for every client; {len(lat['client'])} "
-         f"exchanges each, simulator in a child process",
-         f"back to back (no pause): client {us(m['client b2b'])}, raw socket {us(m['raw b2b'])} = "
-         f"{m['client b2b'] / m['raw b2b']:.2f}x (raw profits from the simulator not yet idle)",
-         f"client CPU {us(cpu['client b2b'] / n)} per command (both threads), raw socket "
-         f"{us(cpu['raw b2b'] / n)}",
-         f"floor of any reader-thread design (raw client + reader thread + condition hand-over): "
-         f"{us(m['threaded'])} = {m['threaded'] / ref:.2f}x raw"],
+        [
+            f"each exchange followed by a {PAUSE * 1e6:.0f} us pause for every client; {len(lat['client'])} "
+            f"exchanges each, simulator in a child process",
+            f"back to back (no pause): client {us(m['client b2b'])}, raw socket {us(m['raw b2b'])} = "
+            f"{m['client b2b'] / m['raw b2b']:.2f}x (raw profits from the simulator not yet idle)",
+            f"client CPU {us(cpu['client b2b'] / n)} per command (both threads), raw socket "
+            f"{us(cpu['raw b2b'] / n)}",
+            f"floor of any reader-thread design (raw client + reader thread + condition hand-over): "
+            f"{us(m['threaded'])} = {m['threaded'] / ref:.2f}x raw",
+        ],
     )
 
 
@@ -179,8 +181,10 @@ def state_under_load(quick: bool) -> Result:
             try:
                 client.home()
                 # callbacks collect the values; the queues (unread here) are sized so that they never overflow
-                subs = [client.subscribe(cmd, 10, callback=received[int(cmd)].append, maxsize=1_000_000)
-                        for cmd in STREAMS]
+                subs = [
+                    client.subscribe(cmd, 10, callback=received[int(cmd)].append, maxsize=1_000_000)
+                    for cmd in STREAMS
+                ]
                 c0, w0 = time.process_time(), time.perf_counter()
                 for i in range(motions):
                     client.preposition(10.0 if i % 2 == 0 else 100.0, 50.0)  # ~1.9 s each
@@ -204,7 +208,7 @@ def state_under_load(quick: bool) -> Result:
         values = [decode_reply(cmd, bytes.fromhex(p)).value for c, p in sent if c == cmd]
         got = received[int(cmd)]
         total += len(got)
-        if values[:len(got)] != got:
+        if values[: len(got)] != got:
             problems.append(f"{Cmd(cmd).name}: received values differ from the sent ones")
         undelivered = len(values) - len(got) - 1
         tail = max(tail, undelivered)
@@ -216,8 +220,10 @@ def state_under_load(quick: bool) -> Result:
     if dropped:
         problems.append(f"{dropped} values dropped from full queues")
     share = cpu / wall
-    notes = [f"{total} updates over {wall:.1f} s ({total / wall:.0f}/s) in {motions} motions, "
-             f"all equal to the simulator's, in order; at most {tail} in flight at switch-off"]
+    notes = [
+        f"{total} updates over {wall:.1f} s ({total / wall:.0f}/s) in {motions} motions, "
+        f"all equal to the simulator's, in order; at most {tail} in flight at switch-off"
+    ]
     notes += problems
     return Result(
         "3 wsg 5 streams @10 ms + motion",
@@ -266,8 +272,8 @@ def memory(quick: bool) -> Result:
         "-",
         "< 5 MiB growth",
         growth < MEMORY_LIMIT,
-        [f"{n} updates ({simulated / 60:.0f} simulated min) through WsgClient.subscribe in {wall:.0f} s wall "
-         f"(time scale {scale:g}); {dropped} dropped by the bounded queue"],
+        [
+            f"{n} updates ({simulated / 60:.0f} simulated min) through WsgClient.subscribe in {wall:.0f} s wall "
+            f"(time scale {scale:g}); {dropped} dropped by the bounded queue"
+        ],
     )
-
-

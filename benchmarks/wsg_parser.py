@@ -64,7 +64,7 @@ def random_chunks(stream: bytes, seed: int = 7, max_chunk: int = 128) -> list[by
     pos = 0
     while pos < len(stream):
         n = rnd.randint(1, max_chunk)
-        chunks.append(stream[pos:pos + n])
+        chunks.append(stream[pos : pos + n])
         pos += n
     return chunks
 
@@ -88,7 +88,7 @@ def reference_parse(chunks: list[bytes]) -> int:
             for byte in buf[:end]:
                 crc = table[(crc & 0xFF) ^ byte] ^ (crc >> 8)  # the same update as crc16()
             if crc == 0:
-                Packet(command, bytes(buf[6:end - 2]))
+                Packet(command, bytes(buf[6 : end - 2]))
                 count += 1
             del buf[:end]
     return count
@@ -122,7 +122,9 @@ def run(quick: bool = False) -> list[Result]:
             f"{ours / ref:.2f}x",
             f">= {TARGET_PACKETS_PER_S // 1000} k pkt/s",
             ours >= TARGET_PACKETS_PER_S,
-            [f"{count} mixed replies, {avg:.1f} bytes average, chunks of 1..128 bytes; "
-             f"{ours * avg / 1e6:.1f} MB/s"],
+            [
+                f"{count} mixed replies, {avg:.1f} bytes average, chunks of 1..128 bytes; "
+                f"{ours * avg / 1e6:.1f} MB/s"
+            ],
         )
     ]

@@ -109,7 +109,6 @@ class DeviceInfo:
         return self.limits.stroke
 
 
-
 def put_dropping_oldest(q: queue.Queue[Any], item: Any) -> int:
     """Put ``item`` into a bounded queue, dropping the oldest entries to make room; returns how many went.
 
@@ -125,6 +124,7 @@ def put_dropping_oldest(q: queue.Queue[Any], item: Any) -> int:
                 dropped += 1
             except queue.Empty:
                 pass
+
 
 class StateStream:
     """States at ``rate_hz``: iterate over it, or pass a callback. Bounded: a slow reader drops the oldest."""
@@ -611,12 +611,16 @@ class Gripper(ABC):
         a function that unregisters it. Without reconnect=true only a loss at close() is reported."""
         if self._watch is not None:
             return self._watch.add_listener(callback)
+
         def at_close() -> None:
             callback(False)
+
         self._on_close.append(at_close)
+
         def remove() -> None:
             if at_close in self._on_close:
                 self._on_close.remove(at_close)
+
         return remove
 
     # Backends that can re-establish their link override these two (reconnect=true).

@@ -138,6 +138,7 @@ class ServoLoop:
     def flush(self, timeout: float) -> bool:
         """Wait until the slot is empty and no send is in flight (tests, benchmarks); False on timeout."""
         with self._cond:
+
             def idle() -> bool:
                 return self._ended or (self._slot is None and not self._busy and not self._deferring)
 

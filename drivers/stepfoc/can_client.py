@@ -705,9 +705,12 @@ class StepfocNode:
                 command="clear_error",
             )
         if resume and last is not None and last.action:
-            self.send_command(GripperCommand(
-                last.position, last.speed, last.current_ma, last.activate, True, False, last.release
-            ), timeout=timeout)
+            self.send_command(
+                GripperCommand(
+                    last.position, last.speed, last.current_ma, last.activate, True, False, last.release
+                ),
+                timeout=timeout,
+            )
             st = self.poll(timeout)
         return st
 

@@ -343,8 +343,16 @@ def decode_status(data: bytes | bytearray, error_bit: bool = False) -> GripperSt
     st = _new_object(GripperStatus)
     st.position = position
     st.current_ma = current
-    (st.activated, st.action, st.detection, st.temperature_error, st.timeout_error, st.estop_error,
-     st.calibrated, st.error_bit) = _STATUS_TAIL[1 if error_bit else 0][flags]
+    (
+        st.activated,
+        st.action,
+        st.detection,
+        st.temperature_error,
+        st.timeout_error,
+        st.estop_error,
+        st.calibrated,
+        st.error_bit,
+    ) = _STATUS_TAIL[1 if error_bit else 0][flags]
     return st
 
 

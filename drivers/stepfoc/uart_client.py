@@ -95,8 +95,9 @@ class StepfocUart:
         if not timeout > 0:
             raise ValueError(f"timeout must be positive, not {timeout!r}")
         if not 0 <= current_limit_ma <= MAX_CURRENT_MA:
-            raise LimitError(f"current_limit_ma {current_limit_ma} outside 0..{MAX_CURRENT_MA}",
-                             device=device or port)
+            raise LimitError(
+                f"current_limit_ma {current_limit_ma} outside 0..{MAX_CURRENT_MA}", device=device or port
+            )
         self.port = port[len(URL_SCHEME) :] if port.startswith(URL_SCHEME) else port
         self.device = device or self.port
         self.timeout = float(timeout)
@@ -158,8 +159,9 @@ class StepfocUart:
         deadline = time.monotonic() + (30.0 if timeout is None else timeout)
         while not self.calibration_ended():
             if time.monotonic() >= deadline:
-                raise GripperTimeout("calibration not finished before the timeout", device=self.device,
-                                     command="Gripcal")
+                raise GripperTimeout(
+                    "calibration not finished before the timeout", device=self.device, command="Gripcal"
+                )
             time.sleep(poll)
 
     def mode(self, *, timeout: float | None = None) -> int | None:
@@ -181,17 +183,28 @@ class StepfocUart:
         if mode == MODE_CALIBRATE:
             return False
         if mode != MODE_IDLE:
-            raise CommandFailed("calibration aborted: the driver left calibration mode (a motion command?)",
-                                status_name="aborted", device=self.device, command=command)
+            raise CommandFailed(
+                "calibration aborted: the driver left calibration mode (a motion command?)",
+                status_name="aborted",
+                device=self.device,
+                command=command,
+            )
         info = self.gripinfo()
         position = self.position()
         if info.estop:
-            raise CommandFailed("calibration aborted by the e-stop", status_name="fast_stop",
-                                device=self.device, command=command)
+            raise CommandFailed(
+                "calibration aborted by the e-stop",
+                status_name="fast_stop",
+                device=self.device,
+                command=command,
+            )
         if not info.calibrated or position < CAL_AT_CLOSED:
             raise CommandFailed(
                 f"calibration aborted or failed: calibrated {int(info.calibrated)}, position {position}",
-                status_name="aborted", device=self.device, command=command)
+                status_name="aborted",
+                device=self.device,
+                command=command,
+            )
         return True
 
     def position(self, setpoint: int | None = None, *, timeout: float | None = None) -> int:
@@ -206,8 +219,9 @@ class StepfocUart:
         """Get or set the current setpoint in mA; a set is clamped to ``current_limit_ma`` first."""
         if ma is not None:
             if isinstance(ma, bool) or not isinstance(ma, int):
-                raise LimitError(f"current must be an integer mA value, not {ma!r}", device=self.device,
-                                 command="Gripcur")
+                raise LimitError(
+                    f"current must be an integer mA value, not {ma!r}", device=self.device, command="Gripcur"
+                )
             if ma < 0:
                 raise LimitError(f"current {ma} mA is negative", device=self.device, command="Gripcur")
             ma = min(ma, self.current_limit_ma)
@@ -324,8 +338,9 @@ class StepfocUart:
             while True:
                 line = self._next_line(command, deadline, wait)
                 if is_unknown_command(line.text):
-                    raise NotSupported("the device answered 'Unknown command'", device=self.device,
-                                       command=command)
+                    raise NotSupported(
+                        "the device answered 'Unknown command'", device=self.device, command=command
+                    )
                 try:
                     result = handle(line.text)
                 except ProtocolError as exc:  # a recognised answer with an impossible value
@@ -358,8 +373,9 @@ class StepfocUart:
         try:
             self._ser.write(payload)
         except serial.SerialTimeoutException as exc:
-            raise GripperTimeout(f"write not finished within {self.timeout} s", device=self.device,
-                                 command=command) from exc
+            raise GripperTimeout(
+                f"write not finished within {self.timeout} s", device=self.device, command=command
+            ) from exc
         except _PORT_ERRORS as exc:
             raise self._lost(exc, command) from exc
 
@@ -386,4 +402,3 @@ class StepfocUart:
     def _lost(self, exc: BaseException, command: str) -> GripperError:
         self.close()
         return ConnectionLost(f"serial port failed: {exc}", device=self.device, command=command)
-

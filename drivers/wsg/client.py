@@ -232,14 +232,18 @@ class Subscription:
         with self._cv:
             while not self._queue:
                 if self._error is not None:
-                    raise ConnectionLost(self._error.message, device=self._error.device,
-                                         command=command_name(self.command))
+                    raise ConnectionLost(
+                        self._error.message, device=self._error.device, command=command_name(self.command)
+                    )
                 if self._closed:
                     raise GripperError("subscription closed", command=command_name(self.command))
                 remaining = None if deadline is None else deadline - time.monotonic()
                 if remaining is not None and remaining <= 0:
-                    raise GripperTimeout(f"no update within {wait:g} s", device=self._client.device,
-                                         command=command_name(self.command))
+                    raise GripperTimeout(
+                        f"no update within {wait:g} s",
+                        device=self._client.device,
+                        command=command_name(self.command),
+                    )
                 self._cv.wait(_POLL if remaining is None else min(remaining, _POLL))
             return self._queue.popleft()
 
@@ -273,7 +277,6 @@ class Subscription:
         self.close()
 
 
-
 def _take_lock(lock: Any) -> BaseException | None:
     """Take ``lock`` whatever happens and return the first interrupt that landed meanwhile (None if none).
 
@@ -288,6 +291,7 @@ def _take_lock(lock: Any) -> BaseException | None:
             interrupt = interrupt or exc
             if lock._is_owned():  # interrupted after it was taken
                 return interrupt
+
 
 class WsgClient:
     """A WSG gripper over one transport. Units are the device's: mm, mm/s, mm/s², N, °C.
@@ -316,8 +320,16 @@ class WsgClient:
         self.firmware: FirmwareVersion | None = None
         self.limits: SystemLimits | None = None
         self.stats: dict[str, int] = dict.fromkeys(
-            ("checksum_errors", "bad_lengths", "discarded_bytes", "stale_replies", "unsolicited", "updates",
-             "lost_replies", "barriers"),
+            (
+                "checksum_errors",
+                "bad_lengths",
+                "discarded_bytes",
+                "stale_replies",
+                "unsolicited",
+                "updates",
+                "lost_replies",
+                "barriers",
+            ),
             0,
         )
         self._session = Session(
@@ -366,29 +378,56 @@ class WsgClient:
     # ------------------------------------------------------------------------------------------ factories
 
     @classmethod
-    def tcp(cls, host: str, port: int = DEFAULT_TCP_PORT, *, connect_timeout: float | None = None,
-            **kw: Any) -> WsgClient:
+    def tcp(
+        cls, host: str, port: int = DEFAULT_TCP_PORT, *, connect_timeout: float | None = None, **kw: Any
+    ) -> WsgClient:
         wait = connect_timeout if connect_timeout is not None else kw.get("timeout", 5.0)
         return cls(TcpTransport(host, port, connect_timeout=wait), **kw)
 
     @classmethod
-    def udp(cls, host: str, port: int = DEFAULT_UDP_PORT, *, local_port: int = DEFAULT_UDP_LOCAL_PORT,
-            **kw: Any) -> WsgClient:
+    def udp(
+        cls, host: str, port: int = DEFAULT_UDP_PORT, *, local_port: int = DEFAULT_UDP_LOCAL_PORT, **kw: Any
+    ) -> WsgClient:
         return cls(UdpTransport(host, port, local_port=local_port), **kw)
 
     @classmethod
-    def serial(cls, port: str, *, baudrate: int = DEFAULT_BAUDRATE, bytesize: int = 8, parity: str = "N",
-               stopbits: float = 1, **kw: Any) -> WsgClient:
-        return cls(SerialTransport(port, baudrate=baudrate, bytesize=bytesize, parity=parity,
-                                   stopbits=stopbits), **kw)
+    def serial(
+        cls,
+        port: str,
+        *,
+        baudrate: int = DEFAULT_BAUDRATE,
+        bytesize: int = 8,
+        parity: str = "N",
+        stopbits: float = 1,
+        **kw: Any,
+    ) -> WsgClient:
+        return cls(
+            SerialTransport(port, baudrate=baudrate, bytesize=bytesize, parity=parity, stopbits=stopbits),
+            **kw,
+        )
 
     @classmethod
-    def can(cls, *, bus: BusABC | None = None, interface: str | None = None,
-            channel: str | int | None = None, bitrate: int | None = None,
-            send_id: int = DEFAULT_CAN_SEND_ID, recv_id: int = DEFAULT_CAN_RECV_ID,
-            extended_id: bool | None = None, **kw: Any) -> WsgClient:
-        transport = CanTransport(bus, interface=interface, channel=channel, bitrate=bitrate,
-                                 send_id=send_id, recv_id=recv_id, extended_id=extended_id)
+    def can(
+        cls,
+        *,
+        bus: BusABC | None = None,
+        interface: str | None = None,
+        channel: str | int | None = None,
+        bitrate: int | None = None,
+        send_id: int = DEFAULT_CAN_SEND_ID,
+        recv_id: int = DEFAULT_CAN_RECV_ID,
+        extended_id: bool | None = None,
+        **kw: Any,
+    ) -> WsgClient:
+        transport = CanTransport(
+            bus,
+            interface=interface,
+            channel=channel,
+            bitrate=bitrate,
+            send_id=send_id,
+            recv_id=recv_id,
+            extended_id=extended_id,
+        )
         return cls(transport, **kw)
 
     @classmethod
@@ -405,8 +444,12 @@ class WsgClient:
         if scheme == "tcp":
             return cls.tcp(parts.hostname or "127.0.0.1", parts.port or DEFAULT_TCP_PORT, **kw)
         if scheme == "udp":
-            return cls.udp(parts.hostname or "127.0.0.1", parts.port or DEFAULT_UDP_PORT,
-                           local_port=num("local_port", DEFAULT_UDP_LOCAL_PORT) or 0, **kw)
+            return cls.udp(
+                parts.hostname or "127.0.0.1",
+                parts.port or DEFAULT_UDP_PORT,
+                local_port=num("local_port", DEFAULT_UDP_LOCAL_PORT) or 0,
+                **kw,
+            )
         if scheme == "serial":
             rest = url.split("://", 1)[1].split("?", 1)[0]
             framing: dict[str, Any] = {"baudrate": num("baudrate", DEFAULT_BAUDRATE)}
@@ -418,11 +461,17 @@ class WsgClient:
                 framing["bytesize"] = int(query["bytesize"])
             return cls.serial(rest, **framing, **kw)
         if scheme == "can":
-            return cls.can(interface=parts.netloc or None, channel=parts.path.lstrip("/") or None,
-                           bitrate=num("bitrate", None), send_id=num("send_id", DEFAULT_CAN_SEND_ID) or 0,
-                           recv_id=num("recv_id", DEFAULT_CAN_RECV_ID) or 0,
-                           extended_id=(query["extended"].lower() in ("1", "true", "yes")
-                                        if "extended" in query else None), **kw)
+            return cls.can(
+                interface=parts.netloc or None,
+                channel=parts.path.lstrip("/") or None,
+                bitrate=num("bitrate", None),
+                send_id=num("send_id", DEFAULT_CAN_SEND_ID) or 0,
+                recv_id=num("recv_id", DEFAULT_CAN_RECV_ID) or 0,
+                extended_id=(
+                    query["extended"].lower() in ("1", "true", "yes") if "extended" in query else None
+                ),
+                **kw,
+            )
         raise LimitError(f"unsupported WSG URL {url!r} (tcp, udp, serial or can)")
 
     # -------------------------------------------------------------------------------------------- lifetime
@@ -529,8 +578,11 @@ class WsgClient:
             if not isinstance(exc, Exception):  # KeyboardInterrupt: only this reader is gone
                 raise
             if not self._stop.is_set():
-                lost = exc if isinstance(exc, ConnectionLost) else ConnectionLost(
-                    f"reader failed: {exc!r}", device=self.device)
+                lost = (
+                    exc
+                    if isinstance(exc, ConnectionLost)
+                    else ConnectionLost(f"reader failed: {exc!r}", device=self.device)
+                )
                 self._connection_lost(lost)
             return None
 
@@ -614,7 +666,8 @@ class WsgClient:
         if s is not None and fw is not None and fw.major < s.min_firmware_major:
             raise NotSupported(
                 f"not available in firmware {fw} (the 2.x command set has no 46h or finger commands)",
-                device=self.device, command=command_name(cmd),
+                device=self.device,
+                command=command_name(cmd),
             )
 
     def _encode(self, cmd: int, **fields: Any) -> bytes:
@@ -623,8 +676,9 @@ class WsgClient:
         except (LimitError, ProtocolError) as exc:
             raise type(exc)(exc.message, device=self.device, command=command_name(cmd)) from None
 
-    def _begin(self, cmd: int, payload: bytes, deadline: float, *,
-               internal: bool = False) -> tuple[Exchange, bool]:
+    def _begin(
+        self, cmd: int, payload: bytes, deadline: float, *, internal: bool = False
+    ) -> tuple[Exchange, bool]:
         """Register and send a request; the caller is counted in ``_callers`` until its ``_wait(begun=True)``.
 
         Also returns whether the caller took the reading role here (``lead``): when nobody else reads and no
@@ -633,8 +687,11 @@ class WsgClient:
         """
         me = get_ident()
         if me == self._reader_ident:
-            raise GripperError("commands cannot be issued from a subscription callback (reader thread)",
-                               device=self.device, command=command_name(cmd))
+            raise GripperError(
+                "commands cannot be issued from a subscription callback (reader thread)",
+                device=self.device,
+                command=command_name(cmd),
+            )
         session = self._session
         exchange: Exchange | None = None
         lead = False
@@ -693,7 +750,8 @@ class WsgClient:
         if deadline - now <= 0:
             raise GripperTimeout(
                 "a previous exchange of this command is still outstanding (one per command id)",
-                device=self.device, command=command_name(cmd),
+                device=self.device,
+                command=command_name(cmd),
             )
         session = self._session
         if not session.needs_barrier(cmd, now):
@@ -735,7 +793,8 @@ class WsgClient:
             raise GripperTimeout(
                 "a previous exchange of this command is still outstanding (one per command id) and the "
                 "device did not answer the LOOP that would prove its reply lost",
-                device=self.device, command=command_name(cmd),
+                device=self.device,
+                command=command_name(cmd),
             ) from None
         if packet.status:
             log.debug("%s: barrier LOOP answered %s", self.device, Status.describe(packet.status))
@@ -806,8 +865,11 @@ class WsgClient:
             self._reading = False
             self._cond.notify_all()
             if not self._stop.is_set():
-                error = lost if isinstance(lost, ConnectionLost) else ConnectionLost(
-                    f"reader failed: {lost!r}", device=self.device)
+                error = (
+                    lost
+                    if isinstance(lost, ConnectionLost)
+                    else ConnectionLost(f"reader failed: {lost!r}", device=self.device)
+                )
                 self._connection_lost(error)  # fails every exchange (the lock is re-entrant)
             return
         if data is None:  # interrupted before anything was read
@@ -852,8 +914,16 @@ class WsgClient:
         if not self._callers and self._background_needed():
             self._bg.notify()  # e.g. a pending motion's final reply: nobody waits to read it
 
-    def _wait(self, exchange: Exchange, deadline: float, *, final: bool, abandon: bool = True,
-              waited: float | None = None, begun: bool = False) -> Packet:
+    def _wait(
+        self,
+        exchange: Exchange,
+        deadline: float,
+        *,
+        final: bool,
+        abandon: bool = True,
+        waited: float | None = None,
+        begun: bool = False,
+    ) -> Packet:
         """Wait for ``exchange``'s reply (``final``: past E_CMD_PENDING), reading the line when nobody else
         does. ``begun``: the caller was counted by :meth:`_begin`."""
         with self._lock:
@@ -874,8 +944,9 @@ class WsgClient:
             finally:
                 self._leave()
 
-    def _await(self, exchange: Exchange, deadline: float, final: bool, abandon: bool,
-               waited: float | None) -> Packet:
+    def _await(
+        self, exchange: Exchange, deadline: float, final: bool, abandon: bool, waited: float | None
+    ) -> Packet:
         """The wait loop (lock held)."""
         while True:
             state = exchange.state
@@ -940,19 +1011,30 @@ class WsgClient:
         if not reply.ok:
             code = int(reply.status)
             raise CommandFailed(
-                Status.describe(code), status=code, status_name=reply.status_name, device=self.device,
+                Status.describe(code),
+                status=code,
+                status_name=reply.status_name,
+                device=self.device,
                 command=command_name(cmd),
             )
         return reply
 
-    def _call(self, cmd: int, *, timeout: float | None = None, payload: bytes | None = None,
-              internal: bool = False, **fields: Any) -> Reply:
+    def _call(
+        self,
+        cmd: int,
+        *,
+        timeout: float | None = None,
+        payload: bytes | None = None,
+        internal: bool = False,
+        **fields: Any,
+    ) -> Reply:
         if self.firmware is not None:  # nothing is refused before the firmware is known
             self._check_supported(cmd)
         if payload is None:
             payload = self._encode(cmd, **fields)
-        return self._check(cmd, self._exchange(cmd, payload, self.timeout if timeout is None else timeout,
-                                               internal))
+        return self._check(
+            cmd, self._exchange(cmd, payload, self.timeout if timeout is None else timeout, internal)
+        )
 
     def _exchange(self, cmd: int, payload: bytes, wait: float, internal: bool = False) -> Packet:
         """Send a request and return its final reply (past E_CMD_PENDING) within ``wait`` seconds."""
@@ -1000,8 +1082,9 @@ class WsgClient:
         self._check(cmd, final)
         return None
 
-    def request(self, cmd: int, payload: bytes = b"", *, timeout: float | None = None,
-                check: bool = False) -> Packet:
+    def request(
+        self, cmd: int, payload: bytes = b"", *, timeout: float | None = None, check: bool = False
+    ) -> Packet:
         """Send any command with a raw payload; the final reply packet (after E_CMD_PENDING, if any).
 
         With ``check`` a status other than E_SUCCESS raises CommandFailed; without, the caller reads
@@ -1015,28 +1098,54 @@ class WsgClient:
 
     # ------------------------------------------------------------------------------------------- motion
 
-    def home(self, direction: int | None = None, *, wait: bool = True,
-             timeout: float | None = None) -> Pending | None:
+    def home(
+        self, direction: int | None = None, *, wait: bool = True, timeout: float | None = None
+    ) -> Pending | None:
         """Reference the fingers (20h). direction: None/0 configured default, 1 positive, 2 negative."""
         d = 0 if direction is None else int(direction)
         if d not in (0, 1, 2):
-            raise LimitError(f"homing direction must be 0, 1 or 2, not {direction!r}", device=self.device,
-                             command=command_name(Cmd.HOMING))
+            raise LimitError(
+                f"homing direction must be 0, 1 or 2, not {direction!r}",
+                device=self.device,
+                command=command_name(Cmd.HOMING),
+            )
         return self._motion(Cmd.HOMING, wait, timeout, direction=d)
 
-    def preposition(self, width: float, speed: float, *, relative: bool = False, stop_on_block: bool = True,
-                    wait: bool = True, timeout: float | None = None) -> Pending | None:
+    def preposition(
+        self,
+        width: float,
+        speed: float,
+        *,
+        relative: bool = False,
+        stop_on_block: bool = True,
+        wait: bool = True,
+        timeout: float | None = None,
+    ) -> Pending | None:
         """Move the fingers (21h); width absolute, or an offset when ``relative``."""
         name = command_name(Cmd.PREPOSITION)
         width = _finite("width", width, name, self.device)
         speed = self._speed(speed, name)
         if not relative and width < 0:
             raise LimitError(f"width {width:g} mm is negative", device=self.device, command=name)
-        return self._motion(Cmd.PREPOSITION, wait, timeout, relative=relative, stop_on_block=stop_on_block,
-                            width=width, speed=speed)
+        return self._motion(
+            Cmd.PREPOSITION,
+            wait,
+            timeout,
+            relative=relative,
+            stop_on_block=stop_on_block,
+            width=width,
+            speed=speed,
+        )
 
-    def grip(self, width: float, speed: float, *, force: float | None = None, wait: bool = True,
-             timeout: float | None = None) -> Pending | None:
+    def grip(
+        self,
+        width: float,
+        speed: float,
+        *,
+        force: float | None = None,
+        wait: bool = True,
+        timeout: float | None = None,
+    ) -> Pending | None:
         """Grip a part of nominal ``width`` (25h); ``force`` sets the force limit (32h) first."""
         name = command_name(Cmd.GRIP)
         width = _finite("width", width, name, self.device)
@@ -1047,8 +1156,9 @@ class WsgClient:
             self.set_force_limit(force)
         return self._motion(Cmd.GRIP, wait, timeout, width=width, speed=speed)
 
-    def release(self, width: float, speed: float, *, wait: bool = True,
-                timeout: float | None = None) -> Pending | None:
+    def release(
+        self, width: float, speed: float, *, wait: bool = True, timeout: float | None = None
+    ) -> Pending | None:
         """Open to ``width`` to release a part (26h)."""
         name = command_name(Cmd.RELEASE)
         width = _finite("width", width, name, self.device)
@@ -1079,8 +1189,9 @@ class WsgClient:
         name = command_name(Cmd.SET_ACCELERATION)
         value = _finite("acceleration", acceleration, name, self.device)
         if value <= 0:
-            raise LimitError(f"acceleration must be positive, not {value:g}", device=self.device,
-                             command=name)
+            raise LimitError(
+                f"acceleration must be positive, not {value:g}", device=self.device, command=name
+            )
         self._call(Cmd.SET_ACCELERATION, timeout=timeout, acceleration=value)
 
     def acceleration(self, *, timeout: float | None = None) -> float:
@@ -1090,8 +1201,9 @@ class WsgClient:
         name = command_name(Cmd.SET_FORCE_LIMIT)
         value = _finite("force", force, name, self.device)
         if value <= 0:
-            raise LimitError(f"force limit must be positive, not {value:g} N", device=self.device,
-                             command=name)
+            raise LimitError(
+                f"force limit must be positive, not {value:g} N", device=self.device, command=name
+            )
         self._call(Cmd.SET_FORCE_LIMIT, timeout=timeout, force=value)
 
     def force_limit(self, *, timeout: float | None = None) -> float:
@@ -1102,8 +1214,9 @@ class WsgClient:
         lo = _finite("minus", minus, name, self.device)
         hi = _finite("plus", plus, name, self.device)
         if lo > hi:
-            raise LimitError(f"soft limit minus {lo:g} mm is above plus {hi:g} mm", device=self.device,
-                             command=name)
+            raise LimitError(
+                f"soft limit minus {lo:g} mm is above plus {hi:g} mm", device=self.device, command=name
+            )
         self._call(Cmd.SET_SOFT_LIMITS, timeout=timeout, minus=lo, plus=hi)
 
     def soft_limits(self, *, timeout: float | None = None) -> SoftLimits:
@@ -1181,8 +1294,9 @@ class WsgClient:
         name = command_name(Cmd.SET_DEVICE_TAG)
         # WSG manual 4.0.x §3.5.2: at most 64 ASCII characters, no control characters.
         if len(tag) > _MAX_TAG:
-            raise LimitError(f"device tag of {len(tag)} characters exceeds {_MAX_TAG}", device=self.device,
-                             command=name)
+            raise LimitError(
+                f"device tag of {len(tag)} characters exceeds {_MAX_TAG}", device=self.device, command=name
+            )
         if any(not (32 <= ord(c) < 127) for c in tag):
             raise LimitError("device tag must be printable ASCII", device=self.device, command=name)
         self._call(Cmd.SET_DEVICE_TAG, timeout=timeout, tag=tag)
@@ -1190,16 +1304,20 @@ class WsgClient:
     def loop(self, data: bytes, *, timeout: float | None = None) -> bytes:
         """Echo test (06h): returns what the device looped back."""
         if len(data) > _MAX_LOOP:
-            raise LimitError(f"loop data of {len(data)} bytes exceeds {_MAX_LOOP}", device=self.device,
-                             command=command_name(Cmd.LOOP))
+            raise LimitError(
+                f"loop data of {len(data)} bytes exceeds {_MAX_LOOP}",
+                device=self.device,
+                command=command_name(Cmd.LOOP),
+            )
         return self._call(Cmd.LOOP, timeout=timeout, data=bytes(data)).fields["data"]
 
     # ----------------------------------------------------------------------------------------- fingers
 
     def _finger(self, n: int, base: int) -> int:
         if n not in (1, 2):
-            raise LimitError(f"finger must be 1 or 2, not {n!r}", device=self.device,
-                             command=command_name(base))
+            raise LimitError(
+                f"finger must be 1 or 2, not {n!r}", device=self.device, command=command_name(base)
+            )
         return base + (0 if n == 1 else 0x10)
 
     def finger_info(self, n: int, *, timeout: float | None = None) -> FingerInfo:
@@ -1218,9 +1336,17 @@ class WsgClient:
 
     # ------------------------------------------------------------------------------------ subscriptions
 
-    def subscribe(self, cmd: int, period_ms: int = 100, changes_only: bool = False,
-                  callback: Callable[[Any], None] | None = None, *, maxsize: int = 256,
-                  timeout: float | None = None, iter_timeout: float | None = None) -> Subscription:
+    def subscribe(
+        self,
+        cmd: int,
+        period_ms: int = 100,
+        changes_only: bool = False,
+        callback: Callable[[Any], None] | None = None,
+        *,
+        maxsize: int = 256,
+        timeout: float | None = None,
+        iter_timeout: float | None = None,
+    ) -> Subscription:
         """Auto updates of 40h, 41h, 43h, 44h or 45h every ``period_ms`` (>= 10), or on changes only.
 
         The first value is the immediate reply. ``iter_timeout`` bounds each wait of the iterator (default:
@@ -1229,11 +1355,15 @@ class WsgClient:
         cmd = int(cmd)
         name = command_name(cmd)
         if cmd not in AUTO_UPDATE_COMMANDS:
-            raise NotSupported("has no auto update (40h, 41h, 43h, 44h, 45h have)", device=self.device,
-                               command=name)
+            raise NotSupported(
+                "has no auto update (40h, 41h, 43h, 44h, 45h have)", device=self.device, command=name
+            )
         if not _MIN_PERIOD_MS <= int(period_ms) <= 0xFFFF:
-            raise LimitError(f"period must be {_MIN_PERIOD_MS}..65535 ms, not {period_ms!r}",
-                             device=self.device, command=name)
+            raise LimitError(
+                f"period must be {_MIN_PERIOD_MS}..65535 ms, not {period_ms!r}",
+                device=self.device,
+                command=name,
+            )
         sub = Subscription(self, cmd, int(period_ms), bool(changes_only), callback, maxsize, iter_timeout)
         with self._cond:
             self._usable(name, False)
@@ -1241,8 +1371,9 @@ class WsgClient:
             self._sub_params[cmd] = (int(period_ms), bool(changes_only))
             self._session.subscribe(cmd)
         try:
-            payload = encode_request(cmd, auto_update=True, changes_only=changes_only,
-                                     period_ms=int(period_ms))
+            payload = encode_request(
+                cmd, auto_update=True, changes_only=changes_only, period_ms=int(period_ms)
+            )
             reply = self._call(cmd, timeout=timeout, payload=payload)
         except BaseException:
             self._forget(sub)

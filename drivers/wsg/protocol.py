@@ -137,8 +137,12 @@ def whole_packet(
     if n < HEADER_SIZE + TRAILER_SIZE:
         return None
     size = data[4] | (data[5] << 8)
-    if (n != HEADER_SIZE + size + TRAILER_SIZE or size > max_payload or data[3] == 0xAA
-            or data[:3] != PREAMBLE):
+    if (
+        n != HEADER_SIZE + size + TRAILER_SIZE
+        or size > max_payload
+        or data[3] == 0xAA
+        or data[:3] != PREAMBLE
+    ):
         return None
     if verify_checksum:
         crc = CRC_AFTER_PREAMBLE
@@ -210,8 +214,12 @@ class PacketParser:
 
     __slots__ = ("_buf", "_max_payload", "_max_size", "_pending", "_verify")
 
-    def __init__(self, verify_checksum: bool = True, max_payload: int = MAX_PAYLOAD,
-                 max_size: Callable[[int], int] | None = None) -> None:
+    def __init__(
+        self,
+        verify_checksum: bool = True,
+        max_payload: int = MAX_PAYLOAD,
+        max_size: Callable[[int], int] | None = None,
+    ) -> None:
         self._buf = bytearray()
         self._verify = verify_checksum
         self._max_payload = max_payload
@@ -303,7 +311,7 @@ class PacketParser:
             size = buf[start + 4] | (buf[start + 5] << 8)
             limit = max_payload if max_size is None else min(max_payload, max_size(command))
             if size > limit:
-                out.append(BadLength(command, size, limit, bytes(buf[start:start + HEADER_SIZE])))
+                out.append(BadLength(command, size, limit, bytes(buf[start : start + HEADER_SIZE])))
                 pos = start + 3
                 continue
             end = start + HEADER_SIZE + size + TRAILER_SIZE
@@ -313,16 +321,17 @@ class PacketParser:
                 # crc16() inlined (a call per packet costs ~10 % here); iterating a bytearray slice copy is
                 # faster than iterating a memoryview of the buffer
                 crc = CRC_AFTER_PREAMBLE
-                for byte in buf[start + 3:end]:
+                for byte in buf[start + 3 : end]:
                     crc = table[(crc & 0xFF) ^ byte] ^ (crc >> 8)
                 if crc:
                     raw = bytes(buf[start:end])
                     received = raw[-2] | (raw[-1] << 8)
-                    out.append(ChecksumError(command, raw[HEADER_SIZE:-TRAILER_SIZE], received,
-                                             crc16(raw[:-2]), raw))
+                    out.append(
+                        ChecksumError(command, raw[HEADER_SIZE:-TRAILER_SIZE], received, crc16(raw[:-2]), raw)
+                    )
                     pos = start + 3  # rescan right after the false preamble, not after the claimed length
                     continue
-            out.append(Packet(command, bytes(buf[start + HEADER_SIZE:end - TRAILER_SIZE])))
+            out.append(Packet(command, bytes(buf[start + HEADER_SIZE : end - TRAILER_SIZE])))
             pos = end
         if pos:
             del buf[:pos]
@@ -334,7 +343,7 @@ def can_frames(packet: bytes, frame_size: int = 8) -> list[bytes]:
     The receiver reassembles by feeding the frames' data to a :class:`PacketParser`, which ends a packet by
     its size field, not by a short frame (a packet whose length is a multiple of 8 ends on a full frame).
     """
-    return [packet[i:i + frame_size] for i in range(0, len(packet), frame_size)]
+    return [packet[i : i + frame_size] for i in range(0, len(packet), frame_size)]
 
 
 # ---------------------------------------------------------------------------------------------- status codes
@@ -417,7 +426,7 @@ _MEANINGS: dict[int, str] = {
     24: "Wrong parameter",
     25: "Index out of bounds",
     26: "No error, but the command was not completed, yet. Another return message will follow including a "
-        "status code, if the function was completed.",
+    "status code, if the function was completed.",
     27: "Data overrun",
     28: "Range error",
     29: "Axis blocked",

@@ -177,8 +177,9 @@ class Session:
         self.seq = 0  # requests opened so far on this connection (the last one's Exchange.seq)
         #: Markers dropped because a later reply proved theirs lost (the client reports it in its stats).
         self.lost_replies = 0
-        self.parser = PacketParser(verify_checksum=verify_checksum, max_payload=max_payload,
-                                   max_size=self._max_size)
+        self.parser = PacketParser(
+            verify_checksum=verify_checksum, max_payload=max_payload, max_size=self._max_size
+        )
         # Most requests repeat byte for byte (state queries): their packets are encoded once.
         self._packets: dict[tuple[int, bytes], bytes] = {}
 
@@ -204,16 +205,19 @@ class Session:
         """Whether ``command`` waits for a marker that only a proof can remove (its ``stale_ttl`` is over and
         no later reply has come): the client then sends a LOOP nonce (:meth:`barrier_payload`)."""
         stale = self._stale.get(command) if self._stale else None
-        return (stale is not None and command not in _NEVER_HELD and not stale.expects_final
-                and not stale.proved_lost and stale.expires <= now)
+        return (
+            stale is not None
+            and command not in _NEVER_HELD
+            and not stale.expects_final
+            and not stale.proved_lost
+            and stale.expires <= now
+        )
 
     def barrier_payload(self) -> bytes:
         """A LOOP payload no earlier LOOP of this connection carried (its reply is recognised by content)."""
         return b"sync" + (self.seq + 1).to_bytes(8, "little")
 
-    def send(
-        self, command: int, payload: bytes = b"", *, now: float
-    ) -> tuple[Exchange, bytes]:
+    def send(self, command: int, payload: bytes = b"", *, now: float) -> tuple[Exchange, bytes]:
         """Register a request and return it with the bytes to write. The slot must be free (see is_busy)."""
         opened = self.open(command, payload, now)
         if opened is None:
@@ -340,7 +344,7 @@ class Session:
                 return None
             payload = packet.payload
             # An E_CMD_PENDING (or a reply without a status) is not final: receive() handles it.
-            if (packet.command != cmd or len(payload) < 2 or payload[0] | (payload[1] << 8) == _PENDING):
+            if packet.command != cmd or len(payload) < 2 or payload[0] | (payload[1] << 8) == _PENDING:
                 return None
             if cmd == _LOOP and not _echoes(exchange, payload):
                 return None
@@ -468,7 +472,7 @@ def _success_head(cmd: int, size: int) -> tuple[bytes, int, int]:
     whole packet's length: known before the reply comes, so checking a reply is one comparison plus the
     checksum of its data (the state queries' round trip, docs/performance.md, target 2)."""
     head = PREAMBLE + bytes((cmd, (size + 2) & 0xFF, (size + 2) >> 8, 0, 0))  # u16 size, u16 E_SUCCESS
-    return head, crc16(head[len(PREAMBLE):], CRC_AFTER_PREAMBLE), len(head) + size + TRAILER_SIZE
+    return head, crc16(head[len(PREAMBLE) :], CRC_AFTER_PREAMBLE), len(head) + size + TRAILER_SIZE
 
 
 _SUCCESS_HEAD_SIZE = HEADER_SIZE + 2  # the header and the u16 status

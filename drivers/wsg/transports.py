@@ -186,8 +186,10 @@ class UdpTransport:
             _blocking_with_timeouts(self._sock)
             self._poll = self.ready = _poller(self._sock)
         except OSError as exc:
-            raise ConnectionLost(f"cannot open UDP {host}:{port} (local port {local_port}): {exc}",
-                                 device=f"udp://{host}:{port}") from None
+            raise ConnectionLost(
+                f"cannot open UDP {host}:{port} (local port {local_port}): {exc}",
+                device=f"udp://{host}:{port}",
+            ) from None
         self.local_port = self._sock.getsockname()[1]
         self.name = f"udp://{host}:{port}"
         self._timeout: float | None = None
@@ -271,8 +273,13 @@ class SerialTransport:
         try:
             # docs/protocols.md §1: 115200 baud, 8N1 by default; one public driver uses 2 stop bits.
             self._port = serial.serial_for_url(
-                port, baudrate=baudrate, bytesize=bytesize, parity=parity, stopbits=stopbits,
-                timeout=0.05, write_timeout=write_timeout,
+                port,
+                baudrate=baudrate,
+                bytesize=bytesize,
+                parity=parity,
+                stopbits=stopbits,
+                timeout=0.05,
+                write_timeout=write_timeout,
             )
         except (serial.SerialException, ValueError, OSError) as exc:
             raise ConnectionLost(f"cannot open serial port: {exc}", device=self.name) from None

@@ -172,8 +172,17 @@ class _CanLink(_Link):
 
         watch: CalibrationWatch = self._watch
         done = watch.update(
-            GripperStatus(st.position, st.current_ma or 0, st.activated, st.action, st.detection,
-                          False, False, False, st.calibrated)
+            GripperStatus(
+                st.position,
+                st.current_ma or 0,
+                st.activated,
+                st.action,
+                st.detection,
+                False,
+                False,
+                False,
+                st.calibrated,
+            )
         )
         if isinstance(done, str):
             raise CommandFailed(
@@ -488,9 +497,7 @@ class MsgGripper(Gripper):
             approach = width - travel if m.inside_grip else width + travel
             approach = min(max(approach, self.limits.min_width), self.limits.max_width)
             self._mode, self._held = "release", False
-            self._go_and_wait(
-                "grasp", self._position_byte(approach), speed, m.default_current_ma, timeout
-            )
+            self._go_and_wait("grasp", self._position_byte(approach), speed, m.default_current_ma, timeout)
         self._mode, self._held = "grasp", False
         current = self._current_ma(force)
         st = self._go_and_wait("grasp", self._position_byte(target), speed, current, timeout)
@@ -590,9 +597,7 @@ class MsgGripper(Gripper):
     def _extra(self, extra: dict[str, Any]) -> dict[str, Any]:
         if not self._profile_assumed:
             return extra
-        warning = (
-            f"model {self.profile.name} assumed (the MSG cannot report its rail length); pass a profile"
-        )
+        warning = f"model {self.profile.name} assumed (the MSG cannot report its rail length); pass a profile"
         return {**extra, "warnings": [*extra.get("warnings", []), warning]}
 
     def _temperature(self) -> float:

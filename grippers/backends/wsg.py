@@ -267,15 +267,24 @@ class WsgGripper(Gripper):
     def _reopen(self, old: WsgClient) -> WsgClient:
         """A client like ``old`` on the same URL (a serial port keeps the framing ``old`` used)."""
         common: dict[str, Any] = {
-            "device": old.device, "timeout": old.timeout, "motion_timeout": old.motion_timeout
+            "device": old.device,
+            "timeout": old.timeout,
+            "motion_timeout": old.motion_timeout,
         }
         t: Any = old._transport
         port = getattr(t, "_port", None)
         if port is not None and hasattr(port, "get_settings"):  # pyserial: keep the framing that was used
             framing = port.get_settings()
-            return WsgClient.serial(port.port, baudrate=framing["baudrate"], bytesize=framing["bytesize"],
-                                    parity=framing["parity"], stopbits=framing["stopbits"], **common)
+            return WsgClient.serial(
+                port.port,
+                baudrate=framing["baudrate"],
+                bytesize=framing["bytesize"],
+                parity=framing["parity"],
+                stopbits=framing["stopbits"],
+                **common,
+            )
         return WsgClient.from_url(self.url, **common)
+
 
 def _narrow(limits: Limits, device: SystemLimits, profile: str) -> tuple[Limits, list[str]]:
     """The profile's limits within the device's own 53h limits (mm, mm/s, N in; SI out), and warnings.
@@ -289,8 +298,10 @@ def _narrow(limits: Limits, device: SystemLimits, profile: str) -> tuple[Limits,
     def usable(name: str, value: float, unit: str) -> float | None:
         if math.isfinite(value) and value > 0:
             return value
-        warnings.append(f"device reports {name} {value!r} {unit} (53h), not a positive finite number: "
-                        f"ignored, the {profile!r} profile's limit is used")
+        warnings.append(
+            f"device reports {name} {value!r} {unit} (53h), not a positive finite number: "
+            f"ignored, the {profile!r} profile's limit is used"
+        )
         return None
 
     stroke = usable("stroke", float(device.stroke), "mm")
@@ -308,9 +319,11 @@ def _narrow(limits: Limits, device: SystemLimits, profile: str) -> tuple[Limits,
         lo_v = getattr(limits, lo_key) if lo is None else max(getattr(limits, lo_key), lo / scale)
         hi_v = getattr(limits, hi_key) if hi is None else min(getattr(limits, hi_key), hi / scale)
         if lo_v > hi_v:
-            warnings.append(f"device limits leave no {lo_key.split('_')[1]} range with the profile's "
-                            f"({lo!r}..{hi!r} {unit}, 53h): ignored, the {profile!r} profile's limits "
-                            "are used")
+            warnings.append(
+                f"device limits leave no {lo_key.split('_')[1]} range with the profile's "
+                f"({lo!r}..{hi!r} {unit}, 53h): ignored, the {profile!r} profile's limits "
+                "are used"
+            )
             continue
         update[lo_key], update[hi_key] = lo_v, hi_v
     if "max_width" in update and update["max_width"] < limits.min_width:

@@ -95,9 +95,7 @@ def check_can_interfaces() -> list[Check]:
                 )
             )
     if importlib.util.find_spec("msgpack") is None:
-        out.append(
-            Check("can: udp_multicast", "warn", "needs msgpack", "pip install msgpack")
-        )
+        out.append(Check("can: udp_multicast", "warn", "needs msgpack", "pip install msgpack"))
     else:
         out.append(Check("can: udp_multicast", "ok", "msgpack installed (a bus between processes)"))
     return out

@@ -423,8 +423,12 @@ def _cause(reason: str | None, url: str) -> str:
     if not sep:
         return reason
     segments = text.split(": ")
-    while len(segments) > 1 and ("://" in segments[0] or segments[0].startswith(("serial:", "/"))
-                                 or segments[0] in url or segments[0].isidentifier()):
+    while len(segments) > 1 and (
+        "://" in segments[0]
+        or segments[0].startswith(("serial:", "/"))
+        or segments[0] in url
+        or segments[0].isidentifier()
+    ):
         segments.pop(0)
     return f"{kind}: {': '.join(segments)}"
 

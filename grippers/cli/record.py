@@ -115,8 +115,13 @@ def run(args: argparse.Namespace) -> int:
     def event(text: str, phase: str, detail: str | None = None) -> None:
         with lock:
             rows.append(
-                {"t_s": round(time.time() - start, 6), "kind": "command", "command": text, "phase": phase,
-                 "detail": detail}
+                {
+                    "t_s": round(time.time() - start, 6),
+                    "kind": "command",
+                    "command": text,
+                    "phase": phase,
+                    "detail": detail,
+                }
             )
 
     stream = gripper.stream(rate_hz=args.rate, callback=sample)

@@ -101,7 +101,9 @@ def serve_replay(args: argparse.Namespace, family: str) -> int:
             script = replay.stepfoc_script(blob, args.replay)
             listen = args.listen or ""
             if not listen.startswith("can://"):
-                raise UsageError("--replay serves STEPFOC nodes on a CAN bus: --listen can://INTERFACE/CHANNEL")
+                raise UsageError(
+                    "--replay serves STEPFOC nodes on a CAN bus: --listen can://INTERFACE/CHANNEL"
+                )
             from urllib.parse import parse_qsl
 
             base, _, query = listen[len("can://") :].partition("?")

@@ -60,11 +60,15 @@ def suggest(target: str, families: Iterable[str], profiles: Iterable[str]) -> st
         return " or ".join(form.format(rest=rest) for form in BARE[scheme])
     family, plus, transport = scheme.partition("+")
     if plus:
-        fixed_family = family if family in families else next(
-            iter(difflib.get_close_matches(family, families, n=1, cutoff=0.5)), None
+        fixed_family = (
+            family
+            if family in families
+            else next(iter(difflib.get_close_matches(family, families, n=1, cutoff=0.5)), None)
         )
-        fixed_transport = transport if transport in TRANSPORTS else next(
-            iter(difflib.get_close_matches(transport, TRANSPORTS, n=1, cutoff=0.5)), None
+        fixed_transport = (
+            transport
+            if transport in TRANSPORTS
+            else next(iter(difflib.get_close_matches(transport, TRANSPORTS, n=1, cutoff=0.5)), None)
         )
         if fixed_family and fixed_transport and (fixed_family, fixed_transport) != (family, transport):
             return f"{fixed_family}+{fixed_transport}://{rest}"

@@ -12,7 +12,11 @@ import grippers
 import grippers.aio
 from grippers import CommandFailed, GripperError, LimitError
 
-URLS = ["sim://wsg50?time_scale=10", "sim://msg-150?time_scale=10", "sim://msg-150?time_scale=10&transport=pty"]
+URLS = [
+    "sim://wsg50?time_scale=10",
+    "sim://msg-150?time_scale=10",
+    "sim://msg-150?time_scale=10&transport=pty",
+]
 
 
 def run(coro):  # noqa: ANN001, ANN201 - a tiny helper, no pytest-asyncio needed

@@ -136,8 +136,9 @@ def test_a_huge_file_on_the_path_is_refused_unread(_own_search_path: Path) -> No
     junk = _own_search_path / "junk.toml"
     with junk.open("wb") as f:
         f.truncate(64 << 20)  # 64 MiB, sparse: costs nothing to make, 64 MiB to read
-    assert p.validate_file(junk) == [f"{junk}: larger than {p.MAX_PROFILE_BYTES} bytes, the most a profile "
-                                     "may have; not read"]
+    assert p.validate_file(junk) == [
+        f"{junk}: larger than {p.MAX_PROFILE_BYTES} bytes, the most a profile may have; not read"
+    ]
     with grippers.open(f"sim://msg-150?time_scale={TIME_SCALE}") as g:  # the path is scanned: no parse
         assert g.profile.name == "msg-150"
     assert [Path(f).name for f, _ in p.scan_profiles().problems] == ["junk.toml"]
@@ -193,8 +194,11 @@ def test_profiles_list_names_the_bad_file_and_lists_the_rest(_own_search_path: P
 
     (_own_search_path / "broken.toml").write_text('name = "broken"\nfamily = "wsg"\n', encoding="utf-8")
     run = subprocess.run(
-        [sys.executable, "-m", "grippers", "profiles", "list", "--json"], capture_output=True, text=True,
-        env=os.environ.copy(), timeout=60,
+        [sys.executable, "-m", "grippers", "profiles", "list", "--json"],
+        capture_output=True,
+        text=True,
+        env=os.environ.copy(),
+        timeout=60,
     )
     assert run.returncode == 0, run.stderr
     document = json.loads(run.stdout)

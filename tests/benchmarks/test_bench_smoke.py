@@ -40,8 +40,10 @@ def test_can_frame_bits_worst_case() -> None:
 
 
 def test_table_has_one_line_per_target_with_a_verdict() -> None:
-    results = [Result("1 a", "10 x/s", "5 x/s", "2.00x", ">= 1x", True, ["note"]),
-               Result("2 b", "1 us", "2 us", "0.50x", "<= 0.4x", False)]
+    results = [
+        Result("1 a", "10 x/s", "5 x/s", "2.00x", ">= 1x", True, ["note"]),
+        Result("2 b", "1 us", "2 us", "0.50x", "<= 0.4x", False),
+    ]
     lines = format_table(results).splitlines()
     assert lines[0].split()[:3] == ["target", "figure", "baseline"]
     assert lines[1].startswith("1 a") and lines[1].endswith("PASS")

@@ -22,6 +22,7 @@ def test_socketcan_states_and_bitrates(tmp_path: Path) -> None:
     _iface(tmp_path, "can1", "280", "down", "0x80")
     _iface(tmp_path, "can2", "280", "up", "0x41")
     _iface(tmp_path, "eth0", "1", "up", "0x1003")  # not CAN: not listed
+
     def link(state: str, bitrate: int) -> dict:  # the shape of `ip -details -json link show`
         data = {"state": state, "bittiming": {"bitrate": bitrate}}
         return {"linkinfo": {"info_kind": "can", "info_data": data}}

@@ -28,10 +28,10 @@ def test_show_round_trips(name: str, tmp_path: Path, capsys: pytest.CaptureFixtu
 
 
 def test_writer_spells_what_toml_needs() -> None:
-    doc = {"a": 1.5, "b": float("inf"), "c": None, "name with space": "x\"y\n", "t": {"u": [1, 2], "v": True}}
+    doc = {"a": 1.5, "b": float("inf"), "c": None, "name with space": 'x"y\n', "t": {"u": [1, 2], "v": True}}
     assert tomllib.loads(dumps(doc)) == {
         "a": 1.5,
         "b": float("inf"),
-        "name with space": "x\"y\n",
+        "name with space": 'x"y\n',
         "t": {"u": [1, 2], "v": True},
     }

@@ -36,8 +36,11 @@ def test_sections_one_and_two_with_their_subsections() -> None:
     assert {"1", "2"} <= set(sections)
     assert "Framing and checksum" in sections["1"]
     assert any(h.startswith("Transport defaults") for h in sections["1"])
-    assert {"CAN", "Firmware behaviour a client must survive (read in the STEPFOC firmware source)",
-            "UART text interface"} <= sections["2"]
+    assert {
+        "CAN",
+        "Firmware behaviour a client must survive (read in the STEPFOC firmware source)",
+        "UART text interface",
+    } <= sections["2"]
 
 
 def test_every_citation_resolves() -> None:

@@ -24,8 +24,12 @@ def test_record_states_and_commands(cli, tmp_path: Path, suffix: str) -> None:
     header, rows = read(out)
     assert header["target"] == URL and header["do"] == ["home", "grasp 40 --force 20"]
     events = [(row["command"], row["phase"]) for row in rows if row["kind"] == "command"]
-    assert events == [("home", "start"), ("home", "done"), ("grasp 40 --force 20", "start"),
-                      ("grasp 40 --force 20", "done")]
+    assert events == [
+        ("home", "start"),
+        ("home", "done"),
+        ("grasp 40 --force 20", "start"),
+        ("grasp 40 --force 20", "done"),
+    ]
     states = [row for row in rows if row["kind"] == "state"]
     assert len(states) >= 10
     times = [row["t_s"] for row in rows]

@@ -53,8 +53,12 @@ def _stop(proc: subprocess.Popen) -> tuple[int, str]:
 
 
 def test_script_rules() -> None:
-    steps = [Step("a", "a", [(0.0, 1)]), Step("p", "p", [(0.0, 2)]), Step("p", "p", [(0.0, 3)]),
-             Step("b", "b", [(0.1, 4)])]
+    steps = [
+        Step("a", "a", [(0.0, 1)]),
+        Step("p", "p", [(0.0, 2)]),
+        Step("p", "p", [(0.0, 3)]),
+        Step("b", "b", [(0.1, 4)]),
+    ]
     script = Script(steps)
     assert script.answer("a", "a") == [(0.0, 1)]
     assert script.answer("p", "p") == [(0.0, 2)]
@@ -114,8 +118,15 @@ def test_stepfoc_capture_replays_on_a_bus(tmp_path: Path, capsys) -> None:
         while not stop.is_set():
             msg = tap.recv(0.05)
             if msg is not None:
-                lines.append(format_candump(msg.timestamp, channel, msg.arbitration_id, bytes(msg.data),
-                                            is_remote=msg.is_remote_frame))
+                lines.append(
+                    format_candump(
+                        msg.timestamp,
+                        channel,
+                        msg.arbitration_id,
+                        bytes(msg.data),
+                        is_remote=msg.is_remote_frame,
+                    )
+                )
 
     thread = threading.Thread(target=listen)
     thread.start()

@@ -22,8 +22,18 @@ def test_wsg_settings_read_and_change(cli, sim_process) -> None:
     assert s["soft_limits"] == {"unavailable": "not set"} and s["device_tag"] == {"unavailable": "not set"}
     assert isinstance(s["temperature_c"], float) and s["finger_1"]["type"]
     r = cli(
-        "settings", url, "--soft-limits", "10", "90", "--tag", "bench-2", "--acceleration", "500",
-        "--force-limit", "40", "--json",
+        "settings",
+        url,
+        "--soft-limits",
+        "10",
+        "90",
+        "--tag",
+        "bench-2",
+        "--acceleration",
+        "500",
+        "--force-limit",
+        "40",
+        "--json",
     )
     after = r.json()
     assert after["changed"] == ["soft_limits", "device_tag", "acceleration_mm_s2", "force_limit_n"]

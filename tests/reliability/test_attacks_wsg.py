@@ -292,7 +292,7 @@ def test_udp_simulator_forgets_peers_beyond_its_bound(wsg_sim) -> None:
 def _wire_request(sock: socket.socket, packet: bytes, pieces: int, pause: float) -> Packet:
     step = max(1, len(packet) // pieces)
     for i in range(0, len(packet), step):
-        sock.sendall(packet[i:i + step])
+        sock.sendall(packet[i : i + step])
         time.sleep(pause)
     parser = PacketParser()
     sock.settimeout(2.0)

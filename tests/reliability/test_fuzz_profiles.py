@@ -132,8 +132,14 @@ def test_json_profile_that_is_not_an_object_is_a_profile_error(text: str) -> Non
         path.unlink()
 
 
-NUMBERS = {name: [p for p in PATHS[name] if isinstance(_get(BASES[name], p), int | float)
-                  and not isinstance(_get(BASES[name], p), bool)] for name in BASES}
+NUMBERS = {
+    name: [
+        p
+        for p in PATHS[name]
+        if isinstance(_get(BASES[name], p), int | float) and not isinstance(_get(BASES[name], p), bool)
+    ]
+    for name in BASES
+}
 EXTREME = st.sampled_from(
     [float("inf"), float("-inf"), float("nan"), 1e308, -1e308, 1e-300, 0.0, -1.0, 2**63]
 )
@@ -158,8 +164,14 @@ def test_fuzz_profile_numbers_load_only_when_they_can_work(
         assert str(file) in str(result)
         return
     limits = result.limits()
-    numbers = [limits.min_width, limits.max_width, limits.min_speed, limits.max_speed, limits.min_force,
-               limits.max_force]
+    numbers = [
+        limits.min_width,
+        limits.max_width,
+        limits.min_speed,
+        limits.max_speed,
+        limits.min_force,
+        limits.max_force,
+    ]
     assert all(math.isfinite(n) for n in numbers), (path, value, limits)
     assert limits.min_width < limits.max_width <= 10.0, (path, value, limits)
     assert limits.min_speed <= limits.max_speed and limits.max_speed > 0, (path, value, limits)

@@ -117,7 +117,7 @@ def test_fuzz_uart_line_parser_recovers_after_garbage(
     events: list[object] = []
     pos = 0
     for size in chunks:
-        events += splitter.feed(stream[pos:pos + size])
+        events += splitter.feed(stream[pos : pos + size])
         pos += size
         assert splitter.buffered <= MAX_LINE  # an endless line never grows the buffer
     events += splitter.feed(stream[pos:])
@@ -142,7 +142,7 @@ def test_fuzz_uart_line_parser_no_newline_never_grows(data: bytes, chunks: list[
     splitter = LineSplitter(MAX_LINE)
     pos = 0
     for size in chunks + [len(data)]:
-        assert splitter.feed(data[pos:pos + size]) == []
+        assert splitter.feed(data[pos : pos + size]) == []
         pos += size
         assert splitter.buffered <= MAX_LINE
     events = splitter.feed(b"\n")
@@ -216,8 +216,11 @@ def test_fuzz_uart_info_ranges(header: list[int], vbus: int, temperature: float,
 _FRAME = st.one_of(
     st.tuples(st.just(Cmd.GRIPPER_COMMAND), st.binary(min_size=5, max_size=5), st.just(False)),
     st.tuples(st.just(Cmd.GRIPPER_COMMAND), st.just(b""), st.just(False)),
-    st.tuples(st.sampled_from([Cmd.ESTOP, Cmd.CLEAR_ERROR, Cmd.IDLE, Cmd.GRIPPER_CALIBRATE]), st.just(b""),
-              st.just(False)),
+    st.tuples(
+        st.sampled_from([Cmd.ESTOP, Cmd.CLEAR_ERROR, Cmd.IDLE, Cmd.GRIPPER_CALIBRATE]),
+        st.just(b""),
+        st.just(False),
+    ),
     st.tuples(st.just(Cmd.WATCHDOG), st.binary(min_size=5, max_size=5), st.just(False)),
     st.tuples(st.just(Cmd.ERROR_STATE), st.just(b""), st.just(True)),
 )

@@ -55,7 +55,7 @@ def _mutate(stream: bytes, edits: list[tuple[str, int, bytes]]) -> bytes:
         elif kind == "insert":
             buf[i:i] = data
         elif kind == "delete":
-            del buf[i:i + len(data)]
+            del buf[i : i + len(data)]
         elif kind == "cut":  # the rest of the stream lost: a half packet
             del buf[i:]
         elif kind == "preamble":  # a false preamble with a plausible or absurd size field
@@ -67,7 +67,7 @@ def _feed(parser: PacketParser, data: bytes, chunks: list[int], bound: int = HOL
     out: list[object] = []
     pos = 0
     for size in chunks or [len(data) or 1]:
-        out += parser.feed(data[pos:pos + size])
+        out += parser.feed(data[pos : pos + size])
         pos += size
         assert parser.buffered <= bound  # never stalls on an unbounded buffer
     out += parser.feed(data[pos:])

@@ -28,8 +28,12 @@ def _reply(cmd: int, status: int, data: bytes) -> bytes:
 
 def _success(cmd: int) -> bytes:
     layout = COMMANDS[cmd].reply
-    return encode_packet(cmd, encode_reply(cmd, 0, **{n: 0 for n in layout.names}) if not layout.tail
-                         else b"\x00\x00" + bytes(layout.size))
+    return encode_packet(
+        cmd,
+        encode_reply(cmd, 0, **{n: 0 for n in layout.names})
+        if not layout.tail
+        else b"\x00\x00" + bytes(layout.size),
+    )
 
 
 @st.composite
@@ -50,7 +54,7 @@ def chunks(draw: st.DrawFn, cmd: int) -> bytes:
     raw = bytearray(_success(cmd))
     i = draw(st.integers(0, len(raw) - 1))
     raw[i] ^= draw(st.integers(1, 255))
-    return bytes(raw[:draw(st.integers(0, len(raw)))]) if draw(st.booleans()) else bytes(raw)
+    return bytes(raw[: draw(st.integers(0, len(raw)))]) if draw(st.booleans()) else bytes(raw)
 
 
 @given(data=st.binary(max_size=40) | commands.map(_success), verify=st.booleans())
@@ -96,8 +100,10 @@ def test_fuzz_take_reply_agrees_with_receive(data: st.DataObject, cmd: int, veri
     assert ex_fast.reply == ex_slow.reply == packet and not fast.is_busy(cmd, 0.0)
 
 
-@given(cmd=commands | st.integers(0, 0xFF), payload=st.binary(max_size=40) | commands.map(
-    lambda c: _success(c)[6:-2]))
+@given(
+    cmd=commands | st.integers(0, 0xFF),
+    payload=st.binary(max_size=40) | commands.map(lambda c: _success(c)[6:-2]),
+)
 def test_fuzz_reply_value_agrees_with_decode_reply(cmd: int, payload: bytes, fuzz_count) -> None:
     fuzz_count["wsg fast path: reply_value"] += 1
     try:

@@ -116,21 +116,26 @@ FIXED_HOLD = HEADER_SIZE + max(_REPLY_MAX.values()) + TRAILER_SIZE - 1
 
 false_header = st.builds(
     lambda cmd, size: b"\xaa\xaa\xaa" + bytes([cmd]) + struct.pack("<H", size),
-    st.integers(0, 0xFF).filter(lambda c: c != 0xAA), st.integers(0, 0xFFFF),
+    st.integers(0, 0xFF).filter(lambda c: c != 0xAA),
+    st.integers(0, 0xFFFF),
 )
 
 
-@given(parts=st.lists(false_header | st.binary(max_size=40), max_size=20), chunk=st.integers(1, 64),
-       subscribed=st.booleans())
-def test_fuzz_false_headers_hold_back_at_most_the_largest_fixed_reply(parts, chunk, subscribed,
-                                                                      fuzz_count) -> None:
+@given(
+    parts=st.lists(false_header | st.binary(max_size=40), max_size=20),
+    chunk=st.integers(1, 64),
+    subscribed=st.booleans(),
+)
+def test_fuzz_false_headers_hold_back_at_most_the_largest_fixed_reply(
+    parts, chunk, subscribed, fuzz_count
+) -> None:
     fuzz_count["wsg parser: per-id size bound"] += 1
     s = Session()
     if subscribed:
         s.subscribe(int(Cmd.GET_WIDTH))
     data = b"".join(parts) + encode_packet(int(Cmd.GET_WIDTH), encode_reply(int(Cmd.GET_WIDTH), 0, width=1.0))
     for i in range(0, len(data), chunk):
-        s.receive(data[i:i + chunk], now=0.0)
+        s.receive(data[i : i + chunk], now=0.0)
         assert s.parser.buffered <= FIXED_HOLD
 
 

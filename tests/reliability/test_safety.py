@@ -62,7 +62,10 @@ def _listening_tcp(port: int) -> list[str]:
 def test_cli_simulator_binds_to_loopback_when_no_host_is_named() -> None:
     proc = subprocess.Popen(
         [sys.executable, "-m", "grippers", "sim", "wsg", "--listen", "tcp://:0"],
-        cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
         env={**os.environ, "PYTHONUNBUFFERED": "1"},
     )
     try:

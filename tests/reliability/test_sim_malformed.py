@@ -147,12 +147,14 @@ def test_msg_sim_and_client_survive_random_frames_on_the_bus(msg_can_sim, can_ch
             extended = rnd.random() < 0.1
             if not extended and rnd.random() < 0.05:  # an "11-bit" id above 0x7FF: virtual buses carry it
                 ident = rnd.randrange(0x800, 1 << 29)
-            raw.send(can.Message(
-                arbitration_id=ident | (rnd.randrange(1 << 18) << 11 if extended else 0),
-                data=bytes(rnd.randrange(256) for _ in range(rnd.randrange(9))),
-                is_remote_frame=rnd.random() < 0.2,
-                is_extended_id=extended,
-            ))
+            raw.send(
+                can.Message(
+                    arbitration_id=ident | (rnd.randrange(1 << 18) << 11 if extended else 0),
+                    data=bytes(rnd.randrange(256) for _ in range(rnd.randrange(9))),
+                    is_remote_frame=rnd.random() < 0.2,
+                    is_extended_id=extended,
+                )
+            )
         assert node.poll() is not None
         assert node.device_info().serial == server.model.serial
         assert bus.alive
@@ -240,8 +242,13 @@ def test_fuzz_wsg_model_answers_every_well_framed_request(requests, part, fuzz_c
 
 @given(
     frames=st.lists(
-        st.tuples(st.integers(0, 15), st.integers(0, 63), st.binary(max_size=8), st.booleans(),
-                  st.sampled_from([0.0, 0.01, 0.5, 5.0])),
+        st.tuples(
+            st.integers(0, 15),
+            st.integers(0, 63),
+            st.binary(max_size=8),
+            st.booleans(),
+            st.sampled_from([0.0, 0.01, 0.5, 5.0]),
+        ),
         max_size=10,
     )
 )

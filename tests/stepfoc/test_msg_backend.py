@@ -86,9 +86,10 @@ def test_the_first_motion_after_a_calibration_really_moves(transport: str) -> No
 
 def test_calibration_watch_needs_the_jaws_to_leave_and_come_back() -> None:
     channel = f"msg-backend-{uuid.uuid4().hex[:8]}"
-    with serve_can([MsgModel(node=0)], f"can://virtual/{channel}", time_scale=50.0) as server, StepfocBus(
-        interface="virtual", channel=channel
-    ) as bus:
+    with (
+        serve_can([MsgModel(node=0)], f"can://virtual/{channel}", time_scale=50.0) as server,
+        StepfocBus(interface="virtual", channel=channel) as bus,
+    ):
         node = bus.node(0)
         node.calibrate(timeout=5.0)
         assert server.model.calibrated and not server.model.calibrating
@@ -99,9 +100,10 @@ def test_calibration_watch_needs_the_jaws_to_leave_and_come_back() -> None:
 
 def test_the_client_never_repeats_a_motion_61_byte_for_byte() -> None:
     channel = f"msg-backend-{uuid.uuid4().hex[:8]}"
-    with serve_can([MsgModel(node=0)], f"can://virtual/{channel}", time_scale=50.0) as server, StepfocBus(
-        interface="virtual", channel=channel
-    ) as bus:
+    with (
+        serve_can([MsgModel(node=0)], f"can://virtual/{channel}", time_scale=50.0) as server,
+        StepfocBus(interface="virtual", channel=channel) as bus,
+    ):
         node = bus.node(0)
         node.calibrate(timeout=5.0)
         node.move(100, 200, timeout=5.0)
@@ -144,9 +146,10 @@ def test_a_61_with_the_estop_bit_from_another_host_is_a_fast_stop() -> None:
 
 def test_clear_error_resume_resends_the_motion() -> None:
     channel = f"msg-backend-{uuid.uuid4().hex[:8]}"
-    with serve_can([MsgModel(node=0)], f"can://virtual/{channel}", time_scale=50.0) as server, StepfocBus(
-        interface="virtual", channel=channel
-    ) as bus:
+    with (
+        serve_can([MsgModel(node=0)], f"can://virtual/{channel}", time_scale=50.0) as server,
+        StepfocBus(interface="virtual", channel=channel) as bus,
+    ):
         node = bus.node(0)
         node.calibrate(timeout=5.0)
         node.command(0, 40)

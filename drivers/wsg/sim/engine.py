@@ -30,8 +30,15 @@ MAX_WAIT_S = 0.02
 class Link:
     """One conversation with the model: its connection id, its receive parser and how to send on it."""
 
-    def __init__(self, conn: int, parser: PacketParser, send: Callable[[bytes], None], name: str, *,
-                 silent_gap: bool = False) -> None:
+    def __init__(
+        self,
+        conn: int,
+        parser: PacketParser,
+        send: Callable[[bytes], None],
+        name: str,
+        *,
+        silent_gap: bool = False,
+    ) -> None:
         self.conn = conn
         self.parser = parser
         self.send = send

@@ -490,8 +490,13 @@ class WsgModel:
         assert m is not None
         self._x = self.position
         self._start_motion(
-            m.kind, m.target, m.profile.speed, conn=m.conn, command=m.command,
-            stop_on_block=m.stop_on_block, grip_width=m.grip_width,
+            m.kind,
+            m.target,
+            m.profile.speed,
+            conn=m.conn,
+            command=m.command,
+            stop_on_block=m.stop_on_block,
+            grip_width=m.grip_width,
         )
 
     def _halt(self) -> _Motion | None:
@@ -625,8 +630,12 @@ class WsgModel:
         self._reply(conn, cmd, Status.E_CMD_PENDING)
         # §3.2.2: positions and speeds beyond the physical limits are clamped.
         self._start_motion(
-            "preposition", target, self._clamp(speed, self.min_speed, self.max_speed),
-            conn=conn, command=cmd, stop_on_block=bool(f.get("stop_on_block", True)),
+            "preposition",
+            target,
+            self._clamp(speed, self.min_speed, self.max_speed),
+            conn=conn,
+            command=cmd,
+            stop_on_block=bool(f.get("stop_on_block", True)),
         )
 
     def _stop(self, conn: int, f: dict, cmd: int) -> None:
@@ -806,8 +815,12 @@ class WsgModel:
 
     def _statistics(self, conn: int, f: dict, cmd: int) -> None:
         self._reply(
-            conn, cmd, Status.E_SUCCESS,
-            total=self.stats_total, no_part=self.stats_no_part, lost_part=self.stats_lost,
+            conn,
+            cmd,
+            Status.E_SUCCESS,
+            total=self.stats_total,
+            no_part=self.stats_no_part,
+            lost_part=self.stats_lost,
         )
         if f.get("reset"):
             self.stats_total = self.stats_no_part = self.stats_lost = 0
@@ -817,9 +830,13 @@ class WsgModel:
 
     def _system_info(self, conn: int, f: dict, cmd: int) -> None:
         self._reply(
-            conn, cmd, Status.E_SUCCESS,
-            device_type=self.device_type, hw_revision=self.hw_revision,
-            firmware=self.firmware_version, serial=self.serial,
+            conn,
+            cmd,
+            Status.E_SUCCESS,
+            device_type=self.device_type,
+            hw_revision=self.hw_revision,
+            firmware=self.firmware_version,
+            serial=self.serial,
         )
 
     def _set_device_tag(self, conn: int, f: dict, cmd: int) -> None:
@@ -841,10 +858,17 @@ class WsgModel:
 
     def _system_limits(self, conn: int, f: dict, cmd: int) -> None:
         self._reply(
-            conn, cmd, Status.E_SUCCESS,
-            stroke=self.stroke, min_speed=self.min_speed, max_speed=self.max_speed,
-            min_acceleration=self.min_accel, max_acceleration=self.max_accel,
-            min_force=self.min_force, nominal_force=self.nominal_force, overdrive_force=self.overdrive_force,
+            conn,
+            cmd,
+            Status.E_SUCCESS,
+            stroke=self.stroke,
+            min_speed=self.min_speed,
+            max_speed=self.max_speed,
+            min_acceleration=self.min_accel,
+            max_acceleration=self.max_accel,
+            min_force=self.min_force,
+            nominal_force=self.nominal_force,
+            overdrive_force=self.overdrive_force,
         )
 
     # Finger interface (4.x only; WSG manual 4.0.x §3.6).

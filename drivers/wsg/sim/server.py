@@ -72,4 +72,6 @@ def serve(
             bus=bus,
             time_scale=time_scale,
         )
-    raise ValueError(f"listen URL {listen!r}: expected tcp://HOST:PORT, udp://HOST:PORT, pty or can://IF/CHANNEL")
+    raise ValueError(
+        f"listen URL {listen!r}: expected tcp://HOST:PORT, udp://HOST:PORT, pty or can://IF/CHANNEL"
+    )

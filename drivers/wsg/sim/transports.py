@@ -121,8 +121,9 @@ class UdpSimServer(_SelectorServer):
     source ports cannot grow its memory without bound.
     """
 
-    def __init__(self, model: WsgModel, host: str, port: int, *, time_scale: float,
-                 max_peers: int = 64) -> None:
+    def __init__(
+        self, model: WsgModel, host: str, port: int, *, time_scale: float, max_peers: int = 64
+    ) -> None:
         super().__init__(model, time_scale=time_scale)
         family = socket.AF_INET6 if ":" in host else socket.AF_INET
         self._sock = socket.socket(family, socket.SOCK_DGRAM)
@@ -266,24 +267,34 @@ class CanSimServer(SimServer):
         self.url = f"wsg+can://{interface}/{channel}" + ("?" + "&".join(query) if query else "")
         with self.lock:
             conn = self.model.connect(connection_oriented=False)
-            self._link = Link(conn, PacketParser(verify_checksum=model.verify_checksum), self._send_frames,
-                              f"can {interface}/{channel}")
+            self._link = Link(
+                conn,
+                PacketParser(verify_checksum=model.verify_checksum),
+                self._send_frames,
+                f"can {interface}/{channel}",
+            )
             self._add_link(self._link)
         self._start(f"wsg-sim-can-{channel}")
 
     def _wait_and_read(self, timeout: float) -> None:
         msg = self._bus.recv(timeout=timeout)
         while msg is not None:
-            if (msg.arbitration_id == self._rx_id and not msg.is_remote_frame and not msg.is_error_frame
-                    and bool(msg.is_extended_id) == self._extended and msg.dlc):
+            if (
+                msg.arbitration_id == self._rx_id
+                and not msg.is_remote_frame
+                and not msg.is_error_frame
+                and bool(msg.is_extended_id) == self._extended
+                and msg.dlc
+            ):
                 self._received(self._link, bytes(msg.data))
             msg = self._bus.recv(timeout=0.0)
 
     def _send_frames(self, data: bytes) -> None:
         extended = self._extended
         for chunk in can_frames(data):
-            self._bus.send(can.Message(arbitration_id=self._tx_id, data=chunk, is_extended_id=extended),
-                           timeout=0.5)
+            self._bus.send(
+                can.Message(arbitration_id=self._tx_id, data=chunk, is_extended_id=extended), timeout=0.5
+            )
 
     def _send(self, link: Link, data: bytes) -> None:
         try:

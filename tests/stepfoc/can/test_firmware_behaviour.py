@@ -196,8 +196,14 @@ def test_can_sim_ignores_ids_invalid_for_the_frame_format(arbitration_id: int, e
     with serve_can([MsgModel(node=NODE)], f"can://virtual/{channel}", time_scale=50.0) as server:
         bus = can.Bus(interface="virtual", channel=channel)
         try:
-            bus.send(can.Message(arbitration_id=arbitration_id, data=b"", is_extended_id=extended,
-                                 is_remote_frame=arbitration_id >> 1 & 0x3F == ERROR_STATE))
+            bus.send(
+                can.Message(
+                    arbitration_id=arbitration_id,
+                    data=b"",
+                    is_extended_id=extended,
+                    is_remote_frame=arbitration_id >> 1 & 0x3F == ERROR_STATE,
+                )
+            )
             assert bus.recv(timeout=0.15) is None  # no answer to a frame of another format
             bus.send(can.Message(arbitration_id=ident(CMD_61), data=b"", is_extended_id=False))
             reply = bus.recv(timeout=1.0)

@@ -75,8 +75,16 @@ def test_every_command_exact_bytes(uart) -> None:
     assert client.estop(1) == 1
     client.clear_error()
     assert pty.received == [
-        b"#Gripper\n", b"#Gripper 0\n", b"#Gripcal\n", b"#Grippos\n", b"#Grippos 128\n", b"#Gripvel 200\n",
-        b"#Gripcur 700\n", b"#Gripact 1\n", b"#Gripstop 1\n", b"#Clear\n",
+        b"#Gripper\n",
+        b"#Gripper 0\n",
+        b"#Gripcal\n",
+        b"#Grippos\n",
+        b"#Grippos 128\n",
+        b"#Gripvel 200\n",
+        b"#Gripcur 700\n",
+        b"#Gripact 1\n",
+        b"#Gripstop 1\n",
+        b"#Clear\n",
     ]
 
 
@@ -108,8 +116,17 @@ def test_current_is_clamped_to_the_profile_limit(scripted_pty) -> None:
 
 @pytest.mark.parametrize(
     ("method", "value"),
-    [("position", 256), ("position", -1), ("velocity", 300), ("activate", 2), ("estop", -1), ("gripper", 3),
-     ("current", -5), ("position", 1.5), ("velocity", True)],
+    [
+        ("position", 256),
+        ("position", -1),
+        ("velocity", 300),
+        ("activate", 2),
+        ("estop", -1),
+        ("gripper", 3),
+        ("current", -5),
+        ("position", 1.5),
+        ("velocity", True),
+    ],
 )
 def test_out_of_range_refused_before_sending(uart, method: str, value: object) -> None:
     client, pty = uart

@@ -58,8 +58,15 @@ def test_format_command(name: str, value: int | None, wire: bytes) -> None:
 
 @pytest.mark.parametrize(
     ("name", "value"),
-    [("Grippos", 256), ("Grippos", -1), ("Gripvel", 300), ("Gripact", 2), ("Gripstop", -1), ("Gripper", 7),
-     ("Gripcur", 2801)],
+    [
+        ("Grippos", 256),
+        ("Grippos", -1),
+        ("Gripvel", 300),
+        ("Gripact", 2),
+        ("Gripstop", -1),
+        ("Gripper", 7),
+        ("Gripcur", 2801),
+    ],
 )
 def test_format_refuses_out_of_range(name: str, value: int) -> None:
     with pytest.raises(LimitError) as err:
@@ -122,8 +129,15 @@ def test_other_rows_do_not_claim_an_answer(line: str, command: str, value: int |
 
 @pytest.mark.parametrize(
     "line",
-    ["Gripper: ", "Gripper: x", "Gripper:1", "Gripper current position is: 1.5", "gripper: 1",
-     "Gripper calibration", "Unknown command"],
+    [
+        "Gripper: ",
+        "Gripper: x",
+        "Gripper:1",
+        "Gripper current position is: 1.5",
+        "gripper: 1",
+        "Gripper calibration",
+        "Unknown command",
+    ],
 )
 def test_malformed_answers_are_not_parsed(line: str) -> None:
     assert parse_answer(line) is None
@@ -160,9 +174,17 @@ GRIPINFO_LINES = [
 def test_parse_gripinfo() -> None:
     info = parse_gripinfo(GRIPINFO_LINES)
     assert info == GripInfo(
-        is_gripper=True, calibrated=True, activated=True, position_setpoint=200, speed_setpoint=100,
-        current_setpoint=500, estop=False, action=True, detection=Detection.CLOSING_OBJECT,
-        max_open_position=-1234, max_closed_position=56789,
+        is_gripper=True,
+        calibrated=True,
+        activated=True,
+        position_setpoint=200,
+        speed_setpoint=100,
+        current_setpoint=500,
+        estop=False,
+        action=True,
+        detection=Detection.CLOSING_OBJECT,
+        max_open_position=-1234,
+        max_closed_position=56789,
     )
     assert render_gripinfo(info) == GRIPINFO_LINES
 
@@ -288,7 +310,10 @@ def _texts(events: list) -> list[str]:
 def test_splitter_crlf_lf_and_blank_lines() -> None:
     sp = LineSplitter()
     assert _texts(sp.feed(b"Gripper: 1\r\nGripper: 0\n\r\n\nGripper calibration! \r\n")) == [
-        "Gripper: 1", "Gripper: 0", "Gripper calibration! "]
+        "Gripper: 1",
+        "Gripper: 0",
+        "Gripper calibration! ",
+    ]
 
 
 def test_splitter_missing_newline_waits_then_reset_drops() -> None:
@@ -355,7 +380,10 @@ def test_parsers_never_raise_on_text(text: str) -> None:
 def test_receiver_gets_and_sets() -> None:
     rx = Receiver()
     assert rx.feed(b"#Grippos\n#Grippos 200\r\n#Gripvel  7 \n") == [
-        Request("Grippos", None), Request("Grippos", "200"), Request("Gripvel", "7")]
+        Request("Grippos", None),
+        Request("Grippos", "200"),
+        Request("Gripvel", "7"),
+    ]
 
 
 def test_receiver_hash_resets_and_split_chunks() -> None:

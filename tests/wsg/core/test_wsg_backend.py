@@ -31,9 +31,14 @@ class _OddLimits(WsgModel):
 
     def _system_limits(self, conn: int, f: dict, cmd: int) -> None:
         values = dict(
-            stroke=self.stroke, min_speed=self.min_speed, max_speed=self.max_speed,
-            min_acceleration=self.min_accel, max_acceleration=self.max_accel,
-            min_force=self.min_force, nominal_force=self.nominal_force, overdrive_force=self.overdrive_force,
+            stroke=self.stroke,
+            min_speed=self.min_speed,
+            max_speed=self.max_speed,
+            min_acceleration=self.min_accel,
+            max_acceleration=self.max_accel,
+            min_force=self.min_force,
+            nominal_force=self.nominal_force,
+            overdrive_force=self.overdrive_force,
         )
         values.update(self.odd)
         self._reply(conn, cmd, Status.E_SUCCESS, **values)
@@ -56,9 +61,16 @@ def test_system_limits_that_cannot_be_limits_are_ignored_with_a_warning(odd, cap
             g = grippers.open(server.url, profile="wsg50")
         try:
             limits = g.limits
-            assert all(math.isfinite(v) and v >= 0 for v in (limits.max_width, limits.min_speed,
-                                                            limits.max_speed, limits.min_force,
-                                                            limits.max_force))
+            assert all(
+                math.isfinite(v) and v >= 0
+                for v in (
+                    limits.max_width,
+                    limits.min_speed,
+                    limits.max_speed,
+                    limits.min_force,
+                    limits.max_force,
+                )
+            )
             assert limits.min_speed < limits.max_speed and limits.min_force < limits.max_force
             warnings = g.info().extra["warnings"]
             assert warnings and all("53h" in w and "ignored" in w for w in warnings)

@@ -148,8 +148,12 @@ def test_firmware_2_capabilities_are_refused_locally(connect) -> None:
         c.temperature()
     assert info.value.status == Status.E_CMD_UNKNOWN
     assert str(c.system_info().firmware) == "2.2.0"
-    for call in (c.temperature, lambda: c.finger_info(1), lambda: c.finger_power(2, True),
-                 lambda: c.request(0x63)):
+    for call in (
+        c.temperature,
+        lambda: c.finger_info(1),
+        lambda: c.finger_power(2, True),
+        lambda: c.request(0x63),
+    ):
         with pytest.raises(NotSupported):
             call()
     assert c.width() == 0.0  # the rest still works

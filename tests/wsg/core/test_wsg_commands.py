@@ -44,10 +44,20 @@ CASES = [
     (Cmd.LOOP, {"data": b"\x01\x02\xaa"}, b"\x01\x02\xaa", {"data": b"\x01\x02\xaa"}, b"\x01\x02\xaa"),
     (Cmd.DISCONNECT, {}, b"", {}, b""),
     (Cmd.HOMING, {"direction": 2}, b"\x02", {}, b""),
-    (Cmd.PREPOSITION, {"relative": True, "stop_on_block": False, "width": 50.0, "speed": 100.0},
-     b"\x01" + f32(50.0, 100.0), {}, b""),
-    (Cmd.PREPOSITION, {"relative": False, "stop_on_block": True, "width": 10.5, "speed": 5.0},
-     b"\x02" + f32(10.5, 5.0), {}, b""),
+    (
+        Cmd.PREPOSITION,
+        {"relative": True, "stop_on_block": False, "width": 50.0, "speed": 100.0},
+        b"\x01" + f32(50.0, 100.0),
+        {},
+        b"",
+    ),
+    (
+        Cmd.PREPOSITION,
+        {"relative": False, "stop_on_block": True, "width": 10.5, "speed": 5.0},
+        b"\x02" + f32(10.5, 5.0),
+        {},
+        b"",
+    ),
     (Cmd.STOP, {}, b"", {}, b""),
     (Cmd.FAST_STOP, {}, b"", {}, b""),
     (Cmd.ACK_FAST_STOP, {"key": b"ack"}, b"\x61\x63\x6b", {}, b""),
@@ -62,29 +72,79 @@ CASES = [
     (Cmd.CLEAR_SOFT_LIMITS, {}, b"", {}, b""),
     (Cmd.OVERDRIVE, {"enable": True}, b"\x01", {}, b""),
     (Cmd.TARE, {}, b"", {}, b""),
-    (Cmd.GET_SYSTEM_STATE, {"auto_update": True, "changes_only": True, "period_ms": 100}, b"\x03\x64\x00",
-     {"state": SystemFlags.SF_REFERENCED | SystemFlags.SF_FAST_STOP}, b"\x01\x10\x00\x00"),
-    (Cmd.GET_GRASPING_STATE, {"auto_update": True, "changes_only": False, "period_ms": 10}, b"\x01\x0a\x00",
-     {"state": GraspingState.HOLDING}, b"\x04"),
-    (Cmd.GET_GRASPING_STATISTICS, {"reset": True}, b"\x01",
-     {"total": 70000, "no_part": 3, "lost_part": 2}, b"\x70\x11\x01\x00\x03\x00\x02\x00"),
-    (Cmd.GET_WIDTH, {"auto_update": False, "changes_only": False, "period_ms": 0}, b"\x00\x00\x00",
-     {"width": 50.0}, f32(50.0)),
-    (Cmd.GET_SPEED, {"auto_update": True, "changes_only": True, "period_ms": 0x1234}, b"\x03\x34\x12",
-     {"speed": -20.0}, f32(-20.0)),
-    (Cmd.GET_FORCE, {"auto_update": False, "changes_only": True, "period_ms": 10}, b"\x02\x0a\x00",
-     {"force": 12.5}, f32(12.5)),
+    (
+        Cmd.GET_SYSTEM_STATE,
+        {"auto_update": True, "changes_only": True, "period_ms": 100},
+        b"\x03\x64\x00",
+        {"state": SystemFlags.SF_REFERENCED | SystemFlags.SF_FAST_STOP},
+        b"\x01\x10\x00\x00",
+    ),
+    (
+        Cmd.GET_GRASPING_STATE,
+        {"auto_update": True, "changes_only": False, "period_ms": 10},
+        b"\x01\x0a\x00",
+        {"state": GraspingState.HOLDING},
+        b"\x04",
+    ),
+    (
+        Cmd.GET_GRASPING_STATISTICS,
+        {"reset": True},
+        b"\x01",
+        {"total": 70000, "no_part": 3, "lost_part": 2},
+        b"\x70\x11\x01\x00\x03\x00\x02\x00",
+    ),
+    (
+        Cmd.GET_WIDTH,
+        {"auto_update": False, "changes_only": False, "period_ms": 0},
+        b"\x00\x00\x00",
+        {"width": 50.0},
+        f32(50.0),
+    ),
+    (
+        Cmd.GET_SPEED,
+        {"auto_update": True, "changes_only": True, "period_ms": 0x1234},
+        b"\x03\x34\x12",
+        {"speed": -20.0},
+        f32(-20.0),
+    ),
+    (
+        Cmd.GET_FORCE,
+        {"auto_update": False, "changes_only": True, "period_ms": 10},
+        b"\x02\x0a\x00",
+        {"force": 12.5},
+        f32(12.5),
+    ),
     (Cmd.GET_TEMPERATURE, {}, b"", {"temperature": -1.0}, b"\xf6\xff"),
-    (Cmd.GET_SYSTEM_INFO, {}, b"",
-     {"device_type": DeviceType.WSG50, "hw_revision": 3, "firmware": FirmwareVersion(4, 0, 1),
-      "serial": 4711},
-     b"\x01\x03\x10\x40\x67\x12\x00\x00"),
+    (
+        Cmd.GET_SYSTEM_INFO,
+        {},
+        b"",
+        {
+            "device_type": DeviceType.WSG50,
+            "hw_revision": 3,
+            "firmware": FirmwareVersion(4, 0, 1),
+            "serial": 4711,
+        },
+        b"\x01\x03\x10\x40\x67\x12\x00\x00",
+    ),
     (Cmd.SET_DEVICE_TAG, {"tag": "cell 3"}, b"cell 3", {}, b""),
     (Cmd.GET_DEVICE_TAG, {}, b"", {"tag": "cell 3"}, b"cell 3"),
-    (Cmd.GET_SYSTEM_LIMITS, {}, b"",
-     {"stroke": 110.0, "min_speed": 5.0, "max_speed": 420.0, "min_acceleration": 100.0,
-      "max_acceleration": 5000.0, "min_force": 5.0, "nominal_force": 80.0, "overdrive_force": 120.0},
-     f32(110.0, 5.0, 420.0, 100.0, 5000.0, 5.0, 80.0, 120.0)),
+    (
+        Cmd.GET_SYSTEM_LIMITS,
+        {},
+        b"",
+        {
+            "stroke": 110.0,
+            "min_speed": 5.0,
+            "max_speed": 420.0,
+            "min_acceleration": 100.0,
+            "max_acceleration": 5000.0,
+            "min_force": 5.0,
+            "nominal_force": 80.0,
+            "overdrive_force": 120.0,
+        },
+        f32(110.0, 5.0, 420.0, 100.0, 5000.0, 5.0, 80.0, 120.0),
+    ),
     (Cmd.GET_FINGER1_INFO, {}, b"", {"finger_type": FingerType.WSG_FMF, "data_size": 4}, b"\x01\x04\x00"),
     (Cmd.GET_FINGER1_FLAGS, {}, b"", {"flags": FingerFlags.POWER_ON | FingerFlags.POWER_FAULT}, b"\x01\x01"),
     (Cmd.FINGER1_POWER, {"power": True}, b"\x01", {}, b""),
@@ -97,19 +157,33 @@ CASES = [
 
 
 def test_the_table_covers_every_command_of_both_manuals() -> None:
-    ids = {0x06, 0x07, *range(0x20, 0x27), *range(0x30, 0x39), *range(0x40, 0x47), *range(0x50, 0x54),
-           *range(0x60, 0x64), *range(0x70, 0x74)}
+    ids = {
+        0x06,
+        0x07,
+        *range(0x20, 0x27),
+        *range(0x30, 0x39),
+        *range(0x40, 0x47),
+        *range(0x50, 0x54),
+        *range(0x60, 0x64),
+        *range(0x70, 0x74),
+    }
     assert set(COMMANDS) == ids == {int(c) for c in Cmd}
     assert {int(c[0]) for c in CASES} == ids
     assert set(AUTO_UPDATE_COMMANDS) == {0x40, 0x41, 0x43, 0x44, 0x45}  # docs/protocols.md §1
     assert {s.id for s in COMMANDS.values() if s.is_async} == {0x20, 0x21, 0x25, 0x26, 0x62, 0x72}
     # Firmware 2.2.0 lacks 46h and 60h-73h (docs/protocols.md §1).
-    assert {s.id for s in COMMANDS.values() if s.min_firmware_major > 2} == {0x46, *range(0x60, 0x64),
-                                                                              *range(0x70, 0x74)}
+    assert {s.id for s in COMMANDS.values() if s.min_firmware_major > 2} == {
+        0x46,
+        *range(0x60, 0x64),
+        *range(0x70, 0x74),
+    }
 
 
-@pytest.mark.parametrize(("cmd", "req", "req_bytes", "rep", "rep_bytes"), CASES,
-                         ids=[f"{c[0].name}-{i}" for i, c in enumerate(CASES)])
+@pytest.mark.parametrize(
+    ("cmd", "req", "req_bytes", "rep", "rep_bytes"),
+    CASES,
+    ids=[f"{c[0].name}-{i}" for i, c in enumerate(CASES)],
+)
 def test_request_and_reply_layouts(cmd, req, req_bytes, rep, rep_bytes) -> None:
     assert encode_request(cmd, **req) == req_bytes
     assert decode_request(cmd, req_bytes) == req
@@ -141,14 +215,23 @@ def test_errata_of_the_notes_are_applied() -> None:
     with pytest.raises(ProtocolError):
         decode_reply(Cmd.GET_WIDTH, b"\x00\x00\x01")
     # 60h SIZE is bytes 1..2.
-    assert decode_reply(0x60, b"\x00\x00\x02\x10\x00").fields == {"finger_type": FingerType.WSG_DSA,
-                                                                   "data_size": 16}
+    assert decode_reply(0x60, b"\x00\x00\x02\x10\x00").fields == {
+        "finger_type": FingerType.WSG_DSA,
+        "data_size": 16,
+    }
     # 62h power is byte 0 (one parameter byte).
     assert encode_request(0x62, power=True) == b"\x01"
     # 46h: i16 in 0.1 degC. Both 4.0.x manuals print "FFF5h = -1.0 °C"; as i16 tenths FFF5h is -1.1 °C and
     # -1.0 °C is FFF6h (the other examples, FFFFh = -0.1 °C and 000Ah = 1.0 °C, agree with that).
-    for raw, celsius in ((0xFFF6, -1.0), (0xFFF5, -1.1), (0xFFFF, -0.1), (0, 0.0), (0x0A, 1.0), (0xC8, 20.0),
-                         (0x1F4, 50.0)):
+    for raw, celsius in (
+        (0xFFF6, -1.0),
+        (0xFFF5, -1.1),
+        (0xFFFF, -0.1),
+        (0, 0.0),
+        (0x0A, 1.0),
+        (0xC8, 20.0),
+        (0x1F4, 50.0),
+    ):
         assert decode_reply(0x46, b"\x00\x00" + raw.to_bytes(2, "little")).value == pytest.approx(celsius)
         assert encode_reply(0x46, 0, temperature=celsius)[2:] == raw.to_bytes(2, "little")
 
@@ -156,8 +239,11 @@ def test_errata_of_the_notes_are_applied() -> None:
 def test_auto_update_request_defaults_to_a_single_query() -> None:
     for cmd in AUTO_UPDATE_COMMANDS:
         assert encode_request(cmd) == b"\x00\x00\x00"
-        assert decode_request(cmd, b"\x01\x0a\x00") == {"auto_update": True, "changes_only": False,
-                                                          "period_ms": 10}
+        assert decode_request(cmd, b"\x01\x0a\x00") == {
+            "auto_update": True,
+            "changes_only": False,
+            "period_ms": 10,
+        }
 
 
 def test_firmware_version_nibbles_and_text() -> None:
@@ -172,8 +258,9 @@ def test_firmware_version_nibbles_and_text() -> None:
         FirmwareVersion.parse("four")
     with pytest.raises(LimitError):
         FirmwareVersion(16, 0, 0)
-    info = decode_reply(0x50, encode_reply(0x50, 0, device_type=6, hw_revision=1, firmware="2.2.0",
-                                           serial=1)).value
+    info = decode_reply(
+        0x50, encode_reply(0x50, 0, device_type=6, hw_revision=1, firmware="2.2.0", serial=1)
+    ).value
     assert info == SystemInfo(DeviceType.WSG70, 1, FirmwareVersion(2, 2, 0), 1)
 
 
@@ -187,11 +274,13 @@ def test_typed_values() -> None:
     assert decode_reply(0x50, b"\x00\x00\x09\x00\x10\x40\x00\x00\x00\x00").value.device_type == 9
     state = decode_reply(0x40, b"\x00\x00\x00\x00\x00\x80").value
     assert isinstance(state, SystemFlags) and int(state) == 1 << 31
-    assert decode_reply(0x42, encode_reply(0x42, 0, total=1, no_part=2, lost_part=3)).value == \
-        GraspingStatistics(1, 2, 3)
+    assert decode_reply(
+        0x42, encode_reply(0x42, 0, total=1, no_part=2, lost_part=3)
+    ).value == GraspingStatistics(1, 2, 3)
     assert decode_reply(0x35, encode_reply(0x35, 0, minus=1, plus=2)).value == SoftLimits(1.0, 2.0)
-    assert decode_reply(0x70, encode_reply(0x70, 0, finger_type=0, data_size=0)).value == \
-        FingerInfo(FingerType.GENERIC, 0)
+    assert decode_reply(0x70, encode_reply(0x70, 0, finger_type=0, data_size=0)).value == FingerInfo(
+        FingerType.GENERIC, 0
+    )
     limits = decode_reply(0x53, b"\x00\x00" + f32(*range(8))).value
     assert isinstance(limits, SystemLimits) and limits.overdrive_force == 7.0
     # Unknown status codes and unknown commands still decode.

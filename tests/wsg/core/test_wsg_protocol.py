@@ -42,7 +42,7 @@ def test_table_is_msb_first_table_of_polynomial_0x1021() -> None:
 
 def _printed_table(text: str) -> list[str]:
     start = text.index("CRC_TABLE[256]")
-    block = text[start:text.index("};", start)]
+    block = text[start : text.index("};", start)]
     return re.findall(r"0x[0-9a-zA-Z]{4}|0000h", block)
 
 
@@ -278,7 +278,7 @@ def test_fuzz_random_chunking_yields_every_packet(packets, rnd) -> None:
     pos = 0
     while pos < len(stream):
         step = rnd.randint(1, 20)
-        out += parser.feed(stream[pos:pos + step])
+        out += parser.feed(stream[pos : pos + step])
         pos += step
     assert out == [decode_packet(p) for p in packets]
 
@@ -302,7 +302,7 @@ def test_fuzz_noise_between_packets_never_loses_a_packet(items, rnd) -> None:
     pos = 0
     while pos < len(stream):
         step = rnd.randint(1, 64)
-        out += parser.feed(stream[pos:pos + step])
+        out += parser.feed(stream[pos : pos + step])
         pos += step
     while parser.buffered:  # silent gaps: a false preamble claiming a long payload is given up
         parser.reset()
@@ -319,7 +319,7 @@ def test_fuzz_parser_never_raises_on_garbage(data, rnd) -> None:
     pos = 0
     while pos < len(data):
         step = rnd.randint(1, 50)
-        parser.feed(data[pos:pos + step])
+        parser.feed(data[pos : pos + step])
         pos += step
     parser.reset()
     parser.feed(b"")
@@ -352,7 +352,7 @@ def test_stream_with_random_noise_and_corruption() -> None:
     stream += bytes(600)
     out = []
     for i in range(0, len(stream), 37):
-        out += parser.feed(stream[i:i + 37])
+        out += parser.feed(stream[i : i + 37])
     while parser.buffered:
         parser.reset()
         out += parser.feed(b"")

@@ -84,8 +84,10 @@ def test_auto_updates_are_routed_to_subscribers_never_to_a_request() -> None:
     assert events[1].exchange is ex
     # A motion is pending: updates keep flowing and the motion's final reply still finds its exchange.
     m, _ = s.send(0x21, encode_request(0x21, width=1, speed=1), now=0.1)
-    events = s.receive(reply(0x21, Status.E_CMD_PENDING) + reply(0x43, width=3.0) + reply(0x43, width=4.0)
-                       + reply(0x21), now=0.2)
+    events = s.receive(
+        reply(0x21, Status.E_CMD_PENDING) + reply(0x43, width=3.0) + reply(0x43, width=4.0) + reply(0x21),
+        now=0.2,
+    )
     assert kinds(events) == ["Acknowledged", "AutoUpdate", "AutoUpdate", "Completed"]
     assert events[-1].exchange is m
 
@@ -289,8 +291,10 @@ def test_events_are_typed() -> None:
     events = s.receive(reply(0x40, state=0) + b"\xaa\xaa\xaa\x40\x02\x00\x00\x00\x00\x00" + b"\x01", now=0.0)
     assert isinstance(events[0], AutoUpdate)
     assert any(isinstance(e, ChecksumError) for e in events)
-    assert all(isinstance(e, AutoUpdate | ChecksumError | Discarded | Unsolicited | StaleReply | Acknowledged)
-               for e in events)
+    assert all(
+        isinstance(e, AutoUpdate | ChecksumError | Discarded | Unsolicited | StaleReply | Acknowledged)
+        for e in events
+    )
 
 
 def test_take_reply_completes_only_an_exact_final_reply() -> None:

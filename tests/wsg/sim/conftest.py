@@ -170,7 +170,7 @@ class Wire:
                     reply = decode_reply(packet.command, packet.payload)
                     if skip_pending and reply.pending:
                         continue
-                    kept.extend(batch[i + 1:])
+                    kept.extend(batch[i + 1 :])
                     return reply
             raise AssertionError(f"no reply to {command:#04x} within {timeout} s")
         finally:

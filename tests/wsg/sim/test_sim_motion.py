@@ -31,7 +31,10 @@ def test_zero_distance() -> None:
 
 
 @given(
-    start=st.floats(0, 200), end=st.floats(0, 200), speed=st.floats(1, 500), accel=st.floats(10, 10000),
+    start=st.floats(0, 200),
+    end=st.floats(0, 200),
+    speed=st.floats(1, 500),
+    accel=st.floats(10, 10000),
     fractions=st.lists(st.floats(0, 1.2), min_size=2, max_size=20),
 )
 def test_profile_is_monotone_bounded_and_ends_on_target(start, end, speed, accel, fractions) -> None:

@@ -104,8 +104,19 @@ def test_raw_client_homes_moves_grips_releases(raw_tcp_address) -> None:
 
 @pytest.mark.skipif(importlib.util.find_spec("grippers.cli.sim_wsg") is None, reason="CLI not landed")
 def test_raw_client_against_the_command_line_simulator() -> None:
-    cmd = [sys.executable, "-m", "grippers", "sim", "wsg", "--listen", "tcp://127.0.0.1:0",
-           "--time-scale", "50", "--part-width", "40"]
+    cmd = [
+        sys.executable,
+        "-m",
+        "grippers",
+        "sim",
+        "wsg",
+        "--listen",
+        "tcp://127.0.0.1:0",
+        "--time-scale",
+        "50",
+        "--part-width",
+        "40",
+    ]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     try:
         selector = selectors.DefaultSelector()

@@ -274,8 +274,9 @@ def test_part_helpers_and_model_access(start_server, open_wire) -> None:
 
 def test_close_releases_everything_and_is_idempotent() -> None:
     before = set(os.listdir("/proc/self/fd"))
-    servers = [serve(WsgModel(), url, time_scale=50.0) for url in ("tcp://127.0.0.1:0", "udp://127.0.0.1:0",
-                                                                      "pty")]
+    servers = [
+        serve(WsgModel(), url, time_scale=50.0) for url in ("tcp://127.0.0.1:0", "udp://127.0.0.1:0", "pty")
+    ]
     with serve(WsgModel(), "tcp://127.0.0.1:0") as tcp:
         sock = socket.create_connection(tcp.url.removeprefix("wsg+tcp://").rsplit(":", 1))
         sock.sendall(encode_packet(Cmd.LOOP))
