@@ -281,14 +281,16 @@ def run(quick: bool) -> list[Result]:
                 f"lag {lag * 1000:.1f} ms, RMS {rms0:.2f} mm; {got['cpu'] * 1e6:.0f} us/target",
                 f"ideal path; {got['base_cpu'] * 1e6:.0f} us/target sent sync",
                 f"CPU {ratio:.2f}x",
-                f"lag <= {LAG_LIMIT_S * 1000:.0f} ms, RMS <= {RMS_LIMIT_MM:g} mm, CPU <= {CPU_RATIO_LIMIT:g}x",
+                f"lag <= {LAG_LIMIT_S * 1000:.0f} ms, RMS <= {RMS_LIMIT_MM:g} mm, "
+                f"CPU <= {CPU_RATIO_LIMIT:g}x",
                 passed,
                 [
                     f"{stats.received} targets in {seconds:g} simulated s: {stats.sent} on the wire "
                     f"({share:.1%}), {stats.coalesced} coalesced, {stats.unchanged} needed no frame, "
                     f"{stats.failed} failed; CPU {per_sent * 1e6:.0f} us per target that went on the wire",
                     f"against the sine itself: lag {lag_sine * 1000:.0f} ms, RMS {rms_sine:.2f} mm "
-                    f"(the ideal path: lag {ideal_lag * 1000:.0f} ms, RMS {ideal_rms:.2f} mm; the device's own "
+                    f"(the ideal path: lag {ideal_lag * 1000:.0f} ms, RMS {ideal_rms:.2f} mm; "
+                    "the device's own "
                     f"dynamics); RMS against the ideal path at the best lag {rms_lag:.2f} mm",
                 ],
             )

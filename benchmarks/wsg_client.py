@@ -273,7 +273,8 @@ def memory(quick: bool) -> Result:
         "< 5 MiB growth",
         growth < MEMORY_LIMIT,
         [
-            f"{n} updates ({simulated / 60:.0f} simulated min) through WsgClient.subscribe in {wall:.0f} s wall "
+            f"{n} updates ({simulated / 60:.0f} simulated min) through WsgClient.subscribe "
+            f"in {wall:.0f} s wall "
             f"(time scale {scale:g}); {dropped} dropped by the bounded queue"
         ],
     )
