@@ -11,6 +11,7 @@ from __future__ import annotations
 import os
 import queue
 import socket
+import threading
 import time
 import uuid
 from collections.abc import Callable
@@ -25,6 +26,7 @@ from .stream import SubscribedStream
 
 DEFAULT_TIMEOUT = 2.0
 DEFAULT_LINK_LEASE = 1.0  # s; matches the server's default --lease-timeout
+HEARTBEATS_PER_LEASE = 4  # heartbeats per server lease timeout, as Zenoh's own keep-alives per link lease
 _END = object()
 
 
@@ -85,6 +87,8 @@ class RemoteGripper(Gripper):
         self._entities: list[Any] = []
         self._queriers: dict[str, Any] = {}
         self._remote_streams: list[SubscribedStream] = []
+        self._beating = threading.Event()
+        self._heartbeat: threading.Thread | None = None
         try:
             doc = self._query(protocol.info_key(name), b"", "info", timeout, device=url)
             served = parse_profile(doc["profile_data"], f"{url} (served profile)")
@@ -104,7 +108,9 @@ class RemoteGripper(Gripper):
                     history=False,
                 )
             )
+            self._start_heartbeat(doc.get("lease_timeout"))
         except BaseException:
+            self._beating.set()
             self._session.close()
             raise
 
@@ -114,6 +120,26 @@ class RemoteGripper(Gripper):
     def driver(self) -> Any:
         """The Zenoh session underneath (vendor extras stay on the serving machine)."""
         return self._session
+
+    def _start_heartbeat(self, lease_timeout: Any) -> None:
+        """Show life to the server while this client lives: the server frees the lease of a holder not heard
+        from within its --lease-timeout and stops what it set moving, whatever Zenoh link lease we announced.
+        A frozen process (SIGSTOP, a debugger) stops beating with everything else, which is the point."""
+        lease = lease_timeout if isinstance(lease_timeout, int | float) and lease_timeout > 0 else 1.0
+        period = float(lease) / HEARTBEATS_PER_LEASE
+        publisher = self._session.declare_publisher(protocol.alive_key(self.served_name, self.client_id))
+        self._entities.append(publisher)
+
+        def beat() -> None:
+            while not self._beating.wait(period):
+                try:
+                    publisher.put(b"")
+                except Exception:  # the session is closing: close() ends this loop next
+                    pass
+
+        self._heartbeat = threading.Thread(target=beat, name=f"grippers-heartbeat {self.served_name}")
+        self._heartbeat.daemon = True
+        self._heartbeat.start()
 
     def _on_token(self, sample: Any) -> None:
         zenoh = import_zenoh()
@@ -211,6 +237,17 @@ class RemoteGripper(Gripper):
         args = {"width": width, "speed": speed, "force": force, "timeout": timeout}
         return payloads.grasp_from(self._call("grasp", args, timeout), self.name)
 
+    def _servo_begin(self) -> None:
+        """Nothing to prepare here: the server's gripper begins servoing with the first target it takes."""
+
+    def _servo(self, target: Any) -> bool:
+        # One query per target, from the servo thread only (so targets arrive in order); targets that come
+        # while one is in flight are coalesced by the ServoLoop: latest wins here, and again on the server.
+        # The server answers once its gripper's own slot holds the target (limits and lease checked there).
+        args = {"width": target.width, "speed": target.speed, "force": target.force}
+        self._call("servo", args)
+        return True
+
     def _release(self, width: float, speed: float, timeout: float) -> MotionResult:
         doc = self._call("release", {"width": width, "speed": speed, "timeout": timeout}, timeout)
         return payloads.motion_from(doc, self.name, "release")
@@ -302,9 +339,9 @@ class RemoteGripper(Gripper):
 
     # -- streams: a subscription ----------------------------------------------------------------------------
 
-    def stream(
+    def stream(  # type: ignore[override]  # the same interface, fed by a subscription (stream.py)
         self, rate_hz: float = 50.0, callback: Callable[[GripperState], Any] | None = None
-    ) -> SubscribedStream:  # type: ignore[override]
+    ) -> SubscribedStream:
         """The served states as they are published (at most ``rate_hz`` of them a second)."""
         zenoh = import_zenoh()
         with self._lock:
@@ -330,10 +367,13 @@ class RemoteGripper(Gripper):
         with self._lock:
             if s in self._remote_streams:
                 self._remote_streams.remove(s)
-            if s in self._streams:  # type: ignore[comparison-overlap]
+            if s in self._streams:
                 self._streams.remove(s)  # type: ignore[arg-type]
 
     def _close(self) -> None:
+        self._beating.set()
+        if self._heartbeat is not None and self._heartbeat is not threading.current_thread():
+            self._heartbeat.join(5.0)
         for entity in reversed(self._entities):
             try:
                 entity.undeclare()
