@@ -89,6 +89,8 @@ class RemoteGripper(Gripper):
         self._remote_streams: list[SubscribedStream] = []
         self._beating = threading.Event()
         self._heartbeat: threading.Thread | None = None
+        self._last_publication = time.monotonic()  # when a stream last heard the server publish
+        self._probing = False
         try:
             doc = self._query(protocol.info_key(name), b"", "info", timeout, device=url)
             served = parse_profile(doc["profile_data"], f"{url} (served profile)")
@@ -134,6 +136,7 @@ class RemoteGripper(Gripper):
             while not self._beating.wait(period):
                 try:
                     publisher.put(b"")
+                    self._watch_publications(float(lease))
                 except Exception:  # the session is closing: close() ends this loop next
                     pass
 
@@ -141,16 +144,52 @@ class RemoteGripper(Gripper):
         self._heartbeat.daemon = True
         self._heartbeat.start()
 
+    def _watch_publications(self, lease: float) -> None:
+        """A stream waits on publications; when they stop for longer than the server's lease, ask the server
+        (without blocking this thread) whether it is still there. A killed or frozen server does not always
+        withdraw its token where we can see it (a client-mode session losing its only link is told nothing),
+        and a stream must end with ConnectionLost then, not with GripperTimeout (issue 23 §2)."""
+        if not self._remote_streams or self._lost is not None or self._probing:
+            return
+        if time.monotonic() - self._last_publication <= lease:
+            return
+        zenoh = import_zenoh()
+        answered: list[bool] = []
+        self._probing = True
+
+        def on_reply(reply: Any) -> None:
+            if reply.ok is not None:
+                answered.append(True)
+                self._last_publication = time.monotonic()  # a slow --rate, not a dead server
+
+        def on_done() -> None:
+            self._probing = False
+            if not answered:
+                self._declare_lost(f"the server serving {self.served_name!r} stopped answering")
+
+        self._session.get(
+            protocol.info_key(self.served_name),
+            zenoh.handlers.Callback(on_reply, on_done, indirect=False),
+            timeout=self.timeout,
+        )
+
     def _on_token(self, sample: Any) -> None:
         zenoh = import_zenoh()
         if sample.kind != zenoh.SampleKind.DELETE:
             return
-        self._lost = ConnectionLost(
-            f"the server withdrew {self.served_name!r} (server stopped or gripper disconnected)",
-            device=self.name,
+        self._declare_lost(
+            f"the server withdrew {self.served_name!r} (server stopped or gripper disconnected)"
         )
-        for s in list(self._remote_streams):
-            s.fail(self._lost)
+
+    def _declare_lost(self, why: str) -> None:
+        """Calls fail with ConnectionLost from now on; streams end with it, unless reconnect=true (they then
+        wait for the server to come back, as documented)."""
+        if self._lost is not None or self._closed:
+            return
+        self._lost = ConnectionLost(why, device=self.name)
+        if self._watch is None:
+            for s in list(self._remote_streams):
+                s.fail(self._lost)
 
     def _query(
         self,
@@ -356,12 +395,18 @@ class RemoteGripper(Gripper):
             )
             sub = self._session.declare_subscriber(
                 protocol.state_key(self.served_name),
-                zenoh.handlers.Callback(lambda sample: s.feed(sample.payload.to_bytes()), indirect=False),
+                zenoh.handlers.Callback(lambda sample: self._feed(s, sample), indirect=False),
             )
             s.attach(sub)
+            if not self._remote_streams:
+                self._last_publication = time.monotonic()  # silence is counted from now
             self._remote_streams.append(s)
             self._streams.append(s)  # type: ignore[arg-type]  # closed by Gripper.close() like any stream
         return s
+
+    def _feed(self, s: SubscribedStream, sample: Any) -> None:
+        self._last_publication = time.monotonic()
+        s.feed(sample.payload.to_bytes())
 
     def _forget_remote_stream(self, s: SubscribedStream) -> None:
         with self._lock:

@@ -50,7 +50,7 @@ def test_request_parsing() -> None:
 
 @pytest.mark.parametrize("command", sorted(protocol.COMMANDS))
 def test_a_query_without_payload_is_never_a_command(command: str) -> None:
-    """What `z_get -s 'grippers/**'` sends to every queryable: it used to fast-stop every gripper (issue 23)."""
+    """What `z_get -s 'grippers/**'` sends to every queryable: it fast-stopped every gripper (issue 23)."""
     with pytest.raises(grippers.ProtocolError, match="never a command"):
         protocol.parse_request(command, b"")
 
