@@ -305,10 +305,9 @@ class ServedGripper:
                 g.servo(a["width"], a["speed"], a["force"])
                 self._servo_owner = request.client
                 return None
-            if command == "stop":
-                return g.stop()
-            if command == "fast_stop":
-                return g.fast_stop()
+            if command in ("stop", "fast_stop"):
+                self._servo_owner = None  # both end servoing (Gripper's rule)
+                return g.stop() if command == "stop" else g.fast_stop()
             if command == "acknowledge":
                 return g.acknowledge()
             if command == "temperature":

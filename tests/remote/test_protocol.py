@@ -113,4 +113,4 @@ def test_remote_benchmarks_are_registered() -> None:
         sys.path.insert(0, str(repo))
     from benchmarks import run
 
-    assert {8, 9, 10} <= set(run._targets())
+    assert {8, 9, 10, 12} <= set(run._targets())
