@@ -96,15 +96,24 @@ class ServedGripper:
         doc = payloads.info_doc(self.name, info, caps, profile_data, self.server.lease_timeout)
         self._info_doc = protocol.dumps(doc)
 
-    def _refuse_duplicate(self) -> None:
+    def _refuse_duplicate(self, declared: bool = False) -> None:
         """Two servers of one name would both answer every query and mix their streams: the second refuses.
 
-        Asked before anything of ours is declared: any answer on the name's info key comes from another
-        server on this Zenoh network (a peer, or through a router)."""
-        key = protocol.info_key(self.name)
-        for reply in self.server.session.get(key, timeout=DUPLICATE_WAIT_S):
-            if reply.ok is None:
-                continue
+        Asked before anything of ours is declared, and again once everything is (Server.start): a peer's
+        declarations reach a session that just connected a moment after it opened, so the first question
+        alone could miss a server that is there. Answers from our own session do not count."""
+        zenoh = import_zenoh()
+        session = self.server.session
+        own = str(session.zid())
+        replies = session.get(
+            protocol.info_key(self.name),
+            consolidation=zenoh.ConsolidationMode.NONE,
+            timeout=DUPLICATE_WAIT_S,
+        )
+        for reply in replies:
+            replier = getattr(reply.replier_id, "zid", None)  # an EntityGlobalId: session and entity
+            if reply.ok is None or str(replier) == own or (declared and replier is None):
+                continue  # ours, or (once ours is declared) a reply that does not say whose
             try:
                 url = str(protocol.decode_json(reply.ok.payload.to_bytes(), "info").get("url", "?"))
             except Exception:
@@ -461,6 +470,8 @@ class Server:
                 served = ServedGripper(self, name, gripper)
                 self.served.append(served)
                 served.start()
+            for served in self.served:
+                served._refuse_duplicate(declared=True)
             given = [e for e in self._listen if e.rsplit(":", 1)[-1] != "0"]
             self.locators = own_locators(self.session) or given
         except BaseException:
