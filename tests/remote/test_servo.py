@@ -139,3 +139,20 @@ def test_the_deadman_stops_a_vanished_teleoperator(serve, sig: int, lease: int) 
     finally:
         proc.kill()
         proc.wait(5)
+
+
+def test_the_remote_benchmark_measures_against_the_path_taken_late() -> None:
+    """Target 12's arithmetic (benchmarks/servo.py), no timing: a path 37 ms late matches the ideal path
+    taken 37 ms late exactly, and the 50 ms goal is looser than the sine's own slope over 50 ms."""
+    if str(ROOT) not in sys.path:
+        sys.path.insert(0, str(ROOT))
+    from benchmarks import servo
+
+    ideal = [(i * 0.001, servo.target_mm(i * 0.001)) for i in range(8000)]
+    late = [(t, servo.target_mm(t - 0.037)) for t in (i * 0.005 for i in range(1400))]
+    assert servo._rms_at(late, ideal, 0.037) == pytest.approx(0.0, abs=1e-3)
+    on_time = [(t, servo.target_mm(t)) for t in (i * 0.005 for i in range(1400))]
+    # A perfect path against the ideal one 50 ms late: the sine's amplitude x 2 pi f x 50 ms / sqrt(2)
+    expected = 30.0 * 2 * 3.141592653589793 * servo.SINE_HZ * servo.REMOTE_LATE_S / 2**0.5
+    assert servo._rms_at(on_time, ideal, servo.REMOTE_LATE_S) == pytest.approx(expected, rel=0.05)
+    assert expected < servo.REMOTE_RMS_LIMIT_MM
