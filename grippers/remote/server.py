@@ -271,6 +271,7 @@ class ServedGripper:
                     self.lease.heard(request.client, time.monotonic())
             if spec.lease != "free":
                 with self._lease_lock:
+                    before = self.lease.holder
                     self.lease.check(
                         request.client,
                         request.label,
@@ -279,6 +280,8 @@ class ServedGripper:
                         time.monotonic(),
                         self.name,
                     )
+                    if self.lease.holder != before:
+                        log.info("%s: control lease taken by %s", self.name, self.lease.describe())
             if spec.motion:
                 self._start_motion(query, request)
                 return  # the motion thread answers and finishes the query
@@ -305,9 +308,12 @@ class ServedGripper:
         if command == "control":
             with self._lease_lock:
                 if a["action"] == "acquire":
+                    before = self.lease.holder
                     self.lease.acquire(request.client, request.label, time.monotonic(), self.name)
-                else:
-                    self.lease.release(request.client)
+                    if self.lease.holder != before:
+                        log.info("%s: control lease taken by %s", self.name, self.lease.describe())
+                elif self.lease.release(request.client):
+                    log.info("%s: control lease released by client %s", self.name, request.client)
             return None
         try:
             if command == "servo":

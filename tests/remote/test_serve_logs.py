@@ -25,11 +25,22 @@ STAMPED = r"^\d{4}-\d\d-\d\d \d\d:\d\d:\d\d,\d{3} (INFO|WARNING|ERROR) grippers\
 
 def test_ctrl_c_exits_130_and_logs_are_stamped_on_stderr(serve) -> None:
     server: ServeProcess = serve(f"g={sim('wsg50')}")
-    with grippers.open(server.urls["g"]) as g:
-        g.state()
+    with grippers.open(server.urls["g"] + "&label=bench") as g:
+        g.home()
+    with grippers.open(server.urls["g"]) as other:  # the lease is freed once the token's end arrives
+        deadline = time.monotonic() + 20
+        while True:
+            try:
+                other.acquire_control()
+                break
+            except grippers.AccessDenied:
+                assert time.monotonic() < deadline
+                time.sleep(0.05)
     assert server.close(signal.SIGINT) == 130
     err = server.stderr_text
     assert re.search(STAMPED + r"serving g ", err, re.M), err
+    assert re.search(STAMPED + r"g: control lease taken by bench ", err, re.M), err  # issue 22 §3
+    assert re.search(STAMPED + r"g: client \w+ gone; lease freed", err, re.M), err
     assert err.rstrip().endswith("grippers serve: interrupted"), err
 
 
