@@ -60,7 +60,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=positive_float,
         default=1.0,
         metavar="SECONDS",
-        help="stop the motion of a controlling client that vanished within this long (default 1)",
+        help="stop the motion of a controlling client that vanished or went silent within this long, "
+        "whatever Zenoh lease it announced (default 1)",
     )
     parser.add_argument(
         "--log-file",
