@@ -40,6 +40,7 @@ def _targets() -> dict[int, Callable[[bool], list[Result]]]:
         9: lambda quick: [remote.publish_load(quick)],
         10: lambda quick: [remote.lease_failover(quick)],
         11: _servo,  # issue 15 (benchmarks/servo.py)
+        12: _servo_remote,  # issue 21 §3: servo from a zenoh:// client, beside 11's local figures
     }
 
 
@@ -47,6 +48,12 @@ def _servo(quick: bool) -> list[Result]:
     from benchmarks import servo
 
     return servo.run(quick)
+
+
+def _servo_remote(quick: bool) -> list[Result]:
+    from benchmarks import servo
+
+    return servo.run_remote(quick)
 
 
 def main(argv: list[str] | None = None) -> int:

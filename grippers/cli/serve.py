@@ -7,6 +7,7 @@ extra).
 from __future__ import annotations
 
 import argparse
+import logging
 import signal
 import sys
 import threading
@@ -59,7 +60,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=positive_float,
         default=1.0,
         metavar="SECONDS",
-        help="stop the motion of a controlling client that vanished within this long (default 1)",
+        help="stop the motion of a controlling client that vanished or went silent within this long, "
+        "whatever Zenoh lease it announced (default 1)",
+    )
+    parser.add_argument(
+        "--log-file",
+        metavar="PATH",
+        help="write the log (time stamp, level, message) to PATH instead of stderr (appended)",
     )
     parser.add_argument(
         "-t",
@@ -69,6 +76,29 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="SECONDS",
         help="device exchange timeout",
     )
+
+
+LOG_FORMAT = "%(asctime)s %(levelname)s %(name)s: %(message)s"
+
+
+def start_logging(path: str | None) -> logging.Handler:
+    """serve runs for days: its lines (a gripper lost or back, a holder gone, a lease freed) carry a time
+    stamp and a level, go to stderr (stdout holds the URLs scripts read) or to ``--log-file``, at INFO."""
+    from .output import UsageError
+
+    if path:
+        try:
+            handler: logging.Handler = logging.FileHandler(path, encoding="utf-8")
+        except OSError as exc:
+            raise UsageError(f"--log-file {path}: {exc.strerror or exc}") from None
+    else:
+        handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(logging.Formatter(LOG_FORMAT))
+    root = logging.getLogger("grippers")
+    root.addHandler(handler)
+    if root.level == logging.NOTSET or root.level > logging.INFO:
+        root.setLevel(logging.INFO)
+    return handler
 
 
 def parse_targets(items: list[str]) -> list[tuple[str | None, str]]:
@@ -103,6 +133,8 @@ def run(args: argparse.Namespace) -> int:
     stop = threading.Event()
     signal.signal(signal.SIGTERM, lambda *_: stop.set())
     server = None
+    handler = start_logging(args.log_file)
+    log = logging.getLogger("grippers.remote")
     try:
         for name, target in targets:
             kwargs = {} if args.timeout is None else {"timeout": args.timeout}
@@ -129,15 +161,20 @@ def run(args: argparse.Namespace) -> int:
             print(
                 f"{name}: {gripper.profile.model} at {gripper.url} serving at {server.url(name)}", flush=True
             )
+            log.info(
+                "serving %s (%s at %s) at %s", name, gripper.profile.model, gripper.url, server.url(name)
+            )
         print("press Ctrl-C to stop", file=sys.stderr, flush=True)
         while not stop.wait(0.5):
             pass
-    except KeyboardInterrupt:
-        pass
+        log.info("SIGTERM: withdrawing and closing")
     finally:
+        # Ctrl-C leaves through here too: the CLI's own handler then says "interrupted" and exits 130.
         if server is not None:
             server.close()  # closes every gripper
         else:
             for gripper in opened.values():
                 gripper.close()
+        logging.getLogger("grippers").removeHandler(handler)
+        handler.close()
     return 0

@@ -11,6 +11,7 @@ from __future__ import annotations
 import os
 import queue
 import socket
+import threading
 import time
 import uuid
 from collections.abc import Callable
@@ -25,6 +26,7 @@ from .stream import SubscribedStream
 
 DEFAULT_TIMEOUT = 2.0
 DEFAULT_LINK_LEASE = 1.0  # s; matches the server's default --lease-timeout
+HEARTBEATS_PER_LEASE = 4  # heartbeats per server lease timeout, as Zenoh's own keep-alives per link lease
 _END = object()
 
 
@@ -85,6 +87,10 @@ class RemoteGripper(Gripper):
         self._entities: list[Any] = []
         self._queriers: dict[str, Any] = {}
         self._remote_streams: list[SubscribedStream] = []
+        self._beating = threading.Event()
+        self._heartbeat: threading.Thread | None = None
+        self._last_publication = time.monotonic()  # when a stream last heard the server publish
+        self._probing = False
         try:
             doc = self._query(protocol.info_key(name), b"", "info", timeout, device=url)
             served = parse_profile(doc["profile_data"], f"{url} (served profile)")
@@ -104,7 +110,9 @@ class RemoteGripper(Gripper):
                     history=False,
                 )
             )
+            self._start_heartbeat(doc.get("lease_timeout"))
         except BaseException:
+            self._beating.set()
             self._session.close()
             raise
 
@@ -115,16 +123,73 @@ class RemoteGripper(Gripper):
         """The Zenoh session underneath (vendor extras stay on the serving machine)."""
         return self._session
 
+    def _start_heartbeat(self, lease_timeout: Any) -> None:
+        """Show life to the server while this client lives: the server frees the lease of a holder not heard
+        from within its --lease-timeout and stops what it set moving, whatever Zenoh link lease we announced.
+        A frozen process (SIGSTOP, a debugger) stops beating with everything else, which is the point."""
+        lease = lease_timeout if isinstance(lease_timeout, int | float) and lease_timeout > 0 else 1.0
+        period = float(lease) / HEARTBEATS_PER_LEASE
+        publisher = self._session.declare_publisher(protocol.alive_key(self.served_name, self.client_id))
+        self._entities.append(publisher)
+
+        def beat() -> None:
+            while not self._beating.wait(period):
+                try:
+                    publisher.put(b"")
+                    self._watch_publications(float(lease))
+                except Exception:  # the session is closing: close() ends this loop next
+                    pass
+
+        self._heartbeat = threading.Thread(target=beat, name=f"grippers-heartbeat {self.served_name}")
+        self._heartbeat.daemon = True
+        self._heartbeat.start()
+
+    def _watch_publications(self, lease: float) -> None:
+        """A stream waits on publications; when they stop for longer than the server's lease, ask the server
+        (without blocking this thread) whether it is still there. A killed or frozen server does not always
+        withdraw its token where we can see it (a client-mode session losing its only link is told nothing),
+        and a stream must end with ConnectionLost then, not with GripperTimeout (issue 23 §2)."""
+        if not self._remote_streams or self._lost is not None or self._probing:
+            return
+        if time.monotonic() - self._last_publication <= lease:
+            return
+        zenoh = import_zenoh()
+        answered: list[bool] = []
+        self._probing = True
+
+        def on_reply(reply: Any) -> None:
+            if reply.ok is not None:
+                answered.append(True)
+                self._last_publication = time.monotonic()  # a slow --rate, not a dead server
+
+        def on_done() -> None:
+            self._probing = False
+            if not answered:
+                self._declare_lost(f"the server serving {self.served_name!r} stopped answering")
+
+        self._session.get(
+            protocol.info_key(self.served_name),
+            zenoh.handlers.Callback(on_reply, on_done, indirect=False),
+            timeout=self.timeout,
+        )
+
     def _on_token(self, sample: Any) -> None:
         zenoh = import_zenoh()
         if sample.kind != zenoh.SampleKind.DELETE:
             return
-        self._lost = ConnectionLost(
-            f"the server withdrew {self.served_name!r} (server stopped or gripper disconnected)",
-            device=self.name,
+        self._declare_lost(
+            f"the server withdrew {self.served_name!r} (server stopped or gripper disconnected)"
         )
-        for s in list(self._remote_streams):
-            s.fail(self._lost)
+
+    def _declare_lost(self, why: str) -> None:
+        """Calls fail with ConnectionLost from now on; streams end with it, unless reconnect=true (they then
+        wait for the server to come back, as documented)."""
+        if self._lost is not None or self._closed:
+            return
+        self._lost = ConnectionLost(why, device=self.name)
+        if self._watch is None:
+            for s in list(self._remote_streams):
+                s.fail(self._lost)
 
     def _query(
         self,
@@ -210,6 +275,17 @@ class RemoteGripper(Gripper):
     def _grasp(self, width: float, speed: float, force: float, timeout: float) -> GraspResult:
         args = {"width": width, "speed": speed, "force": force, "timeout": timeout}
         return payloads.grasp_from(self._call("grasp", args, timeout), self.name)
+
+    def _servo_begin(self) -> None:
+        """Nothing to prepare here: the server's gripper begins servoing with the first target it takes."""
+
+    def _servo(self, target: Any) -> bool:
+        # One query per target, from the servo thread only (so targets arrive in order); targets that come
+        # while one is in flight are coalesced by the ServoLoop: latest wins here, and again on the server.
+        # The server answers once its gripper's own slot holds the target (limits and lease checked there).
+        args = {"width": target.width, "speed": target.speed, "force": target.force}
+        self._call("servo", args)
+        return True
 
     def _release(self, width: float, speed: float, timeout: float) -> MotionResult:
         doc = self._call("release", {"width": width, "speed": speed, "timeout": timeout}, timeout)
@@ -302,9 +378,9 @@ class RemoteGripper(Gripper):
 
     # -- streams: a subscription ----------------------------------------------------------------------------
 
-    def stream(
+    def stream(  # type: ignore[override]  # the same interface, fed by a subscription (stream.py)
         self, rate_hz: float = 50.0, callback: Callable[[GripperState], Any] | None = None
-    ) -> SubscribedStream:  # type: ignore[override]
+    ) -> SubscribedStream:
         """The served states as they are published (at most ``rate_hz`` of them a second)."""
         zenoh = import_zenoh()
         with self._lock:
@@ -319,21 +395,30 @@ class RemoteGripper(Gripper):
             )
             sub = self._session.declare_subscriber(
                 protocol.state_key(self.served_name),
-                zenoh.handlers.Callback(lambda sample: s.feed(sample.payload.to_bytes()), indirect=False),
+                zenoh.handlers.Callback(lambda sample: self._feed(s, sample), indirect=False),
             )
             s.attach(sub)
+            if not self._remote_streams:
+                self._last_publication = time.monotonic()  # silence is counted from now
             self._remote_streams.append(s)
             self._streams.append(s)  # type: ignore[arg-type]  # closed by Gripper.close() like any stream
         return s
+
+    def _feed(self, s: SubscribedStream, sample: Any) -> None:
+        self._last_publication = time.monotonic()
+        s.feed(sample.payload.to_bytes())
 
     def _forget_remote_stream(self, s: SubscribedStream) -> None:
         with self._lock:
             if s in self._remote_streams:
                 self._remote_streams.remove(s)
-            if s in self._streams:  # type: ignore[comparison-overlap]
+            if s in self._streams:
                 self._streams.remove(s)  # type: ignore[arg-type]
 
     def _close(self) -> None:
+        self._beating.set()
+        if self._heartbeat is not None and self._heartbeat is not threading.current_thread():
+            self._heartbeat.join(5.0)
         for entity in reversed(self._entities):
             try:
                 entity.undeclare()

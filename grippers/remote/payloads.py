@@ -93,7 +93,11 @@ def grasp_from(doc: Any, device: str) -> GraspResult:
 
 
 def info_doc(
-    name: str, info: DeviceInfo, capabilities: list[str], profile_data: dict[str, Any]
+    name: str,
+    info: DeviceInfo,
+    capabilities: list[str],
+    profile_data: dict[str, Any],
+    lease_timeout: float | None = None,
 ) -> dict[str, Any]:
     """Everything a client needs to check limits locally and to rebuild the profile it was served with."""
     return {
@@ -111,6 +115,7 @@ def info_doc(
         "capabilities": capabilities,
         "extra": {str(k): _plain(v) for k, v in info.extra.items()},
         "profile_data": profile_data,
+        "lease_timeout": lease_timeout,
     }
 
 

@@ -9,10 +9,11 @@ or an error looks on the wire. Parsing is strict: a payload that does not follow
 from __future__ import annotations
 
 import json
-import math
 import re
 from dataclasses import dataclass, field
 from typing import Any
+
+from grippers.drivers.numbers import finite
 
 from ..errors import GripperError, ProtocolError
 
@@ -59,6 +60,16 @@ def all_clients_key(name: str) -> str:
     return f"{PREFIX}/{name}/client/*"
 
 
+def alive_key(name: str, client: str) -> str:
+    """A holder's heartbeat (publications, payload ignored): the server's own bound on a silent holder,
+    whatever Zenoh link lease that holder announced (docs/remote.md, "The control lease")."""
+    return f"{PREFIX}/{name}/alive/{client}"
+
+
+def all_alive_key(name: str) -> str:
+    return f"{PREFIX}/{name}/alive/*"
+
+
 DISCOVERY_KEY = f"{PREFIX}/*"
 
 
@@ -88,6 +99,8 @@ COMMANDS: dict[str, Command] = {
         {"width": NUMBER, "speed": OPT_NUMBER, "force": OPT_NUMBER, "timeout": OPT_NUMBER}, "take", True
     ),
     "release": Command({"width": OPT_NUMBER, "speed": OPT_NUMBER, "timeout": OPT_NUMBER}, "take", True),
+    # Streamed targets (Gripper.servo): answered as soon as the served gripper's latest-wins slot holds it.
+    "servo": Command({"width": NUMBER, "speed": OPT_NUMBER, "force": OPT_NUMBER}, "take"),
     "stop": Command(),
     "fast_stop": Command(),
     "acknowledge": Command(lease="check"),
@@ -111,10 +124,13 @@ class Request:
 
 
 def _number(value: Any, name: str, command: str) -> float:
-    # bool is an int in Python, but true is not a width.
-    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
-        raise ProtocolError(f"argument {name!r} must be a finite number, not {value!r}", command=command)
-    return float(value)
+    # A JSON number only (a string "1" is not one); finiteness, overflow (a 400-digit integer) and booleans
+    # are the library's one rule (drivers/numbers.py), said as a ProtocolError: the request is malformed.
+    if not isinstance(value, int | float):
+        raise ProtocolError(
+            f"argument {name!r} must be a number, not {type(value).__name__}", command=command
+        )
+    return finite(value, f"argument {name!r}", command=command, error=ProtocolError)
 
 
 def decode_json(data: bytes, command: str) -> Any:
@@ -135,7 +151,14 @@ def parse_request(command: str, data: bytes) -> Request:
     spec = COMMANDS.get(command)
     if spec is None:
         raise ProtocolError(f"unknown command {command!r}", command=command)
-    doc = decode_json(data, command) if data else {}
+    if not data:
+        # A query without a payload is never a command: it is what a Zenoh tool exploring the key space sends
+        # (`z_get -s 'grippers/**'` reaches every queryable), and it must not stop or move anything.
+        raise ProtocolError(
+            'a command needs a request payload ({"v": 1, ...}); a query without one is never a command',
+            command=command,
+        )
+    doc = decode_json(data, command)
     if not isinstance(doc, dict):
         raise ProtocolError(f"a request is a JSON object, not {type(doc).__name__}", command=command)
     unknown = set(doc) - {"v", "client", "label", "args"}

@@ -62,6 +62,11 @@ class Info(_Strict):
     capabilities: list[str]
     extra: dict[str, object]
     profile_data: dict[str, object] = Field(description="the served profile, as a profile file holds it")
+    lease_timeout: float | None = Field(
+        default=None,
+        description="s: the server's --lease-timeout; a holder publishes on grippers/<name>/alive/<id> at "
+        "least this often (a quarter of it is what zenoh:// clients do)",
+    )
 
 
 class Request(_Strict):

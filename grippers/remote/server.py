@@ -21,9 +21,11 @@ from . import payloads, protocol
 from .lease import Lease
 from .session import DEFAULT_LISTEN, import_zenoh, make_config, open_session, own_locators
 
-log = logging.getLogger(__name__)
+log = logging.getLogger("grippers.remote")  # serve's own lines: lost, back, lease changes (docs/remote.md)
 
 CLOSE_JOIN_S = 5.0
+RETRY_LOST_S = 1.0  # how often a lost gripper is tried again (a reconnect=true URL brings it back)
+DUPLICATE_WAIT_S = 1.0  # how long start() listens for another server of the same name
 
 
 class ServedGripper:
@@ -43,6 +45,7 @@ class ServedGripper:
         self._kick = threading.Event()
         self._motions: dict[threading.Thread, str] = {}  # running motion -> the client that started it
         self._motions_lock = threading.Lock()
+        self._servo_owner: str | None = None  # the client whose targets the gripper is servoing to
         self._declared: list[Any] = []
         self._token: Any = None
         self._info_doc: bytes | None = None
@@ -54,10 +57,8 @@ class ServedGripper:
         zenoh = import_zenoh()
         session = self.server.session
         callback = zenoh.handlers.Callback
-        info = self.gripper.info()
-        caps = sorted(c.value for c in self.gripper.capabilities)
-        profile_data = self.gripper.profile.model_dump(mode="json")
-        self._info_doc = protocol.dumps(payloads.info_doc(self.name, info, caps, profile_data))
+        self._refuse_duplicate()
+        self._read_info()
         self._publisher = session.declare_publisher(protocol.state_key(self.name))
         self._declared.append(self._publisher)
         self._declared.append(
@@ -79,9 +80,50 @@ class ServedGripper:
                 protocol.all_clients_key(self.name), callback(self._on_client, indirect=False), history=True
             )
         )
+        self._declared.append(
+            session.declare_subscriber(
+                protocol.all_alive_key(self.name), callback(self._on_alive, indirect=False)
+            )
+        )
         self._refresh()
         self._thread.start()
         self._token = session.liveliness().declare_token(protocol.token_key(self.name))
+
+    def _read_info(self) -> None:
+        info = self.gripper.info()
+        caps = sorted(c.value for c in self.gripper.capabilities)
+        profile_data = self.gripper.profile.model_dump(mode="json")
+        doc = payloads.info_doc(self.name, info, caps, profile_data, self.server.lease_timeout)
+        self._info_doc = protocol.dumps(doc)
+
+    def _refuse_duplicate(self, declared: bool = False) -> None:
+        """Two servers of one name would both answer every query and mix their streams: the second refuses.
+
+        Asked before anything of ours is declared, and again once everything is (Server.start): a peer's
+        declarations reach a session that just connected a moment after it opened, so the first question
+        alone could miss a server that is there. Answers from our own session do not count."""
+        zenoh = import_zenoh()
+        session = self.server.session
+        own = str(session.zid())
+        replies = session.get(
+            protocol.info_key(self.name),
+            consolidation=zenoh.ConsolidationMode.NONE,
+            timeout=DUPLICATE_WAIT_S,
+        )
+        for reply in replies:
+            replier = getattr(reply.replier_id, "zid", None)  # an EntityGlobalId: session and entity
+            if reply.ok is None or str(replier) == own or (declared and replier is None):
+                continue  # ours, or (once ours is declared) a reply that does not say whose
+            try:
+                url = str(protocol.decode_json(reply.ok.payload.to_bytes(), "info").get("url", "?"))
+            except Exception:
+                url = "?"
+            raise GripperError(
+                f"{self.name!r} is already served on this Zenoh network (it serves {url}); "
+                "stop that server or serve this gripper under another NAME=",
+                device=self.name,
+                command="serve",
+            )
 
     def close(self) -> None:
         self._stop.set()
@@ -135,18 +177,44 @@ class ServedGripper:
 
     def _lose(self, exc: GripperError) -> None:
         self._lost = ConnectionLost(f"the served gripper is gone: {exc.message}", device=self.name)
-        log.error("%s: gripper lost (%s); no longer served", self.name, exc)
+        log.error("%s: gripper lost (%s); withdrawn until it answers again", self.name, exc)
         self._withdraw()
+
+    def _try_back(self) -> None:
+        """A lost gripper that answers again (a reconnect=true URL, a device back on its link) is served
+        again: its token comes back, so clients with reconnect=true count it back."""
+        try:
+            self.gripper.state()
+            self._read_info()  # a device that came back may report other limits
+        except GripperError:
+            return
+        self._lost = None
+        self._refresh()
+        if self._lost is None and not self._stop.is_set():
+            self._token = self.server.session.liveliness().declare_token(protocol.token_key(self.name))
+            log.warning("%s: gripper back; served again", self.name)
 
     def _publish_loop(self) -> None:
         period = 1.0 / self.server.rate
         next_at = time.monotonic()
-        while not self._stop.is_set() and self._lost is None:
+        while not self._stop.is_set():
+            if self._lost is not None:
+                if self._stop.wait(RETRY_LOST_S):
+                    return
+                self._try_back()
+                next_at = time.monotonic()
+                continue
             self._refresh()
             with self._lease_lock:
                 expired = self.lease.expired(time.monotonic())
             if expired is not None:
-                self._stop_motions_of(expired)
+                log.warning(
+                    "%s: client %s not heard from within %g s; lease freed",
+                    self.name,
+                    expired,
+                    self.server.lease_timeout,
+                )
+                self._deadman(expired)
             next_at += period
             delay = next_at - time.monotonic()
             if delay < 0:
@@ -187,11 +255,23 @@ class ServedGripper:
         try:
             payload = query.payload
             request = protocol.parse_request(command, payload.to_bytes() if payload is not None else b"")
+            if str(query.key_expr) != protocol.command_key(self.name, command):
+                # A wildcard selector (grippers/**, grippers/*/cmd/stop) reaches every gripper at once: a
+                # command is asked of one gripper by its own key, never by a pattern.
+                raise ProtocolError(
+                    f"a command is asked on its own key {protocol.command_key(self.name, command)}, "
+                    f"not on the pattern {query.key_expr}",
+                    command=command,
+                )
             if self._lost is not None:
                 raise self._lost
             spec = protocol.COMMANDS[command]
+            if request.client:
+                with self._lease_lock:
+                    self.lease.heard(request.client, time.monotonic())
             if spec.lease != "free":
                 with self._lease_lock:
+                    before = self.lease.holder
                     self.lease.check(
                         request.client,
                         request.label,
@@ -200,6 +280,8 @@ class ServedGripper:
                         time.monotonic(),
                         self.name,
                     )
+                    if self.lease.holder != before:
+                        log.info("%s: control lease taken by %s", self.name, self.lease.describe())
             if spec.motion:
                 self._start_motion(query, request)
                 return  # the motion thread answers and finishes the query
@@ -226,15 +308,21 @@ class ServedGripper:
         if command == "control":
             with self._lease_lock:
                 if a["action"] == "acquire":
+                    before = self.lease.holder
                     self.lease.acquire(request.client, request.label, time.monotonic(), self.name)
-                else:
-                    self.lease.release(request.client)
+                    if self.lease.holder != before:
+                        log.info("%s: control lease taken by %s", self.name, self.lease.describe())
+                elif self.lease.release(request.client):
+                    log.info("%s: control lease released by client %s", self.name, request.client)
             return None
         try:
-            if command == "stop":
-                return g.stop()
-            if command == "fast_stop":
-                return g.fast_stop()
+            if command == "servo":
+                g.servo(a["width"], a["speed"], a["force"])
+                self._servo_owner = request.client
+                return None
+            if command in ("stop", "fast_stop"):
+                self._servo_owner = None  # both end servoing (Gripper's rule)
+                return g.stop() if command == "stop" else g.fast_stop()
             if command == "acknowledge":
                 return g.acknowledge()
             if command == "temperature":
@@ -248,12 +336,14 @@ class ServedGripper:
             if command == "clear_soft_limits":
                 return g.clear_soft_limits()
         finally:
-            self._refresh()  # every change is published before the reply
+            if command != "servo":  # a target is answered once queued: the publisher shows its effect
+                self._refresh()  # every change is published before the reply
         raise ProtocolError(f"unknown command {command!r}", command=command)
 
     # -- motions ------------------------------------------------------------------------------------------
 
     def _start_motion(self, query: Any, request: Any) -> None:
+        self._servo_owner = None  # a motion command ends servoing (Gripper's rule)
         thread = threading.Thread(
             target=self._run_motion,
             args=(query, request),
@@ -289,6 +379,11 @@ class ServedGripper:
 
     # -- clients and the lease ------------------------------------------------------------------------------
 
+    def _on_alive(self, sample: Any) -> None:
+        client = str(sample.key_expr).rsplit("/", 1)[-1]
+        with self._lease_lock:
+            self.lease.heard(client, time.monotonic())
+
     def _on_client(self, sample: Any) -> None:
         client = str(sample.key_expr).rsplit("/", 1)[-1]
         zenoh = import_zenoh()
@@ -305,15 +400,29 @@ class ServedGripper:
         with self._lease_lock:
             held = self.lease.client_gone(client)
         if held:
-            self._stop_motions_of(client)
+            log.info("%s: client %s gone; lease freed", self.name, client)
+            self._deadman(client)
 
-    def _stop_motions_of(self, client: str) -> None:
-        """The holder vanished: stop what it started (a motion no one watches must not go on)."""
+    def _deadman(self, client: str) -> None:
+        """The holder vanished: stop what the device does on its behalf, not only what our threads wait on.
+
+        Only the holder can set the jaws moving, so whatever moves now is its doing: a motion still waited on,
+        a servoing, or a motion whose wait timed out (the server's thread has returned, the jaws have not
+        stopped). A device at rest is left alone: a stop would loosen a held part on some devices (MSG over
+        UART switches the motor off)."""
         with self._motions_lock:
             mine = [t for t, owner in self._motions.items() if owner == client]
-        if not mine:
+        servoing = self._servo_owner == client
+        moving = False
+        if not mine and not servoing:
+            try:
+                moving = self.gripper.state().moving
+            except GripperError:
+                moving = True  # unknown: stopping is the safe side
+        if not (mine or servoing or moving):
             return
-        log.warning("%s: client %s vanished mid-motion; stopping", self.name, client)
+        self._servo_owner = None
+        log.warning("%s: client %s vanished with the jaws under its command; stopping", self.name, client)
         try:
             self.gripper.stop()
         except GripperError as exc:
@@ -367,6 +476,8 @@ class Server:
                 served = ServedGripper(self, name, gripper)
                 self.served.append(served)
                 served.start()
+            for served in self.served:
+                served._refuse_duplicate(declared=True)
             given = [e for e in self._listen if e.rsplit(":", 1)[-1] != "0"]
             self.locators = own_locators(self.session) or given
         except BaseException:

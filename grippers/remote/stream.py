@@ -47,6 +47,7 @@ class SubscribedStream:
         self.dropped = 0
         self.missed = 0  # publications never seen (sequence gaps)
         self.out_of_order = 0
+        self.error: BaseException | None = None  # what ended the stream (ConnectionLost), once it has
         self._thread: threading.Thread | None = None
         if callback is not None:
             self._thread = threading.Thread(target=self._deliver, name="grippers-remote-stream", daemon=True)
@@ -82,7 +83,14 @@ class SubscribedStream:
         self._put(state)
 
     def fail(self, exc: BaseException) -> None:
-        """The server withdrew the gripper: the reader gets the error, then the stream ends."""
+        """The server withdrew the gripper or went away: the reader gets the error, then the stream ends.
+
+        A callback stream is told too: the error is logged, kept in ``error`` and raised by ``get()``."""
+        if self.error is not None or self._stop.is_set():
+            return
+        self.error = exc
+        if self._callback is not None:
+            log.warning("state stream ended: %s", exc)
         self._put(exc)
 
     def _put(self, item: GripperState | BaseException) -> None:
@@ -95,6 +103,7 @@ class SubscribedStream:
             except queue.Empty:
                 continue
             if isinstance(item, BaseException):
+                self._put(item)  # kept for get(): a callback stream's owner can still ask why it ended
                 return
             try:
                 assert self._callback is not None

@@ -40,6 +40,7 @@ class ServeProcess:
             env={**os.environ, "PYTHONUNBUFFERED": "1"},
         )
         self.urls: dict[str, str] = {}
+        self.stderr_text = ""  # what the server wrote on stderr, read by close()
         self.expected = sum(1 for a in args if not a.startswith("-") and ("://" in a or "=" in a))
         self._read_urls()
 
@@ -80,6 +81,8 @@ class ServeProcess:
             except subprocess.TimeoutExpired:
                 self.proc.kill()
                 self.proc.wait(5)
+        if self.proc.stderr and not self.proc.stderr.closed:
+            self.stderr_text = self.proc.stderr.read()
         for stream in (self.proc.stdout, self.proc.stderr):
             if stream:
                 stream.close()

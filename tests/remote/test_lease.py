@@ -103,8 +103,10 @@ def test_server_shutdown_stops_a_running_motion(serve) -> None:
         handle = g.move(g.limits.min_width + 0.001, g.limits.min_speed, wait=False)
         time.sleep(0.1)
         started = time.monotonic()
-        assert server.close(signal.SIGINT) == 0  # Ctrl-C: a clean exit, motion stopped, grippers closed
+        # Ctrl-C: motion stopped, grippers closed, and the exit every command makes (issue 22 §2)
+        assert server.close(signal.SIGINT) == 130
         assert time.monotonic() - started < 5.0  # not the 20 s the motion would take
+        assert "grippers serve: interrupted" in server.stderr_text
         with pytest.raises(grippers.GripperError):
             handle.wait(5)
     finally:

@@ -39,13 +39,28 @@ def test_request_parsing() -> None:
     assert req.args == {"width": 0.05, "speed": None, "timeout": None} and req.client == "c1"
     with pytest.raises(grippers.ProtocolError, match="needs the lease"):
         protocol.parse_request("move", b'{"args": {"width": 0.05}}')
-    assert protocol.parse_request("stop", b"").args == {}
+    assert protocol.parse_request("stop", b'{"v": 1}').args == {}
     with pytest.raises(grippers.ProtocolError, match="unknown command"):
         protocol.parse_request("explode", b"")
     with pytest.raises(grippers.ProtocolError, match="not JSON"):
         protocol.parse_request("move", b'{"client": "c", "args": {"width": Infinity}}')
     with pytest.raises(grippers.ProtocolError, match="finite"):
         protocol.parse_request("move", b'{"client": "c", "args": {"width": 1e999}}')
+
+
+@pytest.mark.parametrize("command", sorted(protocol.COMMANDS))
+def test_a_query_without_payload_is_never_a_command(command: str) -> None:
+    """What `z_get -s 'grippers/**'` sends to every queryable: it fast-stopped every gripper (issue 23)."""
+    with pytest.raises(grippers.ProtocolError, match="never a command"):
+        protocol.parse_request(command, b"")
+
+
+@pytest.mark.parametrize("digits", [400, 4000])
+def test_a_huge_integer_is_a_protocol_error(digits: int) -> None:
+    """JSON integers have no size limit; float() of one this long overflows (issue 23 §3)."""
+    payload = b'{"client": "c", "args": {"width": 1' + b"0" * (digits - 1) + b"}}"
+    with pytest.raises(grippers.ProtocolError, match="too large"):
+        protocol.parse_request("move", payload)
 
 
 @pytest.mark.parametrize("name", ["a/b", "*", "**", "a$b", "", "x" * 65, "-a", "a?b", "a#b"])
@@ -65,7 +80,10 @@ def test_lease_bookkeeping() -> None:
     assert lease.expired(1.5) == "a"  # its token never seen: freed after the timeout
     lease.check("b", "ui", "home", take=True, now=2.0, device="g")
     lease.client_seen("b")
-    assert lease.expired(10.0) is None  # alive: held as long as it lives
+    lease.heard("b", 9.5)  # a heartbeat or a request
+    assert lease.expired(10.0) is None  # heard from within the timeout: held
+    assert lease.expired(10.6) == "b"  # silent longer than the timeout, token or not (issue 23 §2)
+    lease.check("b", "ui", "home", take=True, now=11.0, device="g")
     assert lease.client_gone("b") is True and lease.holder is None
     assert lease.client_gone("b") is False
 
@@ -95,4 +113,4 @@ def test_remote_benchmarks_are_registered() -> None:
         sys.path.insert(0, str(repo))
     from benchmarks import run
 
-    assert {8, 9, 10} <= set(run._targets())
+    assert {8, 9, 10, 12} <= set(run._targets())
