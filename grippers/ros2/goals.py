@@ -37,7 +37,8 @@ from ..motions import MotionHandle
 
 T = TypeVar("T")
 
-DEFAULT_TOLERANCE = 0.001  # m: "reached the target"; an MSG's position byte alone is ~0.6 mm on a 150 mm rail
+# m: "reached the target"; an MSG's position byte is ~0.4 mm on msg-150 (105 mm stroke)
+DEFAULT_TOLERANCE = 0.001
 
 
 @dataclass(frozen=True)

@@ -57,13 +57,14 @@ def parallel_goal(
 class Cell:
     """One node (namespace ``ns``) and a client: the names a ROS user would write."""
 
-    def __init__(self, url: str, ns: str, *args: str) -> None:
+    def __init__(self, url: str, ns: str, *args: str, node: str = "gripper") -> None:
         self.ns = ns
-        self.proc = NodeProcess(url, "--namespace", ns, *args)
+        self.node = node
+        self.proc = NodeProcess(url, "--namespace", ns, "--name", node, *args)
         self.client = RosClient(f"test_client_{ns.strip('/')}")
 
     def name(self, tail: str) -> str:
-        return f"{self.ns}/gripper/{tail}"
+        return f"{self.ns}/{self.node}/{tail}"
 
     def command(
         self, position: float, max_effort: float = 0.0, feedback: list | None = None
@@ -280,8 +281,12 @@ def test_a_narrower_goal_finds_the_part_on_an_msg() -> None:
 
 
 def test_without_a_part_a_narrower_goal_ends_at_the_target_and_errors_abort_goals() -> None:
-    cell = Cell("sim://wsg50", _uniq("nopart"))
+    ns = _uniq("nopart")
+    # --name, and a remapping passed through --ros-args as with `ros2 run`
+    cell = Cell("sim://wsg50", ns, "--ros-args", "-r", f"joint_states:={ns}/left_js", node="left")
     try:
+        js = cell.client.subscribe(JointState, f"{ns}/left_js").get(timeout=WAIT)
+        assert list(js.name) == ["gripper_joint"]  # the default joint name
         # not referenced yet: the device refuses (E_NOT_INITIALIZED); the goal aborts, the node lives on
         status, _ = cell.command(0.05)
         assert status == GoalStatus.STATUS_ABORTED
