@@ -100,10 +100,13 @@ class Arbiter:
             ticket.ended = why
             return ticket is self._current
 
-    def end_all(self, why: str) -> None:
+    def end_all(self, why: str) -> bool:
+        """End the current ticket, if any; True when one was running (a goal or ~/home)."""
         with self._lock:
             if self._current is not None and self._current.ended is None:
                 self._current.ended = why
+                return True
+            return False
 
     def start(self, ticket: Ticket, call: Callable[[], MotionHandle[T]]) -> MotionHandle[T]:
         with self._lock:

@@ -27,6 +27,7 @@ log = logging.getLogger(__name__)
 DEFAULT_NAME = "gripper"
 DEFAULT_JOINT = "gripper_joint"
 DEFAULT_RATE = 50.0
+RESULT_GRACE = 0.3  # s the executor keeps spinning at shutdown so aborted goals' results reach their clients
 
 
 @dataclass(frozen=True)
@@ -67,7 +68,7 @@ class GripperNode:
         self.options = options
         self.arbiter = Arbiter()
         self._tickets: dict[bytes, Ticket] = {}
-        self._tickets_lock = threading.Lock()
+        self._tickets_lock = threading.Condition()  # notified when a goal ends (halt waits for them)
         self._closing = False
         self.node = Node(options.name, namespace=options.namespace, context=context)
         self._logger = self.node.get_logger()
@@ -255,6 +256,7 @@ class GripperNode:
             self.arbiter.end(ticket, "finished")
             with self._tickets_lock:
                 self._tickets.pop(key, None)
+                self._tickets_lock.notify_all()
 
     @staticmethod
     def _cancel_state(goal_handle: Any, bound: float = 5.0) -> bool:
@@ -339,17 +341,21 @@ class GripperNode:
 
     # -- life cycle ----------------------------------------------------------------------------------------
 
-    def halt(self) -> None:
-        """End every goal (they abort) and stop the gripper if one was running: the node is going away."""
+    def halt(self, bound: float = 3.0) -> None:
+        """End every goal (they abort) and stop the gripper if one was running: the node is going away.
+
+        Waits (bounded) for the goals' execute callbacks to return, so their ABORTED results are handed to
+        the action server while the executor still spins to send them."""
         self._closing = True
-        with self._tickets_lock:
-            running = bool(self._tickets)
-        self.arbiter.end_all("the node is shutting down")
-        if running:
+        if self.arbiter.end_all("the node is shutting down"):
             try:
                 self.gripper.stop()
             except GripperError as exc:
                 self._logger.error(f"stop at shutdown failed: {exc}")
+        with self._tickets_lock:
+            ended = self._tickets_lock.wait_for(lambda: not self._tickets, timeout=bound)
+        if not ended:
+            self._logger.warning("goals still running at shutdown; their results may not reach the clients")
 
     def destroy(self) -> None:
         for server in self._servers:
@@ -395,6 +401,9 @@ def spin(
     finally:
         if gnode is not None:
             gnode.halt()
+            # The action server sends a result from an executor task that runs after the execute callback
+            # has returned; there is no event for "sent", so the executor spins on for a moment.
+            time.sleep(RESULT_GRACE)
         if executor is not None:
             executor.shutdown(timeout_sec=5.0)
         if thread is not None:

@@ -301,8 +301,9 @@ def test_without_a_part_a_narrower_goal_ends_at_the_target_and_errors_abort_goal
         assert cell.close() == 0, cell.proc.output()
 
 
-def test_sigterm_ends_the_node_cleanly_during_a_goal() -> None:
-    cell = Cell("sim://wsg50", _uniq("sigterm"))
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT], ids=["SIGTERM", "SIGINT"])
+def test_a_signal_ends_the_node_cleanly_during_a_goal(sig: int) -> None:
+    cell = Cell("sim://wsg50", _uniq(f"sig{int(sig)}"))
     try:
         assert cell.trigger("home").success
         feedback: list = []
@@ -311,11 +312,14 @@ def test_sigterm_ends_the_node_cleanly_during_a_goal() -> None:
         )
         assert handle.accepted
         wait_until(lambda: bool(feedback), what="feedback")
+        result = handle.get_result_async()  # asked before the signal: the node answers it as it ends
         start = time.monotonic()
-        rc = cell.proc.terminate(signal.SIGTERM, timeout=WAIT)
+        rc = cell.proc.terminate(sig, timeout=WAIT)
         took = time.monotonic() - start
         assert rc == 0, cell.proc.output()
         # "within a few seconds" (issue 21): the motion is stopped and the goal ended, not waited for (~20 s)
         assert took < 10, took
+        assert cell.client.wait(result, timeout=10).status == GoalStatus.STATUS_ABORTED
+        assert "Traceback" not in cell.proc.output()
     finally:
         cell.client.close()
