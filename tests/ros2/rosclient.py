@@ -21,13 +21,13 @@ from rclpy.executors import MultiThreadedExecutor
 WAIT = 60.0  # s: an upper bound for anything on a loaded machine, never a speed expectation
 
 
-class NodeProcess:
-    """`python -m grippers ros2 URL ...` with its output collected; ready once it prints its ready line."""
+class CliProcess:
+    """`python -m grippers ARGS...` with its output collected; ready once stdout shows ``ready`` in a line."""
 
-    def __init__(self, url: str, *args: str) -> None:
-        env = dict(os.environ)
+    def __init__(self, *args: str, ready: str) -> None:
+        env = {**os.environ, "PYTHONUNBUFFERED": "1"}
         self.proc = subprocess.Popen(
-            [sys.executable, "-m", "grippers", "ros2", url, *args],
+            [sys.executable, "-m", "grippers", *args],
             stdout=subprocess.PIPE,
             stderr=subprocess.PIPE,
             text=True,
@@ -44,12 +44,13 @@ class NodeProcess:
                 line = self.lines.get(timeout=max(0.0, deadline - time.monotonic()))
             except queue.Empty:
                 self.terminate()
-                raise AssertionError(f"node not ready within {WAIT} s: {self.output()}") from None
-            if " ready " in line:
+                raise AssertionError(f"{args[0]} not ready within {WAIT} s: {self.output()}") from None
+            if ready in line:
+                self.ready_line = line.strip()
                 break
             if not line:  # the node ended before it was ready
                 self.terminate()
-                raise AssertionError(f"node ended before it was ready: {self.output()}")
+                raise AssertionError(f"{args[0]} ended before it was ready: {self.output()}")
 
     def _read(self, stream: Any, into: list[str], announce: bool) -> None:
         for line in stream:
@@ -74,6 +75,17 @@ class NodeProcess:
             self.proc.kill()
             self.proc.wait(10)
             raise AssertionError(f"node did not end within {timeout} s of signal {sig}") from None
+
+
+def node_process(url: str, *args: str) -> CliProcess:
+    """`grippers ros2 URL ARGS...`, once its node is up."""
+    return CliProcess("ros2", url, *args, ready=" ready ")
+
+
+def serve_process(name: str, url: str) -> tuple[CliProcess, str]:
+    """`grippers serve NAME=URL` on a loopback port the system picks; returns it and its zenoh:// URL."""
+    proc = CliProcess("serve", f"{name}={url}", "--listen", "tcp/127.0.0.1:0", ready=" serving at ")
+    return proc, proc.ready_line.rsplit(" serving at ", 1)[1]
 
 
 class RosClient:

@@ -26,7 +26,7 @@ from control_msgs.action import GripperCommand, ParallelGripperCommand  # noqa: 
 from sensor_msgs.msg import JointState  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 
-from .rosclient import WAIT, NodeProcess, RosClient, wait_until  # noqa: E402
+from .rosclient import WAIT, CliProcess, RosClient, node_process, serve_process, wait_until  # noqa: E402
 
 pytestmark = pytest.mark.ros2
 
@@ -60,7 +60,7 @@ class Cell:
     def __init__(self, url: str, ns: str, *args: str, node: str = "gripper") -> None:
         self.ns = ns
         self.node = node
-        self.proc = NodeProcess(url, "--namespace", ns, "--name", node, *args)
+        self.proc: CliProcess = node_process(url, "--namespace", ns, "--name", node, *args)
         self.client = RosClient(f"test_client_{ns.strip('/')}")
 
     def name(self, tail: str) -> str:
@@ -323,3 +323,20 @@ def test_a_signal_ends_the_node_cleanly_during_a_goal(sig: int) -> None:
         assert "Traceback" not in cell.proc.output()
     finally:
         cell.client.close()
+
+
+def test_a_gripper_served_over_zenoh_finds_its_part_through_the_node() -> None:
+    """`grippers ros2 zenoh://left`: the node is a remote client holding the lease like any other."""
+    server, url = serve_process("left", f"sim://wsg50?part_width_mm={PART / MM:g}")
+    try:
+        cell = Cell(url, _uniq("zenoh"))
+        try:
+            assert cell.trigger("home").success
+            _open(cell, 0.1)
+            status, result = cell.command(0.02, max_effort=20.0)
+            assert status == GoalStatus.STATUS_SUCCEEDED, result
+            assert result.stalled and abs(result.position - PART) <= TOL and result.effort > 0
+        finally:
+            assert cell.close() == 0, cell.proc.output()
+    finally:
+        assert server.terminate() == 0, server.output()
