@@ -33,6 +33,8 @@ def load_ros() -> dict[str, ModuleType]:
     loaded: dict[str, ModuleType] = {}
     missing: list[str] = []
     for module, package in _NEEDED:
+        if any(m.startswith(package + " ") for m in missing):
+            continue  # rclpy.action when rclpy itself is missing: said once
         try:
             loaded[module] = importlib.import_module(module)
         except ImportError as exc:
