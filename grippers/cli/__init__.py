@@ -36,6 +36,7 @@ SUBCOMMANDS: dict[str, str] = {
     "sim": ".sim",
     "doctor": ".doctor",
     "serve": ".serve",
+    "ros2": ".ros2_cmd",
 }
 
 
