@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import os
+import warnings
 from typing import Any
 
 from .backends import get_backend
-from .errors import GripperError, ProfileError, URLError
+from .errors import GripperError, ProfileAssumed, ProfileError, URLError
 from .gripper import Gripper
 from .profiles import ProfileBase, load_profile
 from .settings import Settings
@@ -48,7 +49,24 @@ def open(target: str | os.PathLike[str], **overrides: Any) -> Gripper:  # noqa: 
         )
     gripper = backend.open(url, profile, settings)
     _finish(gripper, settings)
+    warn_if_assumed(gripper)
     return gripper
+
+
+def warn_if_assumed(gripper: Gripper, stacklevel: int = 3) -> None:
+    """Issue :class:`ProfileAssumed` when the backend guessed the model (issue 22 §1: no silent assumption).
+
+    Said at open, not only in ``info()``: an MSG 100 taken for an MSG 150 reads 105 mm with the jaws at 55 mm,
+    and a user who never calls ``info()`` would not know. ``stacklevel`` points at the caller of ``open()``.
+    """
+    if getattr(gripper, "_profile_assumed", False):
+        warnings.warn(
+            ProfileAssumed(
+                f"model {gripper.profile.name} assumed (an MSG cannot report its rail length: "
+                "on another model every width is wrong); pass profile= (--profile)"
+            ),
+            stacklevel=stacklevel,
+        )
 
 
 def _finish(gripper: Gripper, settings: Settings) -> None:

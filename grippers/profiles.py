@@ -207,7 +207,8 @@ class WsgTransport(_Model):
     baudrate: Annotated[int, Field(gt=0)] = 115200
     bytesize: Literal[5, 6, 7, 8] = 8
     parity: Literal["N", "E", "O", "M", "S"] = "N"
-    stopbits: Literal[1, 1.5, 2] = 1  # one public driver uses 2
+    # 1, 1.5 or 2 (one public driver uses 2); 1.5 spelled as a range, since a typing Literal takes no floats.
+    stopbits: Literal[1, 2] | Annotated[float, Field(ge=1.5, le=1.5)] = 1
     can_interface: str = "socketcan"
     can_channel: str = "can0"
     can_bitrate: Annotated[int, Field(gt=0)] = 500_000
@@ -373,6 +374,8 @@ def _remember(cache: dict[str, Any], key: str, value: Any) -> None:
 def _stamp(path: Path) -> Stamp:
     try:
         st = path.stat()
+    except FileNotFoundError:
+        raise ProfileError(f"{path}: profile file not found") from None
     except OSError as exc:
         raise ProfileError(f"{path}: cannot read: {exc.strerror or exc}") from None
     return (st.st_mtime_ns, st.st_size, st.st_ino)
@@ -383,6 +386,8 @@ def _read(path: Path) -> dict[str, Any]:
     try:
         with path.open("rb") as f:
             blob = f.read(MAX_PROFILE_BYTES + 1)
+    except FileNotFoundError:
+        raise ProfileError(f"{path}: profile file not found") from None
     except OSError as exc:
         raise ProfileError(f"{path}: cannot read: {exc.strerror or exc}") from None
     if len(blob) > MAX_PROFILE_BYTES:
@@ -397,7 +402,7 @@ def _read(path: Path) -> dict[str, Any]:
             data = json.loads(text)
         elif path.suffix in (".yaml", ".yml"):
             try:
-                import yaml  # type: ignore[import-untyped]
+                import yaml
             except ImportError:
                 raise ProfileError(f"{path}: YAML profiles need: pip install 'grippers[yaml]'") from None
             data = yaml.safe_load(text)
@@ -655,11 +660,11 @@ def load_profile(name: str | os.PathLike[str]) -> ProfileBase:
         return load_file(text)
     path, _ = _find(text, set())
     if path is not None:
-        name = _raw(path).get("name")
-        if isinstance(name, str) and _key(name) != _key(text):
+        declared = _raw(path).get("name")
+        if isinstance(declared, str) and _key(declared) != _key(text):
             # Reached by an alias: the profile of that name that comes first wins, so a user's file named
             # like a built-in is used whichever of the built-in's aliases is asked for.
-            path = _find(name, set(), names_only=True)[0] or path
+            path = _find(declared, set(), names_only=True)[0] or path
         return load_file(path)
     names = ", ".join(sorted(p.name for p in list_profiles()))
     raise ProfileError(f"no profile named {text!r} (known: {names}; search path: {_describe_path()})")
@@ -670,9 +675,18 @@ def _describe_path() -> str:
 
 
 def wsg_profile_for_device_type(device_type: int) -> WsgProfile | None:
-    """The first profile on the search path for the WSG model that reports ``device_type`` in 50h."""
+    """The first profile on the search path for the WSG model that reports ``device_type`` in 50h.
+
+    A profile that ``extends`` another is a variant (``wsg50-glass``: the stock WSG 50 limited to 15 N),
+    never chosen here: dropped on the search path, it would silently become the profile of every plain
+    ``wsg+tcp://`` open and every probe (issue 22 §1). Variants are selected only by name: ``profile=``, or
+    opening the profile itself (which connects to its ``url``). A user's file that takes a built-in's NAME
+    still replaces that built-in (with or without ``extends`` of it): that is how a user corrects a stock
+    profile on purpose.
+    """
     for profile in list_profiles():
-        if isinstance(profile, WsgProfile) and profile.wsg.device_type == device_type:
+        variant = profile.extends is not None and _key(profile.extends) != _key(profile.name)
+        if isinstance(profile, WsgProfile) and not variant and profile.wsg.device_type == device_type:
             return profile
     return None
 

@@ -541,10 +541,12 @@ def _proxy_records(args: argparse.Namespace, writer: Writer | None) -> Iterator[
                         sock.setblocking(False)
                         sel.register(sock, selectors.EVENT_READ, (peer, direction, stream))
                     continue
-                sock = key.fileobj
+                ready = key.fileobj
+                assert isinstance(ready, socket.socket)  # only sockets are registered
+                sock = ready
                 peer, direction, stream = key.data
                 try:
-                    data = sock.recv(65536)  # type: ignore[union-attr]
+                    data = sock.recv(65536)
                     if data:
                         peer.sendall(data)
                 except OSError:
@@ -555,7 +557,7 @@ def _proxy_records(args: argparse.Namespace, writer: Writer | None) -> Iterator[
                             sel.unregister(s)
                         except (KeyError, ValueError):
                             pass
-                        s.close()  # type: ignore[union-attr]
+                        s.close()
                     continue
                 stamp = time.time()
                 if writer is not None:
