@@ -27,6 +27,8 @@ EXAMPLE = (
     "grippers monitor capture.log            (candump -L format)\n"
     "         grippers monitor wsg.hex --protocol wsg\n"
     "         grippers monitor -i socketcan -c can0 --protocol stepfoc\n"
+    "         grippers monitor stepfoc+can://socketcan/can0      (the URL the other commands take)\n"
+    "         grippers monitor wsg+tcp://192.168.1.20            (through a proxy on a free port)\n"
     "         grippers monitor --proxy 127.0.0.1:1000 --to 192.168.1.20:1000\n"
     "         candump -L can0 | grippers monitor -\n"
     "         grippers monitor -i socketcan -c can0 -t r --write session.log   (record a fixture)"
@@ -51,7 +53,11 @@ def _host_port(text: str) -> tuple[str, int]:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
-        "capture", nargs="?", metavar="FILE", help="capture file, or - for stdin; omit with -i/-c or --proxy"
+        "capture",
+        nargs="?",
+        metavar="FILE|URL",
+        help="capture file, or - for stdin; or a URL: can://IF/CH, stepfoc+can://IF/CH, wsg+can://IF/CH (a live "
+        "bus, like -i/-c), wsg+tcp://HOST[:PORT] (through the proxy); omit with -i/-c or --proxy",
     )
     parser.add_argument("--format", choices=FORMATS, default="auto", help="capture format (default: detect)")
     parser.add_argument(
@@ -590,7 +596,47 @@ class _Clock:
         return shown
 
 
+def apply_url(args: argparse.Namespace) -> None:
+    """A connection URL in place of the capture FILE: the URLs every other command takes (issue 22 §2).
+
+    ``can://IF/CH`` and ``stepfoc+can://IF/CH`` or ``wsg+can://IF/CH[?send_id=ID]`` watch that bus (the family
+    picks the decoder when ``--protocol`` is auto; ``?bitrate=`` as ``-b``); ``wsg+tcp://HOST[:PORT]`` relays
+    through the proxy (``--proxy``, default a free loopback port) to that gripper. Flags given beside the URL
+    win over what the URL says, as they do for ``grippers.open``.
+    """
+    target = args.capture
+    if target is None or "://" not in target:
+        return
+    from grippers.errors import URLError
+    from grippers.profiles import WsgTransport
+    from grippers.urls import parse_url
+
+    bare = target.lower().startswith("can://")
+    url = parse_url(("stepfoc+" + target) if bare else target)
+    if url.transport == "can":
+        args.interface = args.interface or url.interface
+        args.channel = args.channel or url.channel
+        if args.bitrate is None and "bitrate" in url.params:
+            args.bitrate = int(url.params["bitrate"], 0)
+        if args.protocol == "auto" and not bare:
+            args.protocol = url.family
+        if url.family == "wsg" and "send_id" in url.params:
+            args.wsg_id = can_id(url.params["send_id"])
+    elif url.family == "wsg" and url.transport == "tcp":
+        if args.to is None:
+            args.to = (url.host, url.port or WsgTransport().tcp_port)
+        if args.proxy is None:
+            args.proxy = ("127.0.0.1", 0)
+    else:
+        raise URLError(
+            f"monitor watches a CAN bus (can://IF/CH, stepfoc+can://, wsg+can://) or a WSG over TCP through its "
+            f"proxy (wsg+tcp://HOST[:PORT]), not {target}"
+        )
+    args.capture = None
+
+
 def run(args: argparse.Namespace) -> int:
+    apply_url(args)
     live_can = bool(args.interface or args.channel)
     sources = sum((args.capture is not None, live_can, args.proxy is not None))
     if sources == 0:

@@ -253,6 +253,14 @@ class DoctorDocument(_Strict):
     checks: list[DoctorCheck]
 
 
+class SimDocument(_Strict):
+    """``grippers sim wsg|msg --json``: where the simulator (or a replay) serves, printed once at start."""
+
+    schema_: Literal["grippers.sim/1"] = Field(alias="schema")
+    what: str = Field(description="what is served, e.g. 'simulated WSG 50 (firmware 4.0.1)'")
+    urls: list[str] = Field(description="the URLs a client opens, one per simulated device")
+
+
 SCHEMAS: dict[str, type[BaseModel]] = {
     "grippers.probe/2": ProbeDocument,
     "grippers.state/2": StateDocument,
@@ -262,6 +270,7 @@ SCHEMAS: dict[str, type[BaseModel]] = {
     "grippers.profiles/1": ProfilesDocument,
     "grippers.settings/1": SettingsDocument,
     "grippers.doctor/1": DoctorDocument,
+    "grippers.sim/1": SimDocument,
 }
 
 

@@ -81,4 +81,4 @@ def run(args: argparse.Namespace) -> int:
     urls = list(urls() if callable(urls) else urls or [server.url])
     if bus_query:  # a client needs the same port to reach the bus
         urls = [f"{u}&{bus_query}" for u in urls]
-    return serve_forever(server, what, urls)
+    return serve_forever(server, what, urls, as_json=args.json)

@@ -6,7 +6,12 @@ Each test runs the real CLI (a subprocess) or the real API against a simulator o
 from __future__ import annotations
 
 import argparse
+import json
 import os
+import re
+import shutil
+import signal
+import socket
 import subprocess
 import sys
 import warnings
@@ -17,6 +22,8 @@ import pytest
 
 import grippers
 from grippers.cli import SUBCOMMANDS, build_parser
+from grippers.cli.monitor import apply_url
+from grippers.cli.schemas import validate
 
 ROOT = Path(__file__).resolve().parents[2]
 GLASS = """
@@ -157,3 +164,113 @@ def test_the_version_has_one_source(cli) -> None:
     assert cli("--version").stdout.strip() == f"grippers {grippers.__version__}"
     text = (ROOT / "pyproject.toml").read_text()
     assert 'dynamic = ["version"]' in text and "\nversion =" not in text.split("[project]")[1].split("\n[")[0]
+
+
+# --- grippers sim: the device's port, or a working one ---------------------------------------------------
+
+
+def _sim(*args: str, prefix: tuple[str, ...] = ()) -> subprocess.Popen[str]:
+    return subprocess.Popen(
+        [*prefix, sys.executable, "-m", "grippers", "sim", *args],
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "PYTHONUNBUFFERED": "1"},
+    )
+
+
+def _first_line(proc: subprocess.Popen[str]) -> str:
+    assert proc.stdout is not None
+    try:
+        return proc.stdout.readline()
+    finally:
+        proc.terminate()
+        proc.wait(timeout=30)
+
+
+SETPRIV = shutil.which("setpriv")
+
+
+@pytest.mark.skipif(SETPRIV is None, reason="setpriv (util-linux) drops the right to bind ports below 1024")
+def test_sim_without_the_right_to_port_1000_serves_on_a_free_port() -> None:
+    # root without CAP_NET_BIND_SERVICE is refused port 1000 exactly as an ordinary user is
+    proc = _sim("wsg", "--json", prefix=(str(SETPRIV), "--bounding-set=-net_bind_service"))
+    try:
+        assert proc.stdout is not None and proc.stderr is not None
+        doc = json.loads(proc.stdout.readline())
+        assert doc["schema"] == "grippers.sim/1" and not doc["urls"][0].endswith(":1000")
+        with grippers.open(doc["urls"][0]) as g:  # and it works
+            assert g.info().model == "WSG 50"
+    finally:
+        proc.terminate()
+        proc.wait(timeout=30)
+    stderr = proc.stderr.read()
+    assert stderr.count("\n") == 1 and "needs root" in stderr and "--listen tcp://127.0.0.1:0" in stderr
+
+
+def test_sim_on_a_port_in_use_says_so_with_the_fix(cli) -> None:
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        port = busy.getsockname()[1]
+        r = cli("sim", "wsg", "--listen", f"tcp://127.0.0.1:{port}")
+    assert r.returncode == 1
+    line = r.one_error_line()
+    assert "port is in use" in line and "--listen tcp://127.0.0.1:0" in line
+
+
+def test_sim_prints_its_urls_as_json() -> None:
+    proc = _sim("msg", "--json")
+    doc = json.loads(_first_line(proc))
+    assert doc["schema"] == "grippers.sim/1" and doc["urls"][0].startswith("stepfoc+serial://")
+    validate(doc)
+
+
+# --- monitor takes the URLs every other command takes ---------------------------------------------------
+
+
+def _monitor_args(*argv: str) -> argparse.Namespace:
+    args, _ = build_parser().parse_known_args(["monitor", *argv])
+    apply_url(args)
+    return args
+
+
+def test_monitor_reads_can_urls_like_the_other_commands() -> None:
+    a = _monitor_args("can://socketcan/can0")
+    assert (a.interface, a.channel, a.protocol, a.capture) == ("socketcan", "can0", "auto", None)
+    a = _monitor_args("stepfoc+can://socketcan/vcan1?node=3&bitrate=500000")
+    assert (a.interface, a.channel, a.protocol, a.bitrate) == ("socketcan", "vcan1", "stepfoc", 500000)
+    a = _monitor_args("wsg+can://socketcan/can0?send_id=0x7E8")
+    assert (a.protocol, a.wsg_id) == ("wsg", 0x7E8)
+    a = _monitor_args("-c", "can1", "can://socketcan/can0")  # a flag beside the URL wins, as in open()
+    assert a.channel == "can1"
+    a = _monitor_args("wsg+tcp://192.168.1.20")
+    assert a.to == ("192.168.1.20", 1000) and a.proxy == ("127.0.0.1", 0)
+
+
+def test_monitor_of_a_serial_url_is_a_usage_error(cli) -> None:
+    r = cli("monitor", "wsg+serial:///dev/ttyUSB0")
+    assert r.returncode == 2 and "monitor watches a CAN bus" in r.one_error_line()
+
+
+def test_monitor_of_a_wsg_tcp_url_relays_and_decodes(wsg_tcp_url: str) -> None:
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "grippers", "monitor", wsg_tcp_url, "--json"],
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        assert proc.stderr is not None
+        line = proc.stderr.readline()  # "proxy listening on HOST:PORT, ..."
+        port = re.search(r"listening on [^:]+:(\d+)", line)
+        assert port, line
+        with grippers.open(f"wsg+tcp://127.0.0.1:{port.group(1)}") as g:
+            g.home()
+    finally:
+        proc.send_signal(signal.SIGINT)
+        out, _ = proc.communicate(timeout=30)
+    commands = {json.loads(x)["command"] for x in out.splitlines()}
+    assert "HOMING (20h)" in commands
