@@ -56,8 +56,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "capture",
         nargs="?",
         metavar="FILE|URL",
-        help="capture file, or - for stdin; or a URL: can://IF/CH, stepfoc+can://IF/CH, wsg+can://IF/CH (a live "
-        "bus, like -i/-c), wsg+tcp://HOST[:PORT] (through the proxy); omit with -i/-c or --proxy",
+        help="capture file, or - for stdin; or a URL: can://IF/CH, stepfoc+can://IF/CH, wsg+can://IF/CH "
+        "(a live bus, like -i/-c), wsg+tcp://HOST[:PORT] (through the proxy); omit with -i/-c or --proxy",
     )
     parser.add_argument("--format", choices=FORMATS, default="auto", help="capture format (default: detect)")
     parser.add_argument(
@@ -629,8 +629,8 @@ def apply_url(args: argparse.Namespace) -> None:
             args.proxy = ("127.0.0.1", 0)
     else:
         raise URLError(
-            f"monitor watches a CAN bus (can://IF/CH, stepfoc+can://, wsg+can://) or a WSG over TCP through its "
-            f"proxy (wsg+tcp://HOST[:PORT]), not {target}"
+            "monitor watches a CAN bus (can://IF/CH, stepfoc+can://, wsg+can://) or a WSG over TCP through "
+            f"its proxy (wsg+tcp://HOST[:PORT]), not {target}"
         )
     args.capture = None
 

@@ -58,7 +58,9 @@ def bind_error(exc: OSError, listen: str) -> str:
             f"--listen {free} picks a free port"
         )
     if exc.errno == errno.EADDRINUSE:
-        return f"cannot listen on {listen}: the port is in use (another simulator?); --listen {free} picks a free port"
+        return (
+            f"cannot listen on {listen}: the port is in use (another simulator?); --listen {free} picks one"
+        )
     return f"cannot listen on {listen}: {exc.strerror or exc}"
 
 

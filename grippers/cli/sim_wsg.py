@@ -31,8 +31,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         parser,
         "wsg50",
         "tcp://HOST:PORT, udp://HOST:PORT, pty or can://INTERFACE/CHANNEL[?send_id=ID&recv_id=ID] (default "
-        "tcp://127.0.0.1:1000, the device's port, or a free port for a user without root; port 0 picks a free "
-        "port; binds to loopback unless a host is named)",
+        "tcp://127.0.0.1:1000, the device's port, or a free port for a user without root; port 0 picks a "
+        "free port; binds to loopback unless a host is named)",
     )
     parser.add_argument(
         "--firmware",
