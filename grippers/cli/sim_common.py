@@ -108,9 +108,9 @@ def warn_private_bus(listen: str) -> None:
 
 
 def serve_forever(server: Any, what: str, urls: list[str] | None = None, *, as_json: bool = False) -> int:
-    """Print where to connect (first line, for people and for scripts; one line per extra node; with --json one
-    document ``{"schema": "grippers.sim/1", "what": ..., "urls": [...]}``), then serve until Ctrl-C (exit 130,
-    like every command) or SIGTERM (exit 0)."""
+    """Print where to connect (first line, for people and for scripts; one line per extra node; with --json
+    one document ``{"schema": "grippers.sim/1", "what": ..., "urls": [...]}``), then serve until Ctrl-C (exit
+    130, like every command) or SIGTERM (exit 0)."""
 
     def _terminate(*_: object) -> None:
         raise _Terminated
