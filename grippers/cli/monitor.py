@@ -430,7 +430,7 @@ def _read_capture(name: str) -> bytes:
 
 
 def _capture_records(args: argparse.Namespace) -> Iterator[dict[str, Any]]:
-    from .captures import (
+    from grippers.drivers.captures import (
         FROM_DEVICE,
         TO_DEVICE,
         UNKNOWN_DIRECTION,
@@ -474,7 +474,7 @@ def _capture_records(args: argparse.Namespace) -> Iterator[dict[str, Any]]:
 def _live_can_records(args: argparse.Namespace, writer: Writer | None) -> Iterator[dict[str, Any]]:
     import can
 
-    from .captures import format_candump
+    from grippers.drivers.captures import format_candump
 
     if not (args.interface and args.channel):
         raise UsageError(
@@ -512,7 +512,7 @@ def _proxy_records(args: argparse.Namespace, writer: Writer | None) -> Iterator[
     Each client connection gets its own connection to the gripper and its own parsers, so two programs
     talking through the proxy do not garble each other's packets.
     """
-    from .captures import format_hex_line
+    from grippers.drivers.captures import format_hex_line
 
     if args.to is None:
         raise UsageError("--proxy needs --to HOST:PORT (the gripper)")

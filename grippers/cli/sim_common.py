@@ -137,8 +137,9 @@ def serve_forever(server: Any, what: str, urls: list[str] | None = None, *, as_j
 
 def serve_replay(args: argparse.Namespace, family: str) -> int:
     """``--replay FILE``: serve the capture instead of a simulated device; exit 1 if a request mismatched."""
-    from . import replay
-    from .captures import CaptureError
+    from grippers.drivers.captures import CaptureError
+    from grippers.drivers.replay import summary
+
     from .output import UsageError
 
     try:
@@ -148,19 +149,23 @@ def serve_replay(args: argparse.Namespace, family: str) -> int:
         raise UsageError(f"--replay {args.replay}: {exc.strerror or exc}") from None
     try:
         if family == "wsg":
-            script = replay.wsg_script(blob, args.replay)
+            from grippers.drivers.wsg.sim.replay import WsgReplayServer, wsg_script
+
+            script = wsg_script(blob, args.replay)
             listen = args.listen or "tcp://127.0.0.1:1000"
             scheme, _, rest = listen.partition("://")
             host, _, port = rest.rpartition(":")
             if scheme != "tcp" or not host or not port.isdigit():
                 raise UsageError(f"--replay serves a WSG on tcp://HOST:PORT, not {listen!r}")
             server: Any = start_server(
-                lambda _: replay.WsgReplayServer(script, host.strip("[]"), int(port), args.time_scale),
+                lambda _: WsgReplayServer(script, host.strip("[]"), int(port), args.time_scale),
                 listen,
                 listen,
             )
         else:
-            script = replay.stepfoc_script(blob, args.replay)
+            from grippers.drivers.stepfoc.sim.replay import StepfocReplayServer, stepfoc_script
+
+            script = stepfoc_script(blob, args.replay)
             listen = args.listen or ""
             if not listen.startswith("can://"):
                 raise UsageError(
@@ -174,13 +179,13 @@ def serve_replay(args: argparse.Namespace, family: str) -> int:
             if interface in ("virtual", "udp_multicast"):
                 bus.pop("bitrate", None)
             warn_private_bus(listen)
-            server = replay.StepfocReplayServer(script, interface, channel, args.time_scale, **bus)
+            server = StepfocReplayServer(script, interface, channel, args.time_scale, **bus)
     except (CaptureError, ValueError) as exc:
         raise UsageError(f"--replay {args.replay}: {exc}") from None
     try:
         code = serve_forever(server, f"replay of {args.replay}", as_json=args.json)
     finally:
-        print(replay.summary(script), file=sys.stderr, flush=True)
+        print(summary(script), file=sys.stderr, flush=True)
     return 1 if script.mismatches else code
 
 
