@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 import os
 import warnings
 from typing import Any
@@ -14,6 +15,7 @@ from .settings import Settings
 from .urls import ConnectionURL, is_url, parse_url
 
 DEFAULT_SIM_PROFILE = "wsg50"
+log = logging.getLogger(__name__)
 
 
 def open(target: str | os.PathLike[str], **overrides: Any) -> Gripper:  # noqa: A001 - the public name
@@ -78,6 +80,7 @@ def _finish(gripper: Gripper, settings: Settings) -> None:
     except Exception:
         gripper.close()
         raise
+    log.info("%s: opened (profile %s)", gripper.url, gripper.profile.name)
 
 
 def _open_sim(url: ConnectionURL, profile: ProfileBase | None, settings: Settings) -> Gripper:
