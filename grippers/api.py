@@ -25,6 +25,17 @@ def open(target: str | os.PathLike[str], **overrides: Any) -> Gripper:  # noqa: 
     ``sim://msg-150?part_width_mm=40``), a profile name (``wsg50``; connects to the profile's ``url``) or a
     profile file. Keyword overrides win over URL query parameters, which win over profile fields;
     ``profile=`` names the profile when the device cannot report its model (the MSG's rail length).
+
+    Raises:
+        URLError: the URL does not follow the grammar, or a setting is unknown or invalid.
+        ProfileError: no such profile, a profile that does not validate, or one of another family.
+        GripperTimeout: nothing answered within the timeout (a wrong address, node id or baud rate).
+        ConnectionLost: the transport could not be opened or closed at once (port, bus, refused TCP).
+        ProtocolError: something answered, but not as a gripper of this family would.
+
+    Warns:
+        ProfileAssumed: the device cannot report its model and no profile was named (an MSG: taken as
+            msg-150); widths are wrong on another model.
     """
     text = os.fspath(target)
     chosen = overrides.pop("profile", None)  # a name or a loaded profile; the keyword wins over ?profile=

@@ -125,6 +125,7 @@ class Limits(_Model):
 
     @property
     def stroke(self) -> float:
+        """The usable travel in m: max_width - min_width."""
         return self.max_width - self.min_width
 
 
@@ -139,6 +140,12 @@ class Connection(_Model):
 
 
 class ProfileBase(_Model):
+    """A device profile (docs/profiles.md): the model's mechanics, safety limits and connection defaults.
+
+    Read from TOML, YAML or JSON by :func:`load_profile`; each family adds its own section (``WsgProfile``,
+    ``MsgProfile``). Validation errors name the file, the field and the rule (``ProfileError``).
+    """
+
     name: Annotated[str, Field(pattern=r"^[a-z0-9][a-z0-9._-]*$")]
     family: str
     vendor: str
@@ -178,6 +185,7 @@ class ProfileBase(_Model):
         return self
 
     def limits(self) -> Limits:
+        """The limits the library enforces (SI units): the mechanics narrowed by the safety section."""
         m, s = self.mechanics, self.safety
         max_current = getattr(self, "effective_max_current_ma", None)
         return Limits(
@@ -191,6 +199,7 @@ class ProfileBase(_Model):
         )
 
     def matches(self, name: str) -> bool:
+        """Whether ``name`` is this profile's name or one of its aliases (case, spaces and dashes ignored)."""
         key = _key(name)
         return key == _key(self.name) or any(key == _key(a) for a in self.aliases)
 
@@ -654,6 +663,10 @@ def load_profile(name: str | os.PathLike[str]) -> ProfileBase:
 
     The first file on the search path that declares the name or alias wins, and if that file is invalid its
     error is raised: falling back to a later file (a built-in) would silently drop the user's limits.
+
+    Raises:
+        ProfileError: no profile of that name ("known: ..."), a file that is not found or does not parse,
+            or one that does not validate (the message names the file, the field and the rule).
     """
     text = os.fspath(name)
     if _looks_like_path(text):

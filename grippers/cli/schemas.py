@@ -243,6 +243,10 @@ class DoctorCheck(_Strict):
     status: Literal["ok", "warn", "fail"]
     detail: str
     fix: str | None = Field(description="the command or step that fixes a warn or fail")
+    see: str | None = Field(
+        default=None,
+        description="for a warn or fail: the section of docs/troubleshooting.md that explains it",
+    )
 
 
 class DoctorDocument(_Strict):
