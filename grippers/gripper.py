@@ -523,7 +523,7 @@ class Gripper(ABC):
         self._fast_stopped = False
 
     def state(self) -> GripperState:
-        """The jaws now: width (m), speed, force or current, grasp state, faults. Readable while a motion runs.
+        """The jaws now: width (m), speed, force or current, grasp state, faults; readable during a motion.
 
         Raises:
             GripperTimeout: the device did not answer within the connection's timeout.

@@ -59,7 +59,7 @@ class Check:
 
     @property
     def see(self) -> str | None:
-        X
+        """The troubleshooting section explaining a check that is not ok (issue 22 §4)."""
         if self.status == "ok":
             return None
         return TROUBLESHOOTING + SEE.get(self.name.split()[0], "")
