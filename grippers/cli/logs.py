@@ -15,10 +15,11 @@ Kept free of heavy imports: ``grippers --help`` loads this module.
 from __future__ import annotations
 
 import argparse
-import logging
 import sys
-import warnings
-from typing import Any, TextIO
+from typing import TYPE_CHECKING, Any, TextIO
+
+if TYPE_CHECKING:  # logging costs ~20 ms to import: --help does without it
+    import logging
 
 LEVELS = ("debug", "info", "warning", "error")
 LOG_FORMAT = "%(asctime)s %(levelname)s %(name)s: %(message)s"
@@ -45,6 +46,8 @@ def add_arguments(parser: argparse.ArgumentParser, *, suppress: bool) -> None:
 
 def level_for(args: argparse.Namespace) -> int:
     """--log-level wins; then -q; then each -v one step below WARNING."""
+    import logging
+
     named = getattr(args, "log_level", None)
     if named:
         return int(getattr(logging, named.upper()))
@@ -57,6 +60,8 @@ def level_for(args: argparse.Namespace) -> int:
 def setup(args: argparse.Namespace, stream: TextIO | None = None) -> logging.Handler:
     """One handler on the ``grippers`` logger (not the root: other libraries' loggers stay as they are), with
     a time stamp, the level and the logger's name on each line; warnings routed as described above."""
+    import logging
+
     level = level_for(args)
     handler = logging.StreamHandler(stream or sys.stderr)
     handler.setFormatter(logging.Formatter(LOG_FORMAT))
@@ -75,6 +80,8 @@ def setup(args: argparse.Namespace, stream: TextIO | None = None) -> logging.Han
 
 
 def _route_warnings(command: str | None) -> None:
+    import warnings
+
     from grippers.errors import GripperWarning
 
     prefix = f"grippers {command}" if command else "grippers"
@@ -98,6 +105,9 @@ def _route_warnings(command: str | None) -> None:
 
 def teardown(handler: logging.Handler) -> None:
     """Undo :func:`setup`: main() may run many times in one process (tests, programs that call it)."""
+    import logging
+    import warnings
+
     logging.getLogger("grippers").removeHandler(handler)
     if _saved:
         warnings.showwarning = _saved.pop()
