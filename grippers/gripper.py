@@ -252,6 +252,7 @@ class Gripper(ABC):
         self.timeout = timeout
         self.limits = profile.limits()
         self._fast_stopped = False
+        self._faults_logged: tuple[str, ...] = ()  # what state() last logged (INFO, issue 22 §3)
         self._closed = False
         self._lock = threading.Lock()
         self._motions = MotionSupervisor(
@@ -536,6 +537,9 @@ class Gripper(ABC):
         # The device is the truth: a fast stop raised or acknowledged elsewhere (another program, the web
         # interface, the vendor extras in .driver) is taken over here.
         self._fast_stopped = st.fast_stopped
+        if st.faults != self._faults_logged:  # a fault raised or cleared: said once, at INFO
+            self._faults_logged = st.faults
+            log.info("%s: faults: %s", self.name, ", ".join(st.faults) or "none")
         return st
 
     def info(self) -> DeviceInfo:

@@ -60,3 +60,15 @@ def test_cli_verbosity_flags(cli) -> None:
     named = cli("state", "sim://wsg50", "--log-level", "debug")
     assert " DEBUG grippers.wire: " in named.stderr
     assert "width:" in debug.stdout and "DEBUG" not in debug.stdout
+
+
+def test_faults_are_logged_at_info_when_they_change(caplog: pytest.LogCaptureFixture) -> None:
+    with caplog.at_level(logging.INFO, logger="grippers"), grippers.open("sim://wsg50") as g:
+        g.state()
+        g.fast_stop()
+        g.state()
+        g.state()  # unchanged: no second line
+        g.acknowledge()
+        g.state()
+    lines = [r.getMessage() for r in caplog.records if "faults:" in r.getMessage()]
+    assert len(lines) == 2 and lines[0].endswith("faults: fast_stop") and lines[1].endswith("faults: none")
