@@ -14,14 +14,17 @@ from __future__ import annotations
 import importlib
 from typing import TYPE_CHECKING, Any
 
+from ._version import __version__
 from .errors import (
     AccessDenied,
     CommandFailed,
     ConnectionLost,
     GripperError,
     GripperTimeout,
+    GripperWarning,
     LimitError,
     NotSupported,
+    ProfileAssumed,
     ProfileError,
     ProtocolError,
     URLError,
@@ -43,8 +46,6 @@ if TYPE_CHECKING:
     from .motions import MotionHandle
     from .profiles import Limits, Profile, load_profile
 
-__version__ = "0.1.0"
-
 _LAZY = {
     "open": ".api",
     "Capability": ".gripper",
@@ -65,13 +66,16 @@ _LAZY = {
 }
 
 __all__ = [
+    "__version__",
     "AccessDenied",
     "CommandFailed",
     "ConnectionLost",
     "GripperError",
     "GripperTimeout",
+    "GripperWarning",
     "LimitError",
     "NotSupported",
+    "ProfileAssumed",
     "ProfileError",
     "ProtocolError",
     "URLError",
@@ -99,3 +103,8 @@ def __getattr__(name: str) -> Any:
     value = getattr(importlib.import_module(module, __name__), name)
     globals()[name] = value
     return value
+
+
+def __dir__() -> list[str]:
+    """``dir(grippers)`` and tab completion list the lazily loaded names too (issue 22 §2)."""
+    return sorted(set(globals()) | set(__all__))

@@ -2,17 +2,20 @@
 
 from __future__ import annotations
 
+import logging
 import os
+import warnings
 from typing import Any
 
 from .backends import get_backend
-from .errors import GripperError, ProfileError, URLError
+from .errors import GripperError, ProfileAssumed, ProfileError, URLError
 from .gripper import Gripper
 from .profiles import ProfileBase, load_profile
 from .settings import Settings
 from .urls import ConnectionURL, is_url, parse_url
 
 DEFAULT_SIM_PROFILE = "wsg50"
+log = logging.getLogger(__name__)
 
 
 def open(target: str | os.PathLike[str], **overrides: Any) -> Gripper:  # noqa: A001 - the public name
@@ -22,6 +25,17 @@ def open(target: str | os.PathLike[str], **overrides: Any) -> Gripper:  # noqa: 
     ``sim://msg-150?part_width_mm=40``), a profile name (``wsg50``; connects to the profile's ``url``) or a
     profile file. Keyword overrides win over URL query parameters, which win over profile fields;
     ``profile=`` names the profile when the device cannot report its model (the MSG's rail length).
+
+    Raises:
+        URLError: the URL does not follow the grammar, or a setting is unknown or invalid.
+        ProfileError: no such profile, a profile that does not validate, or one of another family.
+        GripperTimeout: nothing answered within the timeout (a wrong address, node id or baud rate).
+        ConnectionLost: the transport could not be opened or closed at once (port, bus, refused TCP).
+        ProtocolError: something answered, but not as a gripper of this family would.
+
+    Warns:
+        ProfileAssumed: the device cannot report its model and no profile was named (an MSG: taken as
+            msg-150); widths are wrong on another model.
     """
     text = os.fspath(target)
     chosen = overrides.pop("profile", None)  # a name or a loaded profile; the keyword wins over ?profile=
@@ -48,7 +62,24 @@ def open(target: str | os.PathLike[str], **overrides: Any) -> Gripper:  # noqa: 
         )
     gripper = backend.open(url, profile, settings)
     _finish(gripper, settings)
+    warn_if_assumed(gripper)
     return gripper
+
+
+def warn_if_assumed(gripper: Gripper, stacklevel: int = 3) -> None:
+    """Issue :class:`ProfileAssumed` when the backend guessed the model (issue 22 §1: no silent assumption).
+
+    Said at open, not only in ``info()``: an MSG 100 taken for an MSG 150 reads 105 mm with the jaws at 55 mm,
+    and a user who never calls ``info()`` would not know. ``stacklevel`` points at the caller of ``open()``.
+    """
+    if getattr(gripper, "_profile_assumed", False):
+        warnings.warn(
+            ProfileAssumed(
+                f"model {gripper.profile.name} assumed (an MSG cannot report its rail length: "
+                "on another model every width is wrong); pass profile= (--profile)"
+            ),
+            stacklevel=stacklevel,
+        )
 
 
 def _finish(gripper: Gripper, settings: Settings) -> None:
@@ -60,6 +91,7 @@ def _finish(gripper: Gripper, settings: Settings) -> None:
     except Exception:
         gripper.close()
         raise
+    log.info("%s: opened (profile %s)", gripper.url, gripper.profile.name)
 
 
 def _open_sim(url: ConnectionURL, profile: ProfileBase | None, settings: Settings) -> Gripper:

@@ -15,6 +15,8 @@ from grippers.drivers.errors import (
 __all__ = [
     "AccessDenied",
     "CommandFailed",
+    "GripperWarning",
+    "ProfileAssumed",
     "ConnectionLost",
     "GripperError",
     "GripperTimeout",
@@ -48,3 +50,14 @@ class AccessDenied(GripperError):
     ) -> None:
         self.holder = holder
         super().__init__(message, device=device, command=command)
+
+
+class GripperWarning(UserWarning):
+    """Something the library assumed or worked around that the user should know about; the CLI prints each one
+    as a ``warning:`` line on stderr and lists it in its ``--json`` documents."""
+
+
+class ProfileAssumed(GripperWarning):
+    """A gripper opened without a profile, whose device cannot report its model (an MSG does not know its rail
+    length): the library took a default model, so widths are right only if that is the model on the bench.
+    Pass ``profile=`` (``--profile`` on the command line) to silence it."""

@@ -42,6 +42,8 @@ class GraspState(enum.Enum):
 
 
 class Capability(enum.Enum):
+    """Optional features a backend declares; a call needing one the device lacks raises NotSupported."""
+
     FORCE_CONTROL = "force_control"  # grasp force set in newtons on the device
     CURRENT_CONTROL = "current_control"  # force estimated from a motor current limit
     SOFT_LIMITS = "soft_limits"
@@ -71,6 +73,7 @@ class GripperState:
 
     @property
     def fast_stopped(self) -> bool:
+        """Whether the device is in FAST STOP (``acknowledge()`` clears it)."""
         return "fast_stop" in self.faults
 
 
@@ -106,6 +109,7 @@ class DeviceInfo:
 
     @property
     def stroke(self) -> float:
+        """The usable travel in m (the limits' max minus min width)."""
         return self.limits.stroke
 
 
@@ -199,6 +203,7 @@ class StateStream:
         return item
 
     def close(self) -> None:
+        """Stop the stream (its thread, if it has one); idempotent."""
         self._stop.set()
         if threading.current_thread() is not self._thread:
             self._thread.join(timeout=5)
@@ -247,6 +252,7 @@ class Gripper(ABC):
         self.timeout = timeout
         self.limits = profile.limits()
         self._fast_stopped = False
+        self._faults_logged: tuple[str, ...] = ()  # what state() last logged (INFO, issue 22 §3)
         self._closed = False
         self._lock = threading.Lock()
         self._motions = MotionSupervisor(
@@ -313,6 +319,7 @@ class Gripper(ABC):
 
     @property
     def name(self) -> str:
+        """``PROFILE@URL``: how errors and logs name this gripper."""
         return f"{self.profile.name}@{self.url}"
 
     def _check_open(self, command: str) -> None:
@@ -517,14 +524,36 @@ class Gripper(ABC):
         self._fast_stopped = False
 
     def state(self) -> GripperState:
+        """The jaws now: width (m), speed, force or current, grasp state, faults; readable during a motion.
+
+        Raises:
+            GripperTimeout: the device did not answer within the connection's timeout.
+            ConnectionLost: the link is down (with ``reconnect=true``: at once during an outage).
+            ProtocolError: the answer was malformed (the device or the line is not what the profile says).
+            GripperError: the gripper was closed.
+        """
         self._check_open("state")
         st = self._state()
         # The device is the truth: a fast stop raised or acknowledged elsewhere (another program, the web
         # interface, the vendor extras in .driver) is taken over here.
         self._fast_stopped = st.fast_stopped
+        if st.faults != self._faults_logged:  # a fault raised or cleared: said once, at INFO
+            self._faults_logged = st.faults
+            log.info("%s: faults: %s", self.name, ", ".join(st.faults) or "none")
         return st
 
     def info(self) -> DeviceInfo:
+        """What the device is: vendor, model, profile, firmware, serial number and the limits in force.
+
+        ``extra["warnings"]`` lists what the library assumed (an MSG's model opened without a profile) or
+        ignored (device limits that are not finite).
+
+        Raises:
+            GripperTimeout: the device did not answer within the connection's timeout.
+            ConnectionLost: the link is down.
+            ProtocolError: an answer was malformed.
+            GripperError: the gripper was closed.
+        """
         self._check_open("info")
         return self._info()
 
@@ -633,6 +662,7 @@ class Gripper(ABC):
         raise NotSupported("this backend cannot reconnect", device=self.name, command="reconnect")
 
     def require(self, capability: Capability, command: str) -> None:
+        """Raise NotSupported (naming ``command``) unless the device has ``capability``; nothing is sent."""
         if capability not in self.capabilities:
             raise NotSupported(f"this device has no {capability.value}", device=self.name, command=command)
 
@@ -654,6 +684,7 @@ class Gripper(ABC):
         self._set_soft_limits(lo, hi)
 
     def clear_soft_limits(self) -> None:
+        """Remove the limits :meth:`set_soft_limits` stored in the device (NotSupported where it has none)."""
         self._check_open("clear_soft_limits")
         self.require(Capability.SOFT_LIMITS, "clear_soft_limits")
         self._set_soft_limits(None, None)
@@ -665,6 +696,7 @@ class Gripper(ABC):
         return self._device_tag(None)
 
     def set_device_tag(self, tag: str) -> None:
+        """Store a user-defined name in the device (NotSupported where it has none)."""
         self._check_open("set_device_tag")
         self.require(Capability.DEVICE_TAG, "set_device_tag")
         self._device_tag(tag)

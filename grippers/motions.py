@@ -153,6 +153,7 @@ class MotionHandle(Generic[T]):
     # -- the user's side -----------------------------------------------------------------------------
 
     def done(self) -> bool:
+        """Whether the motion has ended (successfully or not): ``wait()`` then returns or raises at once."""
         return self._done.is_set()
 
     def wait(self, timeout: float | None = None) -> T:

@@ -125,6 +125,7 @@ class Limits(_Model):
 
     @property
     def stroke(self) -> float:
+        """The usable travel in m: max_width - min_width."""
         return self.max_width - self.min_width
 
 
@@ -139,6 +140,12 @@ class Connection(_Model):
 
 
 class ProfileBase(_Model):
+    """A device profile (docs/profiles.md): the model's mechanics, safety limits and connection defaults.
+
+    Read from TOML, YAML or JSON by :func:`load_profile`; each family adds its own section (``WsgProfile``,
+    ``MsgProfile``). Validation errors name the file, the field and the rule (``ProfileError``).
+    """
+
     name: Annotated[str, Field(pattern=r"^[a-z0-9][a-z0-9._-]*$")]
     family: str
     vendor: str
@@ -178,6 +185,7 @@ class ProfileBase(_Model):
         return self
 
     def limits(self) -> Limits:
+        """The limits the library enforces (SI units): the mechanics narrowed by the safety section."""
         m, s = self.mechanics, self.safety
         max_current = getattr(self, "effective_max_current_ma", None)
         return Limits(
@@ -191,6 +199,7 @@ class ProfileBase(_Model):
         )
 
     def matches(self, name: str) -> bool:
+        """Whether ``name`` is this profile's name or one of its aliases (case, spaces and dashes ignored)."""
         key = _key(name)
         return key == _key(self.name) or any(key == _key(a) for a in self.aliases)
 
@@ -207,7 +216,8 @@ class WsgTransport(_Model):
     baudrate: Annotated[int, Field(gt=0)] = 115200
     bytesize: Literal[5, 6, 7, 8] = 8
     parity: Literal["N", "E", "O", "M", "S"] = "N"
-    stopbits: Literal[1, 1.5, 2] = 1  # one public driver uses 2
+    # 1, 1.5 or 2 (one public driver uses 2); 1.5 spelled as a range, since a typing Literal takes no floats.
+    stopbits: Literal[1, 2] | Annotated[float, Field(ge=1.5, le=1.5)] = 1
     can_interface: str = "socketcan"
     can_channel: str = "can0"
     can_bitrate: Annotated[int, Field(gt=0)] = 500_000
@@ -373,6 +383,8 @@ def _remember(cache: dict[str, Any], key: str, value: Any) -> None:
 def _stamp(path: Path) -> Stamp:
     try:
         st = path.stat()
+    except FileNotFoundError:
+        raise ProfileError(f"{path}: profile file not found") from None
     except OSError as exc:
         raise ProfileError(f"{path}: cannot read: {exc.strerror or exc}") from None
     return (st.st_mtime_ns, st.st_size, st.st_ino)
@@ -383,6 +395,8 @@ def _read(path: Path) -> dict[str, Any]:
     try:
         with path.open("rb") as f:
             blob = f.read(MAX_PROFILE_BYTES + 1)
+    except FileNotFoundError:
+        raise ProfileError(f"{path}: profile file not found") from None
     except OSError as exc:
         raise ProfileError(f"{path}: cannot read: {exc.strerror or exc}") from None
     if len(blob) > MAX_PROFILE_BYTES:
@@ -397,7 +411,7 @@ def _read(path: Path) -> dict[str, Any]:
             data = json.loads(text)
         elif path.suffix in (".yaml", ".yml"):
             try:
-                import yaml  # type: ignore[import-untyped]
+                import yaml
             except ImportError:
                 raise ProfileError(f"{path}: YAML profiles need: pip install 'grippers[yaml]'") from None
             data = yaml.safe_load(text)
@@ -649,17 +663,21 @@ def load_profile(name: str | os.PathLike[str]) -> ProfileBase:
 
     The first file on the search path that declares the name or alias wins, and if that file is invalid its
     error is raised: falling back to a later file (a built-in) would silently drop the user's limits.
+
+    Raises:
+        ProfileError: no profile of that name ("known: ..."), a file that is not found or does not parse,
+            or one that does not validate (the message names the file, the field and the rule).
     """
     text = os.fspath(name)
     if _looks_like_path(text):
         return load_file(text)
     path, _ = _find(text, set())
     if path is not None:
-        name = _raw(path).get("name")
-        if isinstance(name, str) and _key(name) != _key(text):
+        declared = _raw(path).get("name")
+        if isinstance(declared, str) and _key(declared) != _key(text):
             # Reached by an alias: the profile of that name that comes first wins, so a user's file named
             # like a built-in is used whichever of the built-in's aliases is asked for.
-            path = _find(name, set(), names_only=True)[0] or path
+            path = _find(declared, set(), names_only=True)[0] or path
         return load_file(path)
     names = ", ".join(sorted(p.name for p in list_profiles()))
     raise ProfileError(f"no profile named {text!r} (known: {names}; search path: {_describe_path()})")
@@ -670,9 +688,18 @@ def _describe_path() -> str:
 
 
 def wsg_profile_for_device_type(device_type: int) -> WsgProfile | None:
-    """The first profile on the search path for the WSG model that reports ``device_type`` in 50h."""
+    """The first profile on the search path for the WSG model that reports ``device_type`` in 50h.
+
+    A profile that ``extends`` another is a variant (``wsg50-glass``: the stock WSG 50 limited to 15 N),
+    never chosen here: dropped on the search path, it would silently become the profile of every plain
+    ``wsg+tcp://`` open and every probe (issue 22 §1). Variants are selected only by name: ``profile=``, or
+    opening the profile itself (which connects to its ``url``). A user's file that takes a built-in's NAME
+    still replaces that built-in (with or without ``extends`` of it): that is how a user corrects a stock
+    profile on purpose.
+    """
     for profile in list_profiles():
-        if isinstance(profile, WsgProfile) and profile.wsg.device_type == device_type:
+        variant = profile.extends is not None and _key(profile.extends) != _key(profile.name)
+        if isinstance(profile, WsgProfile) and not variant and profile.wsg.device_type == device_type:
             return profile
     return None
 

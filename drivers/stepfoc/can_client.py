@@ -59,6 +59,7 @@ from .can_protocol import (
     pack_id,
     unpack_id,
 )
+from .dissect import log_can_frame
 
 __all__ = ["CalibrationWatch", "StepfocBus", "StepfocNode", "open_node", "parse_url"]
 
@@ -246,6 +247,7 @@ class StepfocBus:
             # an 11-bit id above 0x7FF is not a frame of this protocol (virtual and multicast buses carry
             # whatever a program sends)
             return
+        log_can_frame(self.device, msg.arbitration_id, msg.data, msg.is_remote_frame, msg.timestamp)
         node, command, error = unpack_id(msg.arbitration_id)
         spec = COMMANDS.get(command)
         if msg.is_remote_frame or spec is None or spec.direction is Direction.HOST_TO_NODE:
@@ -328,6 +330,7 @@ class StepfocBus:
             self.bus.send(msg, timeout=timeout)
         except can.CanError as exc:
             raise ConnectionLost(f"send failed: {exc}", device=device, command=command) from exc
+        log_can_frame(device, frame.arbitration_id, frame.data, frame.remote, time.time())
 
     def request(
         self, node: int, command: int, frame: CanFrame, timeout: float, *, device: str, name: str

@@ -26,6 +26,7 @@ from ..errors import (
     NotSupported,
     ProtocolError,
 )
+from .dissect import log_uart_line
 from .uart_protocol import (
     BAUDRATE,
     COMMANDS,
@@ -372,6 +373,7 @@ class StepfocUart:
     def _write(self, payload: bytes, command: str) -> None:
         try:
             self._ser.write(payload)
+            log_uart_line(self.device, True, payload.decode("ascii", "replace"), time.time())
         except serial.SerialTimeoutException as exc:
             raise GripperTimeout(
                 f"write not finished within {self.timeout} s", device=self.device, command=command
@@ -394,6 +396,7 @@ class StepfocUart:
                 raise self._lost(exc, command) from exc
             for event in self._splitter.feed(data):
                 if isinstance(event, Line):
+                    log_uart_line(self.device, False, event.text, time.time())
                     self._lines.append(event)
                 else:
                     self.discarded += 1

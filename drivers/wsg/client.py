@@ -61,6 +61,7 @@ from .commands import (
     encode_request,
     reply_value,
 )
+from .dissect import wire_tap
 from .protocol import BadLength, ChecksumError, Discarded, Packet, Status
 from .session import (
     AutoUpdate,
@@ -315,6 +316,7 @@ class WsgClient:
     ) -> None:
         self._transport = transport
         self.device = device or f"wsg {transport.name}"
+        self._transport = wire_tap(transport, self.device)  # DEBUG on grippers.wire: every packet, decoded
         self.timeout = timeout
         self.motion_timeout = motion_timeout
         self.firmware: FirmwareVersion | None = None

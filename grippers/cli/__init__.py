@@ -17,6 +17,8 @@ import sys
 from collections.abc import Sequence
 from typing import Any
 
+from . import logs
+
 # name -> module (relative to this package) or "module:attribute"; order is the order shown in --help.
 SUBCOMMANDS: dict[str, str] = {
     "probe": ".probe",
@@ -49,37 +51,33 @@ def _load(spec: str) -> Any:
 class _Parser(argparse.ArgumentParser):
     """argparse with errors on one line (the CLI's rule for every error), still exit code 2."""
 
-    def error(self, message: str) -> Any:  # type: ignore[override]
+    def error(self, message: str) -> Any:
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
 
-def _version() -> str:
-    """The installed distribution's version (importlib.metadata reads it without importing the package)."""
-    from importlib import metadata
-
-    try:
-        return metadata.version("grippers")
-    except metadata.PackageNotFoundError:  # running from a source tree that was never installed
-        return "unknown"
-
-
 class _VersionAction(argparse.Action):
-    """``--version``, looked up only when asked: importlib.metadata is not free, and --help must stay fast."""
+    """``--version``: the one source of the version, grippers/_version.py (pyproject.toml reads it too)."""
 
     def __call__(self, parser: argparse.ArgumentParser, *_: Any) -> None:
-        print(f"grippers {_version()}")
+        from grippers._version import __version__
+
+        print(f"grippers {__version__}")
         parser.exit(0)
+
+
+EXIT_CODES = "Exit codes: 0 ok, 1 failed or nothing found, 2 usage error, 130 interrupted (Ctrl-C)."
 
 
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(
         prog="grippers",
         description="Drive robot grippers (WSG, MSG/STEPFOC) and their simulators.",
-        epilog="Example: grippers probe sim://\nExit codes: 0 ok, 1 failed or nothing found, 2 usage error.",
+        epilog=f"Example: grippers probe sim://\n{EXIT_CODES}",
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("--debug", action="store_true", help="show tracebacks on errors")
     parser.add_argument("--version", action=_VersionAction, nargs=0, help="print the version and exit")
+    logs.add_arguments(parser, suppress=False)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name, spec in SUBCOMMANDS.items():
         command = _load(spec)
@@ -87,10 +85,11 @@ def build_parser() -> argparse.ArgumentParser:
             name,
             help=command.HELP,
             description=command.HELP,
-            epilog=f"Example: {command.EXAMPLE}",
+            epilog=f"Example: {command.EXAMPLE}\n{EXIT_CODES}",
             formatter_class=argparse.RawDescriptionHelpFormatter,
         )
         sp.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help="show tracebacks")
+        logs.add_arguments(sp, suppress=True)
         command.add_arguments(sp)
         sp.set_defaults(_module=command)
     return parser
@@ -98,13 +97,19 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)  # exits 2 on usage errors, with argparse's message
+    args, unknown = parser.parse_known_args(argv)  # exits 2 on usage errors, with argparse's message
     module = getattr(args, "_module", None)
     if module is None:
+        if unknown:
+            parser.error(_unrecognized(parser, unknown))
         parser.print_help()
         return 2
+    if unknown:  # the subcommand names the mistake and its own --help, not the top-level parser
+        command_parser = _subparsers(parser)[args.command]
+        command_parser.error(_unrecognized(command_parser, unknown))
     from .output import EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE, UsageError, error_line
 
+    handler = logs.setup(args)
     try:
         return int(module.run(args) or 0)
     except KeyboardInterrupt:
@@ -122,6 +127,26 @@ def main(argv: Sequence[str] | None = None) -> int:
         if isinstance(exc, UsageError) or _is_usage_error(exc):
             return EXIT_USAGE
         return EXIT_FAILED
+    finally:
+        logs.teardown(handler)
+
+
+def _subparsers(parser: argparse.ArgumentParser) -> dict[str, argparse.ArgumentParser]:
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            return dict(action.choices)
+    return {}
+
+
+def _unrecognized(parser: argparse.ArgumentParser, unknown: list[str]) -> str:
+    """``unrecognized --forse; did you mean --force?``: this command's nearest option, if one is close."""
+    import difflib
+
+    options = [o for action in parser._actions for o in action.option_strings if o.startswith("--")]
+    first = next((u for u in unknown if u.startswith("-")), unknown[0])
+    close = difflib.get_close_matches(first.split("=", 1)[0], options, n=1, cutoff=0.75)
+    hint = f"; did you mean {close[0]}?" if close else ""
+    return f"unrecognized {' '.join(unknown)}{hint}"
 
 
 def _is_usage_error(exc: BaseException) -> bool:

@@ -13,7 +13,7 @@ import argparse
 import math
 from typing import TYPE_CHECKING, Any
 
-from .output import fmt_firmware, m_to_mm, to_plain
+from .output import m_to_mm, to_plain
 
 if TYPE_CHECKING:
     from grippers.gripper import DeviceInfo, Gripper, GripperState
@@ -158,14 +158,13 @@ def limits_dict(limits: Limits) -> dict[str, Any]:
 
 def info_dict(info: DeviceInfo) -> dict[str, Any]:
     extra = to_plain(info.extra) or {}
-    if info.firmware and "-rc" in info.firmware:  # a release candidate: kept, but out of the x.y.z field
-        extra["firmware_full"] = info.firmware
     return {
         "family": info.family,
         "vendor": info.vendor,
         "model": info.model,
         "profile": info.profile,
-        "firmware": fmt_firmware(info.firmware),
+        # As the API says it, nothing added or cut (issue 22 §1: the MSG's '12' read '12.0.0' here before).
+        "firmware": info.firmware,
         "hardware": info.hardware,
         "serial": info.serial,
         "limits": limits_dict(info.limits),

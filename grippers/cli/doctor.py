@@ -35,12 +35,34 @@ EXTRAS = {  # extra -> (the module it brings, what it is for)
 }
 
 
+TROUBLESHOOTING = "docs/troubleshooting.md"
+# Which section of the troubleshooting page explains a check that is not ok, by the check's first word.
+SEE = {
+    "python-can": "#installing",
+    "pyserial": "#installing",
+    "pydantic": "#installing",
+    "can:": "#can-bus",
+    "socketcan": "#can-bus",
+    "vcan": "#can-bus",
+    "serial": "#serial-ports",
+    "route": "#network-wsg",
+    "extra": "#installing",
+}
+
+
 @dataclass(frozen=True)
 class Check:
     name: str
     status: str  # ok, warn, fail
     detail: str
     fix: str | None = None
+
+    @property
+    def see(self) -> str | None:
+        """The troubleshooting section explaining a check that is not ok (issue 22 §4)."""
+        if self.status == "ok":
+            return None
+        return TROUBLESHOOTING + SEE.get(self.name.split()[0], "")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -277,12 +299,14 @@ def run(args: argparse.Namespace) -> int:
     checks = collect()
     failed = any(c.status == "fail" for c in checks)
     if args.json:
-        write_json({"schema": DOCTOR_SCHEMA_ID, "ok": not failed, "checks": [asdict(c) for c in checks]})
+        rows = [{**asdict(c), "see": c.see} for c in checks]
+        write_json({"schema": DOCTOR_SCHEMA_ID, "ok": not failed, "checks": rows})
     else:
         width = max(len(c.name) for c in checks)
         for c in checks:  # one line each: status, what, what was found, and the fix when there is one
             fix = f"; fix: {c.fix}" if c.fix and c.status != "ok" else ""
-            print(f"{c.status.upper():<4}  {c.name:<{width}}  {c.detail}{fix}")
+            see = f" (see {c.see})" if c.see else ""
+            print(f"{c.status.upper():<4}  {c.name:<{width}}  {c.detail}{fix}{see}")
         counts = {s: sum(c.status == s for c in checks) for s in ("ok", "warn", "fail")}
         print(f"\n{counts['ok']} ok, {counts['warn']} warning(s), {counts['fail']} failure(s)")
     sys.stdout.flush()

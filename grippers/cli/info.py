@@ -6,6 +6,7 @@ import argparse
 from typing import Any
 
 from .common import add_common, add_target, info_dict, open_gripper
+from .logs import issued_warnings
 from .output import EXIT_OK, INFO_SCHEMA_ID, fmt_num, key_values, write_json
 
 HELP = "show vendor, model, firmware, serial number and limits of a gripper"
@@ -47,7 +48,9 @@ def run(args: argparse.Namespace) -> int:
     finally:
         gripper.close()
     if args.json:
-        write_json({"schema": INFO_SCHEMA_ID, "target": args.target, "info": info})
+        write_json(
+            {"schema": INFO_SCHEMA_ID, "target": args.target, "info": info, "warnings": issued_warnings()}
+        )
     else:
         print(render(info))
     return EXIT_OK

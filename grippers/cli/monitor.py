@@ -10,8 +10,6 @@ simulators understand, and there is no second copy of any byte layout here.
 from __future__ import annotations
 
 import argparse
-import dataclasses
-import enum
 import selectors
 import socket
 import sys
@@ -27,6 +25,8 @@ EXAMPLE = (
     "grippers monitor capture.log            (candump -L format)\n"
     "         grippers monitor wsg.hex --protocol wsg\n"
     "         grippers monitor -i socketcan -c can0 --protocol stepfoc\n"
+    "         grippers monitor stepfoc+can://socketcan/can0      (the URL the other commands take)\n"
+    "         grippers monitor wsg+tcp://192.168.1.20            (through a proxy on a free port)\n"
     "         grippers monitor --proxy 127.0.0.1:1000 --to 192.168.1.20:1000\n"
     "         candump -L can0 | grippers monitor -\n"
     "         grippers monitor -i socketcan -c can0 -t r --write session.log   (record a fixture)"
@@ -34,8 +34,6 @@ EXAMPLE = (
 
 PROTOCOLS = ("auto", "wsg", "stepfoc")
 FORMATS = ("auto", "candump", "hex", "raw")
-TO_GRIPPER = "host->gripper"
-FROM_GRIPPER = "gripper->host"
 
 
 def _host_port(text: str) -> tuple[str, int]:
@@ -51,7 +49,11 @@ def _host_port(text: str) -> tuple[str, int]:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
-        "capture", nargs="?", metavar="FILE", help="capture file, or - for stdin; omit with -i/-c or --proxy"
+        "capture",
+        nargs="?",
+        metavar="FILE|URL",
+        help="capture file, or - for stdin; or a URL: can://IF/CH, stepfoc+can://IF/CH, wsg+can://IF/CH "
+        "(a live bus, like -i/-c), wsg+tcp://HOST[:PORT] (through the proxy); omit with -i/-c or --proxy",
     )
     parser.add_argument("--format", choices=FORMATS, default="auto", help="capture format (default: detect)")
     parser.add_argument(
@@ -111,305 +113,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_can_flags(parser)
 
 
-# --- values to JSON ----------------------------------------------------------------------------------------
-
-
-def field_value(value: Any) -> Any:
-    """A decoded field as plain JSON: flags as lists of names, enums by name, records as objects."""
-    if isinstance(value, enum.IntFlag):
-        return [m.name for m in type(value) if m.name and m in value]
-    if isinstance(value, enum.Enum):
-        return value.name
-    if isinstance(value, float):
-        return round(value, 6)
-    if isinstance(value, bytes | bytearray):
-        return bytes(value).hex()
-    if type(value).__name__ == "FirmwareVersion":  # has its own major.minor1.minor2 form
-        return str(value)
-    if dataclasses.is_dataclass(value) and not isinstance(value, type):
-        return {f.name: field_value(getattr(value, f.name)) for f in dataclasses.fields(value)}
-    if isinstance(value, dict):
-        return {str(k): field_value(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [field_value(v) for v in value]
-    return value
-
-
-def _record(**fields: Any) -> dict[str, Any]:
-    base: dict[str, Any] = {
-        "time": None,
-        "protocol": "wsg",
-        "direction": "?",
-        "id": None,
-        "node": None,
-        "command": None,
-        "fields": {},
-        "status": None,
-        "text": "",
-        "raw": None,
-    }
-    base.update(fields)
-    return base
-
-
-# --- WSG ---------------------------------------------------------------------------------------------------
-
-
-class WsgStream:
-    """Reassembles WSG packets from a byte stream per direction and decodes each with the command table."""
-
-    def __init__(self) -> None:
-        from grippers.drivers.wsg import commands, protocol
-
-        self._c = commands
-        self._p = protocol
-        self._parsers: dict[str, Any] = {}
-
-    def feed(self, direction: str, data: bytes, stamp: float | None) -> Iterator[dict[str, Any]]:
-        parser = self._parsers.get(direction)
-        if parser is None:
-            parser = self._parsers[direction] = self._p.PacketParser()
-        for item in parser.feed(data):
-            yield self.record(direction, item, stamp)
-
-    def busy(self, direction: str) -> bool:
-        parser = self._parsers.get(direction)
-        return parser is not None and parser.buffered > 0
-
-    def flush(self, stamp: float | None = None) -> Iterator[dict[str, Any]]:
-        """At the end of a capture: report a packet cut short as one record, then what was held behind it."""
-        for direction, parser in self._parsers.items():
-            cut = bytearray()
-            for _ in range(64):  # each round drops at least the three preamble bytes; bounded anyway
-                if not parser.buffered:
-                    break
-                parser.reset()
-                for item in parser.feed(b""):
-                    if isinstance(item, self._p.Discarded):
-                        cut += item.raw
-                        continue
-                    if cut:
-                        yield self._noise(direction, bytes(cut), "incomplete packet at the end", stamp)
-                        cut.clear()
-                    yield self.record(direction, item, stamp)
-            if cut:
-                yield self._noise(direction, bytes(cut), "incomplete packet at the end", stamp)
-
-    def _noise(self, direction: str, raw: bytes, reason: str, stamp: float | None) -> dict[str, Any]:
-        return _record(
-            time=stamp,
-            direction=direction,
-            status="noise",
-            fields={"bytes": len(raw), "reason": reason},
-            text=f"{len(raw)} byte(s) skipped: {reason}",
-            raw=raw.hex(),
-        )
-
-    def record(self, direction: str, item: Any, stamp: float | None) -> dict[str, Any]:
-        p, c = self._p, self._c
-        if isinstance(item, p.Discarded):
-            return self._noise(direction, item.raw, item.reason, stamp)
-        if isinstance(item, p.ChecksumError | p.BadLength):
-            problem = (
-                f"bad checksum (received {item.received:04X}h, expected {item.expected:04X}h)"
-                if isinstance(item, p.ChecksumError)
-                else f"bad length ({item.size} bytes, at most {item.max_payload})"
-            )
-            return _record(
-                time=stamp,
-                direction=direction,
-                id=f"{item.command:02X}h",
-                command=c.command_name(item.command),
-                status=problem,
-                text=f"{c.command_name(item.command)} {problem}",
-                raw=item.raw.hex(),
-            )
-        packet = item
-        if direction == "?":
-            direction = self._guess_direction(packet)
-        fields: dict[str, Any] = {}
-        status: str | None = None
-        try:
-            if direction == FROM_GRIPPER:
-                reply = c.decode_reply(packet.command, packet.payload)
-                status, fields = reply.status_name, reply.fields
-            else:
-                fields = c.decode_request(packet.command, packet.payload)
-        except Exception as exc:  # the table could not read it: shown, with why, never fatal
-            fields = {"error": str(exc)}
-        describe_as = "reply" if direction == FROM_GRIPPER else "request"
-        return _record(
-            time=stamp,
-            direction=direction,
-            id=f"{packet.command:02X}h",
-            command=c.command_name(packet.command),
-            fields=field_value(fields),
-            status=status,
-            text=c.describe(packet, describe_as),
-            raw=packet.encode().hex(),
-        )
-
-    def _guess_direction(self, packet: Any) -> str:
-        """Without direction marks: the layout that decodes wins (requests and replies differ in length).
-
-        A reply with an error status carries no data (WSG manual 4.0.x §1.2.2), so a longer payload whose
-        first two bytes are not E_SUCCESS is not a reply, even though the status alone would decode."""
-        c = self._c
-        fits = []
-        try:
-            c.decode_request(packet.command, packet.payload)
-            fits.append(TO_GRIPPER)
-        except Exception:
-            pass
-        try:
-            reply = c.decode_reply(packet.command, packet.payload)
-            if reply.ok or len(packet.payload) == 2:
-                fits.append(FROM_GRIPPER)
-        except Exception:
-            pass
-        return fits[0] if len(fits) == 1 else "?"
-
-
-# --- CAN ---------------------------------------------------------------------------------------------------
-
-
-class CanDecoder:
-    """Decodes CAN frames: STEPFOC frames by the drivers' table, WSG packets reassembled from their ids."""
-
-    def __init__(self, protocol: str, wsg_id: int) -> None:
-        self.protocol = protocol
-        self.wsg_id = wsg_id
-        self._wsg: WsgStream | None = None
-
-    def _wsg_stream(self) -> WsgStream:
-        if self._wsg is None:
-            self._wsg = WsgStream()
-        return self._wsg
-
-    def _is_wsg(self, arbitration_id: int, data: bytes, direction: str) -> bool:
-        if self.protocol != "auto":
-            return self.protocol == "wsg"
-        if arbitration_id not in (self.wsg_id, self.wsg_id + 1):
-            return False
-        # These ids are also a STEPFOC node's frames (0x000 is node 0's E-stop, which has no data): a frame is
-        # WSG when it starts a packet or continues one (docs/protocols.md §1 CAN: 8-byte chunks of a packet).
-        return data.startswith(b"\xaa") or (self._wsg is not None and self._wsg.busy(direction))
-
-    def decode(
-        self,
-        arbitration_id: int,
-        data: bytes,
-        is_remote: bool,
-        stamp: float | None,
-        *,
-        is_extended: bool = False,
-        is_fd: bool = False,
-        is_error: bool = False,
-    ) -> list[dict]:
-        """One frame to records. Never raises: a frame neither protocol can carry (an error frame, an
-        extended or CAN FD frame, an id above 0x7FF) is shown as what it is, and a decoding failure is a
-        record with the reason, so a live monitor outlives anything the bus carries."""
-        wide = is_extended or is_error or arbitration_id > 0x7FF
-        ident = f"{arbitration_id:08X}" if wide else f"{arbitration_id:03X}"
-        other = None
-        if is_error:
-            other = "error frame", f"CAN error frame (class 0x{arbitration_id:X}, data {data.hex() or '-'})"
-        elif is_extended or arbitration_id > 0x7FF:
-            # STEPFOC and the WSG use 11-bit identifiers only (docs/protocols.md §1 CAN, §2 CAN).
-            other = "extended frame", f"extended (29-bit) id, not a WSG or STEPFOC frame: {data.hex() or '-'}"
-        elif is_fd:
-            other = "fd frame", f"CAN FD frame ({len(data)} bytes), not a WSG or STEPFOC frame: {data.hex()}"
-        if other is not None:
-            return [
-                _record(
-                    time=stamp,
-                    protocol="can",
-                    id=ident,
-                    status=other[0],
-                    fields={"bytes": len(data)},
-                    text=other[1],
-                    raw="R" if is_remote else data.hex(),
-                )
-            ]
-        try:
-            return self._decode(arbitration_id, data, is_remote, stamp)
-        except Exception as exc:  # a bug or a table gap must not end the monitor: show the frame and why
-            return [
-                _record(
-                    time=stamp,
-                    protocol="can",
-                    id=ident,
-                    status="error",
-                    fields={"error": str(exc)},
-                    text=f"undecodable frame ({type(exc).__name__}: {exc}): {data.hex() or '-'}",
-                    raw="R" if is_remote else data.hex(),
-                )
-            ]
-
-    def _decode(self, arbitration_id: int, data: bytes, is_remote: bool, stamp: float | None) -> list[dict]:
-        direction = FROM_GRIPPER if arbitration_id == self.wsg_id + 1 else TO_GRIPPER
-        if not is_remote and self._is_wsg(arbitration_id, data, direction):
-            return list(self._wsg_stream().feed(direction, data, stamp))
-        from grippers.drivers.stepfoc import can_protocol as cp
-
-        node, command, _error = cp.unpack_id(arbitration_id)
-        base = {
-            "time": stamp,
-            "protocol": "stepfoc",
-            "id": f"{arbitration_id:03X}",
-            "node": node,
-            "raw": "R" if is_remote else data.hex(),
-            "text": cp.describe(arbitration_id, data, is_remote),
-        }
-        try:
-            msg = cp.decode_frame(arbitration_id, data, is_remote)
-        except Exception as exc:  # wrong length or a remote frame where data belongs: shown with why
-            spec = cp.COMMANDS.get(command)
-            return [
-                _record(
-                    **base,
-                    direction="?",
-                    command=spec.name if spec else f"command_{command}",
-                    status="error",
-                    fields={"error": str(exc)},
-                )
-            ]
-        if msg.value is None:
-            fields: dict[str, Any] = {}
-        elif dataclasses.is_dataclass(msg.value):
-            fields = field_value(msg.value)
-        else:
-            fields = {msg.name: field_value(msg.value)}
-        return [
-            _record(
-                **base,
-                direction=FROM_GRIPPER if msg.from_node else TO_GRIPPER,
-                command=msg.name,
-                fields=fields,
-                status="error" if msg.error else None,
-            )
-        ]
-
-    def flush(self) -> Iterator[dict[str, Any]]:
-        if self._wsg is not None:
-            yield from self._wsg.flush()
-
-
-# --- rendering ---------------------------------------------------------------------------------------------
-
-
-def render_line(rec: dict[str, Any]) -> str:
-    """time, arrow, protocol, then the drivers' own one-line description (the CAN id for STEPFOC frames)."""
-    stamp = "-" if rec["time"] is None else f"{rec['time']:.6f}"
-    arrow = {TO_GRIPPER: "->", FROM_GRIPPER: "<-"}.get(rec["direction"], "??")
-    text = rec["text"]
-    if rec["protocol"] == "wsg":
-        text = text.removeprefix("-> ").removeprefix("<- ")  # the arrow column says it already
-    else:
-        text = f"{rec['id']}  {text}"
-    return f"{stamp:>17}  {arrow}  {rec['protocol']:<7}  {text}".rstrip()
-
-
 # --- sources -----------------------------------------------------------------------------------------------
 
 
@@ -424,7 +127,7 @@ def _read_capture(name: str) -> bytes:
 
 
 def _capture_records(args: argparse.Namespace) -> Iterator[dict[str, Any]]:
-    from .captures import (
+    from grippers.drivers.captures import (
         FROM_DEVICE,
         TO_DEVICE,
         UNKNOWN_DIRECTION,
@@ -433,6 +136,8 @@ def _capture_records(args: argparse.Namespace) -> Iterator[dict[str, Any]]:
         parse_hex_dump,
         sniff_format,
     )
+    from grippers.drivers.dissect import CanDecoder
+    from grippers.drivers.wsg.dissect import WsgStream
 
     blob = _read_capture(args.capture)
     fmt = args.format if args.format != "auto" else sniff_format(blob)
@@ -468,7 +173,8 @@ def _capture_records(args: argparse.Namespace) -> Iterator[dict[str, Any]]:
 def _live_can_records(args: argparse.Namespace, writer: Writer | None) -> Iterator[dict[str, Any]]:
     import can
 
-    from .captures import format_candump
+    from grippers.drivers.captures import format_candump
+    from grippers.drivers.dissect import CanDecoder
 
     if not (args.interface and args.channel):
         raise UsageError(
@@ -506,7 +212,9 @@ def _proxy_records(args: argparse.Namespace, writer: Writer | None) -> Iterator[
     Each client connection gets its own connection to the gripper and its own parsers, so two programs
     talking through the proxy do not garble each other's packets.
     """
-    from .captures import format_hex_line
+    from grippers.drivers.captures import format_hex_line
+    from grippers.drivers.dissect import FROM_GRIPPER, TO_GRIPPER
+    from grippers.drivers.wsg.dissect import WsgStream
 
     if args.to is None:
         raise UsageError("--proxy needs --to HOST:PORT (the gripper)")
@@ -541,10 +249,12 @@ def _proxy_records(args: argparse.Namespace, writer: Writer | None) -> Iterator[
                         sock.setblocking(False)
                         sel.register(sock, selectors.EVENT_READ, (peer, direction, stream))
                     continue
-                sock = key.fileobj
+                ready = key.fileobj
+                assert isinstance(ready, socket.socket)  # only sockets are registered
+                sock = ready
                 peer, direction, stream = key.data
                 try:
-                    data = sock.recv(65536)  # type: ignore[union-attr]
+                    data = sock.recv(65536)
                     if data:
                         peer.sendall(data)
                 except OSError:
@@ -555,7 +265,7 @@ def _proxy_records(args: argparse.Namespace, writer: Writer | None) -> Iterator[
                             sel.unregister(s)
                         except (KeyError, ValueError):
                             pass
-                        s.close()  # type: ignore[union-attr]
+                        s.close()
                     continue
                 stamp = time.time()
                 if writer is not None:
@@ -588,7 +298,49 @@ class _Clock:
         return shown
 
 
+def apply_url(args: argparse.Namespace) -> None:
+    """A connection URL in place of the capture FILE: the URLs every other command takes (issue 22 §2).
+
+    ``can://IF/CH`` and ``stepfoc+can://IF/CH`` or ``wsg+can://IF/CH[?send_id=ID]`` watch that bus (the family
+    picks the decoder when ``--protocol`` is auto; ``?bitrate=`` as ``-b``); ``wsg+tcp://HOST[:PORT]`` relays
+    through the proxy (``--proxy``, default a free loopback port) to that gripper. Flags given beside the URL
+    win over what the URL says, as they do for ``grippers.open``.
+    """
+    target = args.capture
+    if target is None or "://" not in target:
+        return
+    from grippers.errors import URLError
+    from grippers.profiles import WsgTransport
+    from grippers.urls import parse_url
+
+    bare = target.lower().startswith("can://")
+    url = parse_url(("stepfoc+" + target) if bare else target)
+    if url.transport == "can":
+        args.interface = args.interface or url.interface
+        args.channel = args.channel or url.channel
+        if args.bitrate is None and "bitrate" in url.params:
+            args.bitrate = int(url.params["bitrate"], 0)
+        if args.protocol == "auto" and not bare:
+            args.protocol = url.family
+        if url.family == "wsg" and "send_id" in url.params:
+            args.wsg_id = can_id(url.params["send_id"])
+    elif url.family == "wsg" and url.transport == "tcp":
+        if args.to is None:
+            args.to = (url.host, url.port or WsgTransport().tcp_port)
+        if args.proxy is None:
+            args.proxy = ("127.0.0.1", 0)
+    else:
+        raise URLError(
+            "monitor watches a CAN bus (can://IF/CH, stepfoc+can://, wsg+can://) or a WSG over TCP through "
+            f"its proxy (wsg+tcp://HOST[:PORT]), not {target}"
+        )
+    args.capture = None
+
+
 def run(args: argparse.Namespace) -> int:
+    from grippers.drivers.dissect import render_line
+
+    apply_url(args)
     live_can = bool(args.interface or args.channel)
     sources = sum((args.capture is not None, live_can, args.proxy is not None))
     if sources == 0:

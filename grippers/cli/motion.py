@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from .common import add_common, add_target, non_negative_float, open_gripper, positive_float, state_dict
+from .logs import issued_warnings
 from .output import (
     EXIT_FAILED,
     EXIT_OK,
@@ -81,6 +82,7 @@ class MotionCommand:
             "ok": ok,
             "result": result_dict(result),
             "state": None if state is None else state_dict(state),
+            "warnings": issued_warnings(),
         }
         if args.json:
             write_json(document)
@@ -194,7 +196,7 @@ def _move_args(parser: argparse.ArgumentParser) -> None:
 
 
 def _move(g: Gripper, a: argparse.Namespace) -> Any:
-    return g.move(mm_to_m(a.width), mm_to_m(a.speed), timeout=a.motion_timeout)
+    return g.move(a.width / 1000.0, mm_to_m(a.speed), timeout=a.motion_timeout)
 
 
 def _grasp_args(parser: argparse.ArgumentParser) -> None:
@@ -210,7 +212,7 @@ def _grasp_args(parser: argparse.ArgumentParser) -> None:
 
 
 def _grasp(g: Gripper, a: argparse.Namespace) -> Any:
-    width = g.limits.min_width if a.width is None else mm_to_m(a.width)
+    width = g.limits.min_width if a.width is None else a.width / 1000.0
     return g.grasp(width, mm_to_m(a.speed), a.force, timeout=a.motion_timeout)
 
 

@@ -171,17 +171,14 @@ def garbage_check(url: str, timeout: float) -> str | None:
     family, _, transport = parts.scheme.partition("+")
     goodbye = b""
     if family == "wsg":
-        from grippers.drivers.wsg.commands import Cmd
-        from grippers.drivers.wsg.protocol import encode_packet
+        from grippers.drivers.wsg import probe as wsg_probe
 
-        request = encode_packet(Cmd.GET_SYSTEM_INFO)
-        # A WSG whose TCP connection closes without 07h enters FAST STOP (docs/protocols.md §1 "Field
-        # details"): a slow but real gripper must not be left in it by this check.
-        goodbye = encode_packet(Cmd.DISCONNECT) if transport == "tcp" else b""
+        request = wsg_probe.identify_request()
+        goodbye = wsg_probe.goodbye(transport)  # a WSG on TCP must not be left in FAST STOP by this check
     elif family == "stepfoc" and transport == "serial":
-        from grippers.drivers.stepfoc.uart_protocol import format_command
+        from grippers.drivers.stepfoc import probe as stepfoc_probe
 
-        request = format_command("Gripinfo")
+        request = stepfoc_probe.identify_request()
     else:
         return None
     received = b""
@@ -232,9 +229,9 @@ def garbage_check(url: str, timeout: float) -> str | None:
 
 
 def _has_wsg_packet(data: bytes) -> bool:
-    from grippers.drivers.wsg.protocol import Packet, PacketParser
+    from grippers.drivers.wsg.probe import holds_a_packet
 
-    return any(isinstance(item, Packet) for item in PacketParser().feed(data))
+    return holds_a_packet(data)
 
 
 def _reason(exc: BaseException) -> str:

@@ -13,6 +13,11 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
+# The firmware exactly as the API's DeviceInfo.firmware says it (issue 22 §1: one value everywhere): the WSG's
+# major.minor1.minor2 with a release candidate's -rcN, the MSG's single software-version number.
+FIRMWARE_TEXT = "as grippers' DeviceInfo.firmware: WSG 4.0.1 (or 4.0.1-rc2), MSG 12 (one number)"
+FIRMWARE_PATTERN = r"^\d+(\.\d+){0,2}(-[0-9A-Za-z.]+)?$"
+
 
 class _Strict(BaseModel):
     model_config = ConfigDict(extra="forbid", strict=True)
@@ -67,7 +72,7 @@ class Device(_Strict):
     vendor: str
     model: str
     profile: str = Field(description="the device profile used")
-    firmware: str | None = Field(description="major.minor1.minor2", pattern=r"^\d+\.\d+\.\d+$")
+    firmware: str | None = Field(description=FIRMWARE_TEXT, pattern=FIRMWARE_PATTERN)
     hardware: str | None
     serial: str | None
     location: Location
@@ -108,6 +113,10 @@ class StateDocument(_Strict):
     target: str
     time: float = Field(description="Unix time of the reading")
     state: State
+    warnings: list[str] = Field(
+        default_factory=list,
+        description="what the library assumed (grippers.GripperWarning), e.g. an MSG taken as msg-150",
+    )
 
 
 class Info(_Strict):
@@ -115,7 +124,7 @@ class Info(_Strict):
     vendor: str
     model: str
     profile: str
-    firmware: str | None = Field(description="major.minor1.minor2", pattern=r"^\d+\.\d+\.\d+$")
+    firmware: str | None = Field(description=FIRMWARE_TEXT, pattern=FIRMWARE_PATTERN)
     hardware: str | None
     serial: str | None
     limits: Limits
@@ -126,6 +135,10 @@ class InfoDocument(_Strict):
     schema_: Literal["grippers.info/1"] = Field(alias="schema")
     target: str
     info: Info
+    warnings: list[str] = Field(
+        default_factory=list,
+        description="what the library assumed (grippers.GripperWarning), e.g. an MSG taken as msg-150",
+    )
 
 
 class MotionOutcome(_Strict):
@@ -152,6 +165,10 @@ class ResultDocument(_Strict):
         description="move/release: MotionOutcome; grasp: GraspOutcome; home, stop, ack: null"
     )
     state: State | None = Field(description="the state read back after the command")
+    warnings: list[str] = Field(
+        default_factory=list,
+        description="what the library assumed (grippers.GripperWarning), e.g. an MSG taken as msg-150",
+    )
 
 
 class MonitorRecord(_Strict):
@@ -226,6 +243,10 @@ class DoctorCheck(_Strict):
     status: Literal["ok", "warn", "fail"]
     detail: str
     fix: str | None = Field(description="the command or step that fixes a warn or fail")
+    see: str | None = Field(
+        default=None,
+        description="for a warn or fail: the section of docs/troubleshooting.md that explains it",
+    )
 
 
 class DoctorDocument(_Strict):
@@ -234,6 +255,14 @@ class DoctorDocument(_Strict):
     schema_: Literal["grippers.doctor/1"] = Field(alias="schema")
     ok: bool
     checks: list[DoctorCheck]
+
+
+class SimDocument(_Strict):
+    """``grippers sim wsg|msg --json``: where the simulator (or a replay) serves, printed once at start."""
+
+    schema_: Literal["grippers.sim/1"] = Field(alias="schema")
+    what: str = Field(description="what is served, e.g. 'simulated WSG 50 (firmware 4.0.1)'")
+    urls: list[str] = Field(description="the URLs a client opens, one per simulated device")
 
 
 SCHEMAS: dict[str, type[BaseModel]] = {
@@ -245,6 +274,7 @@ SCHEMAS: dict[str, type[BaseModel]] = {
     "grippers.profiles/1": ProfilesDocument,
     "grippers.settings/1": SettingsDocument,
     "grippers.doctor/1": DoctorDocument,
+    "grippers.sim/1": SimDocument,
 }
 
 

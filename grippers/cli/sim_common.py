@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 import argparse
+import errno
+import re
 import signal
 import sys
 import threading
+from collections.abc import Callable
 from typing import Any
 
 from .common import non_negative_float, positive_float
@@ -36,6 +39,55 @@ def add_sim_arguments(parser: argparse.ArgumentParser, default_profile: str, lis
         help="answer as the captured session did (a capture saved by grippers monitor --write); a request "
         "that differs from the capture is reported on stderr and not answered",
     )
+    parser.add_argument(
+        "--json",
+        action="store_true",
+        help="print where to connect as one JSON document (schema grippers.sim/1) instead of the sentence",
+    )
+
+
+SIM_SCHEMA_ID = "grippers.sim/1"
+
+
+def bind_error(exc: OSError, listen: str) -> str:
+    """One line saying why a listening socket could not be opened, and what to do instead."""
+    free = re.sub(r":\d+$", ":0", listen)
+    if exc.errno in (errno.EACCES, errno.EPERM):
+        return (
+            f"cannot listen on {listen}: ports below 1024 need root (or CAP_NET_BIND_SERVICE); "
+            f"--listen {free} picks a free port"
+        )
+    if exc.errno == errno.EADDRINUSE:
+        return (
+            f"cannot listen on {listen}: the port is in use (another simulator?); --listen {free} picks one"
+        )
+    return f"cannot listen on {listen}: {exc.strerror or exc}"
+
+
+def start_server(start: Callable[[str], Any], listen: str | None, default: str) -> Any:
+    """Start a server on ``listen`` or on ``default``, the device's real port.
+
+    A user who did not ask for a port gets one that works: when the default is refused for want of root (the
+    WSG's port 1000 is privileged), the simulator serves on a free port and says so on one line. A port the
+    user named is never changed: its failure is one line with the fix.
+    """
+    where = listen or default
+    try:
+        return start(where)
+    except OSError as exc:
+        if listen is None and exc.errno in (errno.EACCES, errno.EPERM):
+            free = re.sub(r":\d+$", ":0", default)
+            print(
+                f"grippers sim: warning: {default} needs root (ports below 1024); serving on a free port "
+                f"instead (--listen {free})",
+                file=sys.stderr,
+                flush=True,
+            )
+            try:
+                return start(free)
+            except OSError as again:
+                raise OSError(bind_error(again, free)) from None
+        raise OSError(bind_error(exc, where)) from None
 
 
 class _Terminated(Exception):
@@ -55,9 +107,10 @@ def warn_private_bus(listen: str) -> None:
         )
 
 
-def serve_forever(server: Any, what: str, urls: list[str] | None = None) -> int:
-    """Print where to connect (first line, for people and for scripts; one line per extra node), then serve
-    until Ctrl-C (exit 130, like every command) or SIGTERM (exit 0)."""
+def serve_forever(server: Any, what: str, urls: list[str] | None = None, *, as_json: bool = False) -> int:
+    """Print where to connect (first line, for people and for scripts; one line per extra node; with --json
+    one document ``{"schema": "grippers.sim/1", "what": ..., "urls": [...]}``), then serve until Ctrl-C (exit
+    130, like every command) or SIGTERM (exit 0)."""
 
     def _terminate(*_: object) -> None:
         raise _Terminated
@@ -65,9 +118,14 @@ def serve_forever(server: Any, what: str, urls: list[str] | None = None) -> int:
     previous = signal.signal(signal.SIGTERM, _terminate)
     urls = urls or [server.url]
     try:
-        print(f"{what} serving at {urls[0]}", flush=True)
-        for url in urls[1:]:
-            print(f"  also at {url}", flush=True)
+        if as_json:
+            from .output import write_json
+
+            write_json({"schema": SIM_SCHEMA_ID, "what": what, "urls": urls})
+        else:
+            print(f"{what} serving at {urls[0]}", flush=True)
+            for url in urls[1:]:
+                print(f"  also at {url}", flush=True)
         threading.Event().wait()  # forever; the signal handlers end it
     except _Terminated:
         return 0
@@ -79,8 +137,9 @@ def serve_forever(server: Any, what: str, urls: list[str] | None = None) -> int:
 
 def serve_replay(args: argparse.Namespace, family: str) -> int:
     """``--replay FILE``: serve the capture instead of a simulated device; exit 1 if a request mismatched."""
-    from . import replay
-    from .captures import CaptureError
+    from grippers.drivers.captures import CaptureError
+    from grippers.drivers.replay import summary
+
     from .output import UsageError
 
     try:
@@ -90,15 +149,23 @@ def serve_replay(args: argparse.Namespace, family: str) -> int:
         raise UsageError(f"--replay {args.replay}: {exc.strerror or exc}") from None
     try:
         if family == "wsg":
-            script = replay.wsg_script(blob, args.replay)
+            from grippers.drivers.wsg.sim.replay import WsgReplayServer, wsg_script
+
+            script = wsg_script(blob, args.replay)
             listen = args.listen or "tcp://127.0.0.1:1000"
             scheme, _, rest = listen.partition("://")
             host, _, port = rest.rpartition(":")
             if scheme != "tcp" or not host or not port.isdigit():
                 raise UsageError(f"--replay serves a WSG on tcp://HOST:PORT, not {listen!r}")
-            server: Any = replay.WsgReplayServer(script, host.strip("[]"), int(port), args.time_scale)
+            server: Any = start_server(
+                lambda _: WsgReplayServer(script, host.strip("[]"), int(port), args.time_scale),
+                listen,
+                listen,
+            )
         else:
-            script = replay.stepfoc_script(blob, args.replay)
+            from grippers.drivers.stepfoc.sim.replay import StepfocReplayServer, stepfoc_script
+
+            script = stepfoc_script(blob, args.replay)
             listen = args.listen or ""
             if not listen.startswith("can://"):
                 raise UsageError(
@@ -112,13 +179,13 @@ def serve_replay(args: argparse.Namespace, family: str) -> int:
             if interface in ("virtual", "udp_multicast"):
                 bus.pop("bitrate", None)
             warn_private_bus(listen)
-            server = replay.StepfocReplayServer(script, interface, channel, args.time_scale, **bus)
+            server = StepfocReplayServer(script, interface, channel, args.time_scale, **bus)
     except (CaptureError, ValueError) as exc:
         raise UsageError(f"--replay {args.replay}: {exc}") from None
     try:
-        code = serve_forever(server, f"replay of {args.replay}")
+        code = serve_forever(server, f"replay of {args.replay}", as_json=args.json)
     finally:
-        print(replay.summary(script), file=sys.stderr, flush=True)
+        print(summary(script), file=sys.stderr, flush=True)
     return 1 if script.mismatches else code
 
 

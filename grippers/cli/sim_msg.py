@@ -29,7 +29,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from grippers.backends import get_backend
-    from grippers.profiles import load_profile
+    from grippers.profiles import MsgProfile, load_profile
 
     if args.replay:
         return serve_replay(args, "stepfoc")
@@ -37,7 +37,7 @@ def run(args: argparse.Namespace) -> int:
     from .output import UsageError
 
     profile = load_profile(args.profile)
-    if profile.family != "stepfoc":
+    if not isinstance(profile, MsgProfile):
         raise UsageError(f"profile {profile.name} is a {profile.family} profile, not an MSG one")
     backend = get_backend("stepfoc")
     listen = args.listen or "pty"
@@ -81,4 +81,4 @@ def run(args: argparse.Namespace) -> int:
     urls = list(urls() if callable(urls) else urls or [server.url])
     if bus_query:  # a client needs the same port to reach the bus
         urls = [f"{u}&{bus_query}" for u in urls]
-    return serve_forever(server, what, urls)
+    return serve_forever(server, what, urls, as_json=args.json)

@@ -4,7 +4,18 @@ from __future__ import annotations
 
 import argparse
 
-from .sim_common import add_sim_arguments, serve_forever, serve_replay, settings_for, warn_private_bus
+from .sim_common import (
+    add_sim_arguments,
+    serve_forever,
+    serve_replay,
+    settings_for,
+    start_server,
+    warn_private_bus,
+)
+
+# The WSG's own port (docs/protocols.md §1): scripts written for the device work unchanged against the
+# simulator. A user without root gets a free port instead, and is told (sim_common.start_server).
+DEFAULT_LISTEN = "tcp://127.0.0.1:1000"
 
 HELP = "simulate a WSG gripper (binary protocol) on tcp://, udp://, pty or can://"
 EXAMPLE = (
@@ -20,7 +31,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         parser,
         "wsg50",
         "tcp://HOST:PORT, udp://HOST:PORT, pty or can://INTERFACE/CHANNEL[?send_id=ID&recv_id=ID] (default "
-        "tcp://127.0.0.1:1000; port 0 picks a free port; binds to loopback unless a host is named)",
+        "tcp://127.0.0.1:1000, the device's port, or a free port for a user without root; port 0 picks a "
+        "free port; binds to loopback unless a host is named)",
     )
     parser.add_argument(
         "--firmware",
@@ -46,8 +58,11 @@ def run(args: argparse.Namespace) -> int:
     warn_private_bus(args.listen or "")
     settings = settings_for(profile, args, firmware=args.firmware)
     try:
-        server = backend.simulator(profile, settings, listen=args.listen or "tcp://127.0.0.1:1000")
+        server = start_server(
+            lambda where: backend.simulator(profile, settings, listen=where), args.listen, DEFAULT_LISTEN
+        )
     except ValueError as exc:  # a malformed --listen or --firmware: the command line's fault
         raise UsageError(str(exc)) from None
     settings.finish()
-    return serve_forever(server, f"simulated {profile.model} (firmware {server.model.firmware})")
+    what = f"simulated {profile.model} (firmware {server.model.firmware})"
+    return serve_forever(server, what, as_json=args.json)

@@ -10,21 +10,28 @@ import time
 from typing import TYPE_CHECKING, Any
 
 from .common import add_common, add_target, open_gripper, positive_float, state_dict
+from .logs import issued_warnings
 from .output import EXIT_OK, STATE_SCHEMA_ID, fmt_num, key_values, write_json
 
 if TYPE_CHECKING:
     from grippers.gripper import GripperState
 
 HELP = "show the gripper's state (width, force, grasp state, faults), once or live with --watch"
-EXAMPLE = "grippers state wsg+tcp://127.0.0.1:1000 --watch --interval 0.2"
+EXAMPLE = "grippers state wsg+tcp://127.0.0.1:1000 --watch --rate 5"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_target(parser)
     parser.add_argument("-w", "--watch", action="store_true", help="keep showing the state until Ctrl-C")
     parser.add_argument(
-        "--interval", type=positive_float, default=0.5, metavar="SECONDS", help="--watch period (default 0.5)"
+        "--rate",
+        type=positive_float,
+        default=2.0,
+        metavar="HZ",
+        help="--watch readings per second (default 2), the spelling of record and serve",
     )
+    # The old spelling keeps working for scripts written before the commands agreed on --rate.
+    parser.add_argument("--interval", type=positive_float, metavar="SECONDS", help=argparse.SUPPRESS)
     parser.add_argument(
         "-n",
         "--count",
@@ -42,6 +49,7 @@ def document(target: str, state: GripperState) -> dict[str, Any]:
         "target": target,
         "time": round(state.timestamp, 6),
         "state": state_dict(state),
+        "warnings": issued_warnings(),
     }
 
 
@@ -90,7 +98,8 @@ def run(args: argparse.Namespace) -> int:
                 print(render(doc))
             return EXIT_OK
         # The API's stream paces the readings and survives a slow terminal by dropping the oldest.
-        with gripper.stream(rate_hz=1.0 / args.interval) as states:
+        rate = args.rate if args.interval is None else 1.0 / args.interval
+        with gripper.stream(rate_hz=rate) as states:
             for readings, state in enumerate(states, start=1):
                 doc = document(args.target, state)
                 if args.json:

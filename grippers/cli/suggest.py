@@ -12,6 +12,8 @@ import re
 from collections.abc import Iterable
 
 TRANSPORTS = ("tcp", "udp", "serial", "can")
+# The suffixes grippers.profiles reads (PROFILE_SUFFIXES; not imported: this module must not load pydantic).
+PROFILE_FILES = (".toml", ".yaml", ".yml", ".json")
 # What a bare transport carries (docs/protocols.md §1 "Transport defaults", §2): the family URLs to try.
 BARE = {
     "tcp": ("wsg+tcp://{rest}",),
@@ -42,6 +44,8 @@ def suggest(target: str, families: Iterable[str], profiles: Iterable[str]) -> st
         m = re.fullmatch(r"([A-Za-z][A-Za-z0-9+]*):/*(.+)", text)
         if m and (m[1].lower() in TRANSPORTS or "+" in m[1] or m[1].lower() == "sim"):
             return suggest(f"{m[1]}://{m[2]}", families, profiles) or f"{m[1]}://{m[2]}"  # wsg+tcp:/host
+        if text.lower().endswith(PROFILE_FILES):
+            return None  # a profile file's name (nope.toml): its own error says "not found", not a host
         if _looks_like_host(text):
             return f"wsg+tcp://{text}"  # a bare address: the WSG is the family on Ethernet
         if text in profiles:

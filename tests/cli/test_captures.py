@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from grippers.cli.captures import (
+from grippers.drivers.captures import (
     FROM_DEVICE,
     TO_DEVICE,
     UNKNOWN_DIRECTION,

@@ -10,7 +10,7 @@ from pathlib import Path
 import can
 
 from grippers.cli import main
-from grippers.cli.captures import format_candump, format_hex_line, parse_candump, parse_hex_dump
+from grippers.drivers.captures import format_candump, format_hex_line, parse_candump, parse_hex_dump
 
 ODD_FRAMES = "\n".join(
     [

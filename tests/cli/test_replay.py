@@ -17,8 +17,8 @@ import can
 import pytest
 
 from grippers.cli import main
-from grippers.cli.captures import format_candump
-from grippers.cli.replay import Mismatch, Script, Step
+from grippers.drivers.captures import format_candump
+from grippers.drivers.replay import Mismatch, Script, Step
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -142,7 +142,7 @@ def test_stepfoc_capture_replays_on_a_bus(tmp_path: Path, capsys) -> None:
     capture = tmp_path / "msg.log"
     capture.write_text("\n".join(lines) + "\n")
 
-    from grippers.cli import replay
+    from grippers.drivers.stepfoc.sim import replay
 
     script = replay.stepfoc_script(capture.read_bytes(), str(capture))
     channel2 = f"replay-play-{time.monotonic_ns()}"

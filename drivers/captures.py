@@ -18,6 +18,8 @@ UNKNOWN_DIRECTION = "?"
 
 
 CAN_ERR_FLAG = 0x20000000  # linux/can.h: the error-frame flag in a can_id
+CAN_MAX_DATA = 8  # linux/can.h CAN_MAX_DLEN: a classic frame's data
+CAN_FD_MAX_DATA = 64  # linux/can.h CANFD_MAX_DLEN
 
 
 class CaptureError(ValueError):
@@ -92,6 +94,13 @@ def _parse_log_line(text: str, number: int) -> CanRecord | None:
             data = bytes.fromhex(rest)
         except ValueError:
             raise CaptureError(f"line {number}: bad data {rest!r}") from None
+    fd = m["sep"] == "##"
+    if len(data) > (CAN_FD_MAX_DATA if fd else CAN_MAX_DATA):
+        kind = "CAN FD frame" if fd else "CAN frame"
+        raise CaptureError(
+            f"line {number}: {len(data)} data bytes; a {kind} carries at most "
+            f"{CAN_FD_MAX_DATA if fd else CAN_MAX_DATA}"
+        )
     value = int(ident, 16)
     extended = len(ident) > 3
     # can-utils' lib.c prints an error frame's id with CAN_ERR_FLAG (0x20000000, linux/can.h) set.
@@ -123,6 +132,8 @@ def _parse_screen_line(text: str, number: int) -> CanRecord | None:
             raise CaptureError(f"line {number}: bad data {rest!r}") from None
         if len(data) != int(m["dlc"]):
             raise CaptureError(f"line {number}: [{m['dlc']}] but {len(data)} data bytes")
+        if len(data) > CAN_FD_MAX_DATA:
+            raise CaptureError(f"line {number}: {len(data)} data bytes; a CAN frame carries at most 64")
     return CanRecord(
         timestamp=float(m["ts"]) if m["ts"] else None,
         channel=m["chan"],
