@@ -29,6 +29,7 @@ SUBCOMMANDS: dict[str, str] = {
     "stop": ".motion:stop",
     "ack": ".motion:ack",
     "settings": ".settings_cmd",
+    "selftest": ".selftest",
     "record": ".record",
     "plot": ".plot",
     "profiles": ".profiles_cmd",

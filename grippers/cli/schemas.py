@@ -236,6 +236,30 @@ class DoctorDocument(_Strict):
     checks: list[DoctorCheck]
 
 
+class SelftestLine(_Strict):
+    check: str = Field(description="what was checked, e.g. 'speed 20 mm/s', 'home (2nd)'")
+    measured: str
+    expected: str = Field(description="the profile's value, or the library's bound")
+    verdict: Literal["PASS", "WARN", "INFO"]
+    note: str
+    value: float | None = Field(description="the measured number (mm, mm/s or s as in check), if any")
+
+
+class SelftestDocument(_Strict):
+    """``grippers selftest URL --json``. Exit code 3 iff a line is a WARN (``ok`` false)."""
+
+    schema_: Literal["grippers.selftest/1"] = Field(alias="schema")
+    target: str
+    family: str
+    profile: str
+    time_scale: float
+    tolerance: float
+    lines: list[SelftestLine]
+    warnings: int
+    ok: bool
+    written_profile: str | None = Field(description="the --write-profile file, when written")
+
+
 SCHEMAS: dict[str, type[BaseModel]] = {
     "grippers.probe/2": ProbeDocument,
     "grippers.state/2": StateDocument,
@@ -245,6 +269,7 @@ SCHEMAS: dict[str, type[BaseModel]] = {
     "grippers.profiles/1": ProfilesDocument,
     "grippers.settings/1": SettingsDocument,
     "grippers.doctor/1": DoctorDocument,
+    "grippers.selftest/1": SelftestDocument,
 }
 
 
