@@ -260,6 +260,19 @@ class SelftestDocument(_Strict):
     written_profile: str | None = Field(description="the --write-profile file, when written")
 
 
+class RecordResultDocument(_Strict):
+    """``grippers record ... --json``: what was recorded where (the files' header is grippers.record/1)."""
+
+    schema_: Literal["grippers.record-result/1"] = Field(alias="schema")
+    target: str
+    output: str
+    format: Literal["csv", "jsonl", "mcap"]
+    files: list[str] = Field(description="every file written: a CSV's header goes to FILE.csv.json")
+    states: int
+    command_events: int
+    failed: str | None = Field(description="the error of the --do command that failed, if one did")
+
+
 SCHEMAS: dict[str, type[BaseModel]] = {
     "grippers.probe/2": ProbeDocument,
     "grippers.state/2": StateDocument,
@@ -270,6 +283,7 @@ SCHEMAS: dict[str, type[BaseModel]] = {
     "grippers.settings/1": SettingsDocument,
     "grippers.doctor/1": DoctorDocument,
     "grippers.selftest/1": SelftestDocument,
+    "grippers.record-result/1": RecordResultDocument,
 }
 
 
