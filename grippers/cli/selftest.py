@@ -104,19 +104,24 @@ def _confirm(plan: str, yes: bool) -> None:
         raise UsageError("not confirmed; nothing moved")
 
 
-def _timed_move(gripper: Any, target: float, speed: float) -> tuple[list[tuple[float, float]], float, float]:
-    """Samples (wall s, mm) of one move while it runs, its wall duration and the mean poll interval."""
+def _timed_move(
+    gripper: Any, target: float, speed: float
+) -> tuple[list[tuple[float, float]], list[float | None], float, float]:
+    """Samples (wall s, mm) of one move while it runs, the speeds the device reported with them (mm/s, None
+    where it reports none), the move's wall duration and the mean poll interval."""
     samples: list[tuple[float, float]] = []
+    reported: list[float | None] = []
     start = time.monotonic()
     handle = gripper.move(target, speed, wait=False)
     while not handle.done():
-        width = gripper.state().width * 1000
-        samples.append((time.monotonic(), width))
+        state = gripper.state()
+        samples.append((time.monotonic(), state.width * 1000))
+        reported.append(None if state.speed is None else state.speed * 1000)
     handle.wait()
     end = time.monotonic()
     duration = end - start
     poll = duration / max(len(samples), 1)
-    return [(t - start, w) for t, w in samples], duration, poll
+    return [(t - start, w) for t, w in samples], reported, duration, poll
 
 
 def _accel(gripper: Any) -> float | None:
@@ -226,12 +231,12 @@ class _Run:
         self.g.move(self.lo_mm / 1000)
         here, there = self.lo_mm, self.hi_mm
         for speed in self.speed_list:
-            samples, duration, poll = _timed_move(self.g, there / 1000, speed / 1000)
+            samples, reported, duration, poll = _timed_move(self.g, there / 1000, speed / 1000)
             end = self.g.state().width * 1000
             # Wall times to device times: a simulator N times faster than real time moves N times faster.
             dev = [(self.device_s(t), w) for t, w in samples]
             measured, uncertainty, used, method = fit_speed(
-                dev, here, there, self.device_s(duration), self.device_s(poll)
+                dev, here, there, self.device_s(duration), self.device_s(poll), reported
             )
             m = SpeedMeasurement(speed, measured, uncertainty, used, method)
             self.speeds.append(m)
@@ -275,10 +280,19 @@ class _Run:
         self.g.release()
 
     def settings(self) -> None:
-        from .settings_cmd import _msg_read, _wsg_read
+        from .settings_cmd import _msg_read, _wsg_read, has_vendor_driver
 
         info = self.g.info()
         driver = self.g.driver
+        if not has_vendor_driver(self.g):
+            self.add(
+                "settings",
+                "-",
+                "-",
+                "INFO",
+                "not served over the network: run selftest on the serving machine",
+            )
+            return
         if info.family == "wsg":
             values = _wsg_read(driver)
             accel = values.get("acceleration_mm_s2")

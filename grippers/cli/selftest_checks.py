@@ -18,6 +18,7 @@ Verdict = Literal["PASS", "WARN", "INFO"]
 
 MIDDLE = 0.15  # the first and last 15 % of the travel are left out of the speed fit (acceleration, settling)
 MIN_FIT_SAMPLES = 4
+PLATEAU = 0.9  # samples whose reported speed is within 10 % of the move's peak are its cruise
 STANDARD_ERRORS = 3.0  # a measured value within 3 standard errors of its bound is not a deviation
 MAX_UNCERTAINTY = 0.5  # beyond ±50 % a measured speed says nothing: WARN "too coarse"
 
@@ -49,6 +50,7 @@ def fit_speed(
     end_mm: float,
     duration_s: float,
     poll_s: float,
+    reported: Sequence[float | None] = (),
 ) -> tuple[float, float, int, str]:
     """(speed mm/s, relative uncertainty, samples used, method) of one move from ``(t_s, width_mm)`` samples.
 
@@ -57,11 +59,22 @@ def fit_speed(
     width's resolution both show in the residuals). With too few samples in the middle (a fast move, a slow
     link) the travel over the whole call's duration is used instead, with the poll interval at both ends as
     its uncertainty.
+
+    Where the device reports its own speed with each state (``reported``, the WSG), the fit takes the samples
+    of the plateau instead (reported speed within ``PLATEAU`` of its peak), so a move that spends much of the
+    span accelerating is still judged by its cruise, even where the acceleration is unknown (a served
+    gripper). Only the choice of samples comes from the report; the speed is always the widths' slope.
     """
     distance = abs(end_mm - start_mm)
     lo, hi = sorted((start_mm, end_mm))
     margin = MIDDLE * distance
     middle = [(t, w) for t, w in samples if lo + margin <= w <= hi - margin]
+    speeds = [abs(v) for v in reported if v is not None]
+    if len(speeds) == len(samples) and speeds and max(speeds) > 0:
+        peak = max(speeds)
+        plateau = [sample for sample, v in zip(samples, speeds, strict=True) if v >= PLATEAU * peak]
+        if len(plateau) >= MIN_FIT_SAMPLES:
+            middle = plateau
     if len(middle) >= MIN_FIT_SAMPLES:
         n = len(middle)
         t_mean = sum(t for t, _ in middle) / n

@@ -304,14 +304,20 @@ def _change_msg(gripper: Any, args: argparse.Namespace, changed: list[str]) -> s
     return new_url
 
 
-def _refuse_remote(gripper: Any) -> None:
-    """A served gripper (zenoh://) carries motion and state, not the vendor's settings commands: refuse
-    before anything is written (issue 23 §3: the tag went out, then an AttributeError)."""
+def has_vendor_driver(gripper: Any) -> bool:
+    """Whether ``gripper.driver`` is a device client (settings are its vendor extras); a served gripper's
+    (zenoh://) is a network session, which carries motion and state but not the settings commands."""
     from grippers.drivers.stepfoc.can_client import StepfocNode
     from grippers.drivers.stepfoc.uart_client import StepfocUart
     from grippers.drivers.wsg.client import WsgClient
 
-    if not isinstance(gripper.driver, WsgClient | StepfocNode | StepfocUart):
+    return isinstance(gripper.driver, WsgClient | StepfocNode | StepfocUart)
+
+
+def _refuse_remote(gripper: Any) -> None:
+    """Refuse a served gripper before anything is written (issue 23 §3: the tag went out over the API, then
+    the acceleration failed with an AttributeError)."""
+    if not has_vendor_driver(gripper):
         raise UsageError(
             f"{gripper.url}: device settings are not served over the network; run grippers settings on the "
             "machine that serves this gripper, with the device's own URL"

@@ -188,3 +188,46 @@ def test_refitted_map_makes_requests_come_true() -> None:
     # one noisy point moves the factor a little, not the slow end to the middle of the map
     low, high = fitted_speed_map([20, 45, 70], [60, 135, 140], 1.0, 100.0)
     assert 2.0 < low < 3.0 and 200 < high < 300
+
+
+def test_selftest_over_zenoh_runs_through_the_api(cli) -> None:
+    pytest.importorskip("zenoh")
+    import os
+    import re
+    import select
+    import subprocess
+    import sys
+
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "grippers",
+            "serve",
+            f"sim://wsg50?time_scale={WSG_SCALE}",
+            "--listen",
+            "tcp/127.0.0.1:0",
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "PYTHONUNBUFFERED": "1"},
+    )
+    try:
+        assert proc.stdout is not None
+        fd, seen, url, deadline = proc.stdout.fileno(), "", None, time.monotonic() + 30
+        while url is None and time.monotonic() < deadline and proc.poll() is None:
+            if select.select([fd], [], [], 0.2)[0]:
+                seen += os.read(fd, 65536).decode()
+                m = re.search(r"^\S+: .* serving at (\S+)$", seen, re.M)
+                url = m.group(1) if m else None
+        assert url, seen
+        r = cli("selftest", url, "--time-scale", WSG_SCALE, "--yes", "--json", timeout=120)
+        assert r.returncode in (0, 3), r.stderr  # finished; speeds over the network may be judged coarse
+        doc = r.json()
+        settings = [ln for ln in doc["lines"] if ln["check"] == "settings"]
+        assert settings and "not served" in settings[0]["note"]
+        assert any(ln["check"] == "close without a part" and ln["verdict"] == "PASS" for ln in doc["lines"])
+    finally:
+        proc.terminate()
+        proc.communicate(timeout=15)
