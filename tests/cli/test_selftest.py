@@ -231,3 +231,31 @@ def test_selftest_over_zenoh_runs_through_the_api(cli) -> None:
     finally:
         proc.terminate()
         proc.communicate(timeout=15)
+
+
+def test_on_a_terminal_it_asks_and_no_moves_nothing() -> None:
+    import os
+    import pty
+    import subprocess
+    import sys
+
+    master, slave = pty.openpty()
+    try:
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "grippers", "selftest", f"sim://wsg50?time_scale={WSG_SCALE}"],
+            stdin=slave,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            env={**os.environ, "PYTHONUNBUFFERED": "1"},
+        )
+        os.write(master, b"n\n")
+        out, err = proc.communicate(timeout=60)
+    finally:
+        os.close(master)
+        os.close(slave)
+    assert proc.returncode == 2, err
+    assert "keep the jaws EMPTY" in err and err.strip().splitlines()[-1].endswith(
+        "not confirmed; nothing moved"
+    )
+    assert "go ahead? [y/N]" in out
