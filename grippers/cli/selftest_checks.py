@@ -57,8 +57,8 @@ def fit_speed(
     The speed is the slope of a least-squares line through the samples in the middle of the travel, where the
     jaws cruise; its uncertainty is ``STANDARD_ERRORS`` standard errors of that slope (timing jitter and the
     width's resolution both show in the residuals). With too few samples in the middle (a fast move, a slow
-    link) the travel over the whole call's duration is used instead, with the poll interval at both ends as
-    its uncertainty.
+    link) the travel over the whole call's duration is shown instead, with an unbounded uncertainty: a WARN
+    "too coarse", since that figure hides the ramps and the link's latency.
 
     Where the device reports its own speed with each state (``reported``, the WSG), the fit takes the samples
     of the plateau instead (reported speed within ``PLATEAU`` of its peak), so a move that spends much of the
@@ -87,9 +87,11 @@ def fit_speed(
             speed = abs(slope)
             if speed > 0:
                 return speed, STANDARD_ERRORS * se / speed, n, "fit"
-    if duration_s <= 0:
-        return 0.0, math.inf, len(samples), "duration"
-    return distance / duration_s, 2 * poll_s / duration_s, len(samples), "duration"
+    # The travel over the call's duration is only a lower bound of the cruise speed (the ramps, the command's
+    # round trip and the last poll are in the duration), by an amount nothing here measures: shown, never
+    # judged.
+    speed = distance / duration_s if duration_s > 0 else 0.0
+    return speed, math.inf, len(samples), "duration"
 
 
 def speed_verdict(m: SpeedMeasurement, tolerance: float) -> Line:
