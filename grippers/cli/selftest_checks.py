@@ -97,7 +97,8 @@ def fit_speed(
 def speed_verdict(m: SpeedMeasurement, tolerance: float) -> Line:
     ratio = m.measured / m.requested if m.requested > 0 else math.inf
     bound = tolerance + m.uncertainty
-    shown = f"{m.measured:.1f} mm/s (x{ratio:.2f}, ±{min(m.uncertainty, 9.99) * 100:.0f} %)"
+    spread = f"±{m.uncertainty * 100:.0f} %" if m.uncertainty <= MAX_UNCERTAINTY else "not fitted"
+    shown = f"{m.measured:.1f} mm/s (x{ratio:.2f}, {spread})"
     if m.uncertainty > MAX_UNCERTAINTY:
         verdict: Verdict = "WARN"
         note = f"too coarse to judge ({m.samples} samples): run at real time or on a quieter link"
@@ -111,7 +112,7 @@ def speed_verdict(m: SpeedMeasurement, tolerance: float) -> Line:
     return Line(
         f"speed {m.requested:g} mm/s",
         shown,
-        f"{m.requested:g} mm/s ±{bound * 100:.0f} %",
+        f"{m.requested:g} mm/s ±{bound * 100:.0f} %" if math.isfinite(bound) else f"{m.requested:g} mm/s",
         verdict,
         note,
         m.measured,
