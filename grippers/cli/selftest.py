@@ -398,6 +398,33 @@ def _write_profile(run: _Run, path: str, name: str | None) -> str:
     return str(target)
 
 
+def _check_profile_target(profile: Any, path: str) -> None:
+    """Before anything moves: the written file will be writable, and its ``extends`` will find the base.
+
+    The written profile names its base, so the base must be found by that name on the search path; a base
+    read from a file elsewhere would make the file unloadable after the whole run."""
+    import os
+
+    from grippers.errors import ProfileError
+    from grippers.profiles import load_profile
+
+    folder = Path(path).resolve().parent
+    if not folder.is_dir() or not os.access(folder, os.W_OK):
+        raise UsageError(f"--write-profile {path}: cannot write in {folder}")
+    try:
+        found = load_profile(profile.name)
+    except ProfileError:
+        found = None
+    if found is None or (
+        profile.path and found.path and Path(found.path).resolve() != Path(profile.path).resolve()
+    ):
+        raise UsageError(
+            f"--write-profile: the profile {profile.name!r} (from {profile.path}) is not the one its name "
+            "finds on the search path, so a profile extending it would not load; put its folder on "
+            "GRIPPERS_PROFILE_PATH (docs/profiles.md)"
+        )
+
+
 def run(args: argparse.Namespace) -> int:
     if not args.yes and not sys.stdin.isatty():
         raise UsageError("selftest moves the gripper: add --yes to run it without a terminal to ask on")
@@ -406,6 +433,8 @@ def run(args: argparse.Namespace) -> int:
     scale = _time_scale(args)
     gripper = open_gripper(args)
     try:
+        if args.write_profile:
+            _check_profile_target(gripper.profile, args.write_profile)
         info = gripper.info()
         st = _Run(gripper, scale, args.tolerance)
         _confirm(plan_text(gripper.name, st.lo_mm, st.hi_mm, st.speed_list, st.force), args.yes)

@@ -260,3 +260,23 @@ def test_on_a_terminal_it_asks_and_no_moves_nothing() -> None:
         "not confirmed; nothing moved"
     )
     assert "go ahead? [y/N]" in out
+
+
+def test_write_profile_refuses_a_base_its_name_does_not_find_before_moving(
+    cli, sim_process, tmp_path
+) -> None:
+    url = sim_process("wsg", "--listen", "tcp://127.0.0.1:0").url
+    base = tmp_path / "wsg50-glass.toml"
+    base.write_text('extends = "wsg50"\nname = "wsg50-glass"\n[safety]\nmax_force_n = 15.0\n')
+    r = cli(
+        "selftest",
+        url,
+        "--profile",
+        str(base),
+        "--yes",
+        "--write-profile",
+        str(tmp_path / "out.toml"),
+    )
+    assert r.returncode == 2 and "GRIPPERS_PROFILE_PATH" in r.one_error_line()
+    assert not (tmp_path / "out.toml").exists()
+    assert cli("state", url, "--json").json()["state"]["referenced"] is False  # nothing moved
