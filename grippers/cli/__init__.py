@@ -31,6 +31,7 @@ SUBCOMMANDS: dict[str, str] = {
     "stop": ".motion:stop",
     "ack": ".motion:ack",
     "settings": ".settings_cmd",
+    "selftest": ".selftest",
     "record": ".record",
     "plot": ".plot",
     "profiles": ".profiles_cmd",

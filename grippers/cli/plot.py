@@ -1,7 +1,10 @@
 """``grippers plot FILE -o FILE.png|FILE.svg``: width, speed and force (or current) over time from a
-recording, with the commands marked: the picture for tuning a grasp.
+recording (CSV, JSON Lines or MCAP), with the commands marked: the picture for tuning a grasp.
 
 matplotlib is an optional dependency (``pip install 'grippers[plot]'``), imported inside :func:`run` only.
+Any file that is not a recording, however malformed, ends in one line and exit code 2: :func:`read` checks
+every row before anything is drawn. Commands that start at (nearly) the same moment share one label, so
+their names never print over each other. SVG keeps its text as text (searchable, selectable).
 """
 
 from __future__ import annotations
@@ -16,7 +19,7 @@ EXAMPLE = "grippers plot grasp.csv -o grasp.png"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("recording", metavar="FILE", help="a recording: FILE.csv or FILE.jsonl")
+    parser.add_argument("recording", metavar="FILE", help="a recording: FILE.csv, FILE.jsonl or FILE.mcap")
     parser.add_argument("-o", "--output", required=True, metavar="IMAGE", help="IMAGE.png or IMAGE.svg")
     parser.add_argument("--title", help="the picture's title (default: the recorded URL)")
 
@@ -30,6 +33,21 @@ def _series(rows: list[dict[str, Any]], key: str) -> tuple[list[float], list[flo
     return xs, ys
 
 
+LABEL_GAP = 0.025  # of the time axis: starts closer than this share one label
+
+
+def label_groups(starts: list[tuple[float, str]], span: float) -> list[tuple[float, str]]:
+    """Labels of command starts, those within ``LABEL_GAP`` of the axis of the previous one joined with
+    " / " at the first one's time: a label is drawn rotated at its time, so two at one time overlap."""
+    groups: list[tuple[float, list[str]]] = []
+    for t, text in sorted(starts, key=lambda s: s[0]):
+        if groups and t - groups[-1][0] <= LABEL_GAP * span:
+            groups[-1][1].append(text)
+        else:
+            groups.append((t, [text]))
+    return [(t, " / ".join(texts)) for t, texts in groups]
+
+
 def run(args: argparse.Namespace) -> int:
     from .recording import RecordingError, read
 
@@ -40,6 +58,7 @@ def run(args: argparse.Namespace) -> int:
     except ImportError:
         raise UsageError("grippers plot needs matplotlib: pip install 'grippers[plot]'") from None
     matplotlib.use("Agg")  # files only: no display needed on a bench machine or in CI
+    matplotlib.rcParams["svg.fonttype"] = "none"  # SVG text stays text
     import matplotlib.pyplot as plt
 
     try:
@@ -62,20 +81,32 @@ def run(args: argparse.Namespace) -> int:
             style = {"start": ("tab:green", "--"), "done": ("tab:gray", ":"), "failed": ("tab:red", "-")}
             color, line = style.get(str(row.get("phase")), ("tab:gray", ":"))
             ax.axvline(float(row["t_s"]), color=color, linestyle=line, linewidth=1)
-    for row in commands:
-        if row.get("phase") in ("start", "failed"):
-            axes[0].annotate(
-                str(row.get("command")) + (" (failed)" if row.get("phase") == "failed" else ""),
-                (float(row["t_s"]), 1.0),
-                xycoords=("data", "axes fraction"),
-                rotation=90,
-                va="top",
-                ha="right",
-                fontsize=8,
-            )
+    starts = [
+        (float(row["t_s"]), str(row.get("command")) + (" (failed)" if row.get("phase") == "failed" else ""))
+        for row in commands
+        if row.get("phase") in ("start", "failed")
+    ]
+    times = [t for t in width[0]] + [t for t, _ in starts]
+    span = (max(times) - min(times)) or 1.0
+    for t, text in label_groups(starts, span):
+        axes[0].annotate(
+            text,
+            (t, 1.0),
+            xycoords=("data", "axes fraction"),
+            rotation=90,
+            va="top",
+            ha="right",
+            fontsize=8,
+        )
     axes[-1].set_xlabel("time (s)")
     fig.suptitle(args.title or str(header.get("target", args.recording)))
-    fig.savefig(args.output, dpi=100)
-    plt.close(fig)
+    try:
+        fig.savefig(args.output, dpi=100)
+    except OSError as exc:
+        raise UsageError(f"{args.output}: cannot write: {exc.strerror or exc}") from None
+    except (ValueError, OverflowError) as exc:  # numbers matplotlib cannot place (finite, but 1e308 wide)
+        raise UsageError(f"{args.recording}: cannot be drawn: {' '.join(str(exc).split())[:200]}") from None
+    finally:
+        plt.close(fig)
     print(f"wrote {args.output}")
     return EXIT_OK

@@ -1,9 +1,12 @@
-"""``grippers record URL -o FILE.csv|FILE.jsonl [--do 'grasp 40 --force 20' ...]``: states and commands
-over time, in SI-derived units (mm, mm/s, N, A), for tuning a grasp and for ``grippers plot``.
+"""``grippers record URL -o FILE.csv|FILE.jsonl|FILE.mcap [--do 'grasp 40 --force 20' ...]``: states and
+commands over time, in SI-derived units (mm, mm/s, N, A), for tuning a grasp, for ``grippers plot`` and (MCAP)
+for ROS 2 tools and Foxglove.
 
-States are sampled by the library's state stream in a background thread while the ``--do`` commands run one
-after another in this one, each with its start and end (or error) stamped; the file is written at the end,
-also after Ctrl-C or a failed command, so what was recorded is never lost.
+The output is opened before the gripper is: a path that cannot be written is a usage error before anything
+moves (it used to be found after the motions, and the recording was lost). States are sampled by the
+library's state stream in a background thread while the ``--do`` commands run one after another in this one,
+each with its start and end (or error) stamped; the file is written at the end, also after Ctrl-C or a failed
+command, so what was recorded is never lost.
 """
 
 from __future__ import annotations
@@ -16,13 +19,17 @@ import time
 from typing import Any
 
 from .common import add_common, add_target, open_gripper, positive_float, state_dict
-from .output import EXIT_FAILED, EXIT_OK, UsageError, error_line
+from .output import EXIT_FAILED, EXIT_OK, UsageError, error_line, write_json
 
-HELP = "record states (and the commands run with --do) over time to CSV or JSON Lines, for grippers plot"
+HELP = (
+    "record states (and the commands run with --do) over time to CSV, JSON Lines or MCAP, for grippers plot"
+)
 EXAMPLE = (
     "grippers record 'sim://wsg50?part_width_mm=40' -o grasp.csv --do home --do 'grasp 40 --force 20'\n"
-    "         grippers record wsg+tcp://192.168.1.20 --duration 10 --rate 100 -o idle.jsonl"
+    "         grippers record wsg+tcp://192.168.1.20 --duration 10 --rate 100 -o idle.jsonl\n"
+    "         grippers record 'stepfoc+can://socketcan/can0?node=0' -o run.mcap --do home  (grippers[record])"
 )
+RECORD_RESULT_SCHEMA_ID = "grippers.record-result/1"
 
 DO_COMMANDS = ("home", "move", "grasp", "release", "stop", "ack", "wait")
 DEFAULT_DURATION = 5.0  # seconds, when there is nothing to --do
@@ -31,7 +38,13 @@ TAIL = 0.5  # seconds recorded after the last --do command, to see the jaws sett
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_target(parser)
-    parser.add_argument("-o", "--output", required=True, metavar="FILE", help="FILE.csv or FILE.jsonl")
+    parser.add_argument(
+        "-o",
+        "--output",
+        required=True,
+        metavar="FILE",
+        help="FILE.csv (header in FILE.csv.json), FILE.jsonl or FILE.mcap",
+    )
     parser.add_argument(
         "--duration",
         type=positive_float,
@@ -94,14 +107,18 @@ def _detail(result: Any) -> str | None:
 
 def run(args: argparse.Namespace) -> int:
     from . import motion
-    from .recording import RecordingError, format_of, write
+    from .recording import RecordingError, open_sink
 
+    plan = [(text, *parse_do(text)) for text in args.do]
     try:
-        format_of(args.output)  # a wrong name is found before the gripper moves
+        sink = open_sink(args.output)  # a wrong name or an unwritable path is found before the gripper moves
     except RecordingError as exc:
         raise UsageError(str(exc)) from None
-    plan = [(text, *parse_do(text)) for text in args.do]
-    gripper = open_gripper(args)
+    try:
+        gripper = open_gripper(args)
+    except BaseException:
+        sink.abandon()
+        raise
     rows: list[dict[str, Any]] = []
     lock = threading.Lock()
     start = time.time()
@@ -151,9 +168,24 @@ def run(args: argparse.Namespace) -> int:
         with lock:
             ordered = sorted(rows, key=lambda r: r["t_s"])
         header = {"target": args.target, "start_unix": start, "rate_hz": args.rate, "do": list(args.do)}
-        write(args.output, header, ordered)
+        sink.write(header, ordered)
     samples = sum(1 for r in ordered if r["kind"] == "state")
-    print(f"recorded {samples} states and {len(ordered) - samples} command events to {args.output}")
+    if args.json:
+        write_json(
+            {
+                "schema": RECORD_RESULT_SCHEMA_ID,
+                "target": args.target,
+                "output": args.output,
+                "format": sink.format,
+                "files": sink.files,
+                "states": samples,
+                "command_events": len(ordered) - samples,
+                "failed": None if failed is None else " ".join(str(failed).split()),
+            }
+        )
+    else:
+        events = len(ordered) - samples
+        print(f"recorded {samples} states and {events} command events to {', '.join(sink.files)}")
     if failed is not None:
         print(error_line("record", failed), file=sys.stderr)
         return EXIT_FAILED

@@ -265,6 +265,43 @@ class SimDocument(_Strict):
     urls: list[str] = Field(description="the URLs a client opens, one per simulated device")
 
 
+class SelftestLine(_Strict):
+    check: str = Field(description="what was checked, e.g. 'speed 20 mm/s', 'home (2nd)'")
+    measured: str
+    expected: str = Field(description="the profile's value, or the library's bound")
+    verdict: Literal["PASS", "WARN", "INFO"]
+    note: str
+    value: float | None = Field(description="the measured number (mm, mm/s or s as in check), if any")
+
+
+class SelftestDocument(_Strict):
+    """``grippers selftest URL --json``. Exit code 3 iff a line is a WARN (``ok`` false)."""
+
+    schema_: Literal["grippers.selftest/1"] = Field(alias="schema")
+    target: str
+    family: str
+    profile: str
+    time_scale: float
+    tolerance: float
+    lines: list[SelftestLine]
+    warnings: int
+    ok: bool
+    written_profile: str | None = Field(description="the --write-profile file, when written")
+
+
+class RecordResultDocument(_Strict):
+    """``grippers record ... --json``: what was recorded where (the files' header is grippers.record/1)."""
+
+    schema_: Literal["grippers.record-result/1"] = Field(alias="schema")
+    target: str
+    output: str
+    format: Literal["csv", "jsonl", "mcap"]
+    files: list[str] = Field(description="every file written: a CSV's header goes to FILE.csv.json")
+    states: int
+    command_events: int
+    failed: str | None = Field(description="the error of the --do command that failed, if one did")
+
+
 SCHEMAS: dict[str, type[BaseModel]] = {
     "grippers.probe/2": ProbeDocument,
     "grippers.state/2": StateDocument,
@@ -275,6 +312,8 @@ SCHEMAS: dict[str, type[BaseModel]] = {
     "grippers.settings/1": SettingsDocument,
     "grippers.doctor/1": DoctorDocument,
     "grippers.sim/1": SimDocument,
+    "grippers.selftest/1": SelftestDocument,
+    "grippers.record-result/1": RecordResultDocument,
 }
 
 

@@ -3,6 +3,11 @@
 from __future__ import annotations
 
 import json
+import os
+import re
+import select
+import subprocess
+import sys
 import time
 
 import pytest
@@ -87,3 +92,108 @@ def test_msg_node_id_change_and_save(msg_on_virtual_bus, capsys) -> None:
     assert model.node == 5 and model.saved_node == 5  # saved to the driver's flash (command 13)
     assert main(["settings", doc["url"], "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["settings"]["node_id"] == 5
+
+
+# --- issue 19 §2 and issue 23: nothing changes before every check passed --------------------------------
+
+
+@pytest.fixture
+def two_msgs_on_virtual_bus():
+    """Two MSG nodes (0 and 3) on one python-can virtual bus: ids a bench with two grippers uses."""
+    channel = f"settings-two-{time.monotonic_ns()}"
+    profile = load_profile("msg-150")
+    backend = get_backend("stepfoc")
+    models = [backend.sim_model(profile, node, None) for node in (0, 3)]
+    server = backend.serve(models, f"can://virtual/{channel}", Settings("sim://msg-150", {}, {}))
+    yield models, f"stepfoc+can://virtual/{channel}"
+    server.close()
+
+
+def test_msg_node_id_taken_by_another_node_is_refused(two_msgs_on_virtual_bus, capsys) -> None:
+    (first, second), base = two_msgs_on_virtual_bus
+    assert main(["settings", f"{base}?node=0", "--node-id", "3", "--yes"]) == 2
+    err = capsys.readouterr().err
+    assert "already answers as node 3" in err and "nothing changed" in err
+    assert first.node == 0 and first.saved_node == 0  # neither changed nor saved
+    assert second.node == 3
+    # a free id still works
+    assert main(["settings", f"{base}?node=0", "--node-id", "4", "--yes", "--json"]) == 0
+    assert first.node == 4 and first.saved_node == 4
+
+
+def test_msg_save_with_a_watchdog_says_what_power_up_will_do(msg_on_virtual_bus, capsys) -> None:
+    model, url = msg_on_virtual_bus
+    # no terminal, no --yes: the note is shown, nothing is sent
+    assert main(["settings", url, "--watchdog", "500", "--save"]) == 2
+    err = capsys.readouterr().err
+    assert "after every power-up the node raises 'timeout'" in err and "--watchdog 0 --save" in err
+    assert model.watchdog.timeout_ms == 0
+    assert (
+        main(["settings", url, "--watchdog", "500", "--heartbeat", "200", "--save", "--yes", "--json"]) == 0
+    )
+    captured = capsys.readouterr()
+    assert "--heartbeat 0 --save" in captured.err
+    doc = json.loads(captured.out)
+    assert doc["changed"] == ["watchdog_ms", "heartbeat_ms"]
+    assert model.watchdog.timeout_ms == 500 and model.heartbeat_ms == 200
+
+
+def test_msg_save_alone_warns_that_unknown_periods_are_saved_too(msg_on_virtual_bus, capsys) -> None:
+    model, url = msg_on_virtual_bus
+    assert main(["settings", url, "--save", "--yes"]) == 0
+    err = capsys.readouterr().err
+    assert "cannot report its watchdog and heartbeat period" in err
+    assert "--watchdog 0 --heartbeat 0" in err
+
+
+def test_msg_watchdog_out_of_range_is_refused_before_sending(msg_on_virtual_bus, capsys) -> None:
+    model, url = msg_on_virtual_bus
+    assert main(["settings", url, "--watchdog", str(2**32), "--yes"]) == 2
+    assert "watchdog" in capsys.readouterr().err
+    assert model.watchdog.timeout_ms == 0
+
+
+def test_wsg_absurd_acceleration_is_refused_before_anything_is_written(cli, sim_process) -> None:
+    url = sim_process("wsg", "--listen", "tcp://127.0.0.1:0").url
+    r = cli("settings", url, "--tag", "must-not-land", "--acceleration", "1e9")
+    assert r.returncode == 2 and "acceleration" in r.one_error_line() and "5000" in r.one_error_line()
+    after = cli("settings", url, "--json").json()["settings"]
+    assert after["device_tag"] == {"unavailable": "not set"}  # the tag before it was not written either
+    assert after["acceleration_mm_s2"] != 1e9
+
+
+def _serve(*args: str) -> tuple[subprocess.Popen[str], str]:
+    """``grippers serve ARGS`` on a loopback port chosen at run time; returns the process and its URL."""
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "grippers", "serve", *args, "--listen", "tcp/127.0.0.1:0"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "PYTHONUNBUFFERED": "1"},
+    )
+    assert proc.stdout is not None
+    fd, seen, deadline = proc.stdout.fileno(), "", time.monotonic() + 30
+    while time.monotonic() < deadline:
+        if select.select([fd], [], [], 0.2)[0]:
+            chunk = os.read(fd, 65536).decode()
+            seen += chunk
+            m = re.search(r"^\S+: .* serving at (\S+)$", seen, re.M)
+            if m:
+                return proc, m.group(1)
+            if not chunk:
+                break
+    proc.kill()
+    raise AssertionError(f"grippers serve printed {seen!r}")
+
+
+def test_settings_over_zenoh_refuses_before_changing_anything(cli, sim_process) -> None:
+    pytest.importorskip("zenoh")
+    device = sim_process("wsg", "--listen", "tcp://127.0.0.1:0").url
+    proc, url = _serve(device)
+    try:
+        r = cli("settings", url, "--tag", "over-the-network", "--acceleration", "500")
+        assert r.returncode == 2 and "not served over the network" in r.one_error_line()
+    finally:
+        proc.terminate()
+        proc.communicate(timeout=15)
+    assert cli("settings", device, "--json").json()["settings"]["device_tag"] == {"unavailable": "not set"}

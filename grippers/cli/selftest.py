@@ -1,0 +1,460 @@
+"""``grippers selftest URL``: a bench acceptance run, to learn whether the profile fits this unit before a
+robot relies on it.
+
+It homes twice (the second is the recalibration of a calibrated MSG, the case that hides timing bugs), moves
+over the middle of the stroke at three speeds, closes once without a part at the lowest force, and reads back
+the faults and the fault-related settings; then prints measured against expected with PASS, WARN or INFO per
+line. Nothing in it needs a part or goes near the end stops at speed: it is safe on a bench with empty jaws,
+and it says so and asks before the first motion (``--yes`` for scripts).
+
+Everything goes through the :class:`~grippers.gripper.Gripper` API (and the vendor extras behind
+``gripper.driver`` for the read-backs only): no protocol code here. The arithmetic is in
+:mod:`grippers.cli.selftest_checks`.
+
+Exit codes: 0 every line PASS (or INFO); 3 the run finished with at least one WARN (the profile does not fit:
+``--write-profile`` writes one that does); 1 the device failed a step; 2 a usage error or not confirmed;
+130 interrupted (the library stops the jaws first).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+from typing import Any
+from urllib.parse import parse_qs, urlsplit
+
+from .common import add_common, add_target, open_gripper, positive_float
+from .output import EXIT_OK, UsageError, table, write_json
+
+HELP = "bench acceptance run: homes, moves at three speeds, closes without a part; measured vs the profile"
+EXAMPLE = (
+    "grippers selftest wsg+tcp://192.168.1.20\n"
+    "         grippers selftest 'stepfoc+can://socketcan/can0?node=0' --profile msg-100 --yes --json\n"
+    "         grippers selftest 'stepfoc+can://socketcan/can0?node=0' --write-profile my-msg.toml"
+)
+
+SELFTEST_SCHEMA_ID = "grippers.selftest/1"
+EXIT_WARN = 3  # finished, and at least one line is a WARN (docs/cli.md)
+SPEED_FRACTIONS = (0.2, 0.45, 0.7)  # of the profile's top speed: slow, middle, fast, none at the limit
+SPAN = (0.2, 0.8)  # of the stroke: the safe span, away from both end stops
+DEFAULT_TOLERANCE = 0.15
+POSITION_TOLERANCE = 0.02  # of the stroke: where a move ended against its target
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    add_target(parser)
+    parser.add_argument("-y", "--yes", action="store_true", help="do not ask before moving (for scripts)")
+    parser.add_argument(
+        "--write-profile",
+        metavar="FILE",
+        help="write a TOML profile that extends the base profile with the measured values",
+    )
+    parser.add_argument(
+        "--profile-name", metavar="NAME", help="the written profile's name (default: BASE-measured)"
+    )
+    parser.add_argument(
+        "--tolerance",
+        type=positive_float,
+        default=DEFAULT_TOLERANCE,
+        metavar="FRACTION",
+        help=f"relative deviation accepted on top of the measurement's own uncertainty "
+        f"(default {DEFAULT_TOLERANCE:g})",
+    )
+    parser.add_argument(
+        "--time-scale",
+        type=positive_float,
+        metavar="N",
+        help="a simulator running N times faster than real time (default: a sim:// URL's time_scale, else 1)",
+    )
+    add_common(parser)
+
+
+def _time_scale(args: argparse.Namespace) -> float:
+    if args.time_scale is not None:
+        return float(args.time_scale)
+    parts = urlsplit(args.target)
+    if parts.scheme == "sim":
+        values = parse_qs(parts.query).get("time_scale")
+        if values:
+            try:
+                return float(values[-1])
+            except ValueError:
+                pass  # the URL parser refuses it with its own message when the gripper opens
+    return 1.0
+
+
+def plan_text(name: str, lo_mm: float, hi_mm: float, speeds: list[float], force: float) -> str:
+    return (
+        f"grippers selftest will move {name}:\n"
+        f"  home twice (a WSG references; an MSG calibrates: its jaws travel to both end stops);\n"
+        f"  move between {lo_mm:.1f} and {hi_mm:.1f} mm at {', '.join(f'{s:g}' for s in speeds)} mm/s;\n"
+        f"  close from {hi_mm:.1f} mm as for a part of {lo_mm:.1f} mm at {force:g} N (keep the jaws EMPTY);\n"
+        f"  open again, and read the faults and settings back."
+    )
+
+
+def _confirm(plan: str, yes: bool) -> None:
+    print(plan, file=sys.stderr)
+    if yes:
+        return
+    answer = input("go ahead? [y/N] ").strip().lower()
+    if answer not in ("y", "yes"):
+        raise UsageError("not confirmed; nothing moved")
+
+
+def _timed_move(
+    gripper: Any, target: float, speed: float
+) -> tuple[list[tuple[float, float]], list[float | None], float, float]:
+    """Samples (wall s, mm) of one move while it runs, the speeds the device reported with them (mm/s, None
+    where it reports none), the move's wall duration and the mean poll interval."""
+    samples: list[tuple[float, float]] = []
+    reported: list[float | None] = []
+    start = time.monotonic()
+    handle = gripper.move(target, speed, wait=False)
+    while not handle.done():
+        state = gripper.state()
+        samples.append((time.monotonic(), state.width * 1000))
+        reported.append(None if state.speed is None else state.speed * 1000)
+    handle.wait()
+    end = time.monotonic()
+    duration = end - start
+    poll = duration / max(len(samples), 1)
+    return [(t - start, w) for t, w in samples], reported, duration, poll
+
+
+def _accel(gripper: Any) -> float | None:
+    """The acceleration the device ramps with (mm/s²), where it says (WSG 31h); None elsewhere."""
+    read = getattr(gripper.driver, "acceleration", None)
+    if read is None:
+        return None
+    try:
+        return float(read())
+    except Exception:  # a device that cannot say: the speeds are then fractions of the profile's top
+        return None
+
+
+class _Run:
+    """The steps of one selftest, collecting lines; each step is one method."""
+
+    def __init__(self, gripper: Any, scale: float, tolerance: float) -> None:
+        from .selftest_checks import Line, SpeedMeasurement, test_speeds
+
+        self.g = gripper
+        self.scale = scale
+        self.tolerance = tolerance
+        self.lines: list[Line] = []
+        self.speeds: list[SpeedMeasurement] = []
+        self.stroke_mm: float | None = None
+        limits = gripper.limits
+        self.lo_mm = (limits.min_width + SPAN[0] * limits.stroke) * 1000
+        self.hi_mm = (limits.min_width + SPAN[1] * limits.stroke) * 1000
+        self.speed_list = test_speeds(
+            limits.min_speed * 1000,
+            limits.max_speed * 1000,
+            self.hi_mm - self.lo_mm,
+            SPEED_FRACTIONS,
+            _accel(gripper),
+        )
+        self.force = limits.min_force
+
+    def add(self, *args: Any, **kwargs: Any) -> None:
+        from .selftest_checks import Line
+
+        self.lines.append(Line(*args, **kwargs))
+
+    def device_s(self, wall: float) -> float:
+        return wall * self.scale
+
+    def faults(self, when: str) -> None:
+        st = self.g.state()
+        if st.faults:
+            self.add(
+                f"faults {when}", ", ".join(st.faults), "none", "WARN", "acknowledge them (grippers ack)"
+            )
+        else:
+            self.add(f"faults {when}", "none", "none", "PASS")
+
+    def stroke(self) -> None:
+        profile_mm = self.g.profile.mechanics.stroke_mm
+        info = self.g.info()
+        if info.family == "wsg":
+            # The WSG reports its own limits (53h); the backend narrows the profile's with them.
+            self.stroke_mm = info.limits.stroke * 1000
+            ok = abs(self.stroke_mm - profile_mm) <= POSITION_TOLERANCE * profile_mm
+            self.add(
+                "stroke",
+                f"{self.stroke_mm:.1f} mm",
+                f"{profile_mm:g} mm",
+                "PASS" if ok else "WARN",
+                "" if ok else "the device reports another stroke: another model?",
+                value=self.stroke_mm,
+            )
+        else:
+            self.add(
+                "stroke",
+                "-",
+                f"{profile_mm:g} mm",
+                "INFO",
+                "the MSG cannot report its rail length: check the width at the open stop with a caliper",
+            )
+
+    def home(self, which: str) -> None:
+        start = time.monotonic()
+        self.g.home()
+        took = self.device_s(time.monotonic() - start)
+        # The library's own bound on home() (Gripper.home: twice the travel at 20 mm/s, plus slack); a unit
+        # that needs more than half of it is one slow day away from a GripperTimeout.
+        bound = self.device_s(self.g._motion_timeout(2 * self.g.limits.stroke, 0.02)) / 2
+        ok = took <= bound
+        self.add(
+            f"home ({which})",
+            f"{took:.2f} s",
+            f"< {bound:.1f} s",
+            "PASS" if ok else "WARN",
+            "" if ok else "slower than half the library's wait",
+            value=took,
+        )
+        st = self.g.state()
+        self.add(
+            f"referenced after home ({which})",
+            "yes" if st.referenced else "no",
+            "yes",
+            "PASS" if st.referenced else "WARN",
+        )
+
+    def moves(self) -> None:
+        from .selftest_checks import SpeedMeasurement, fit_speed, speed_verdict
+
+        stroke_mm = self.g.limits.stroke * 1000
+        self.g.move(self.lo_mm / 1000)
+        here, there = self.lo_mm, self.hi_mm
+        for speed in self.speed_list:
+            samples, reported, duration, poll = _timed_move(self.g, there / 1000, speed / 1000)
+            end = self.g.state().width * 1000
+            # Wall times to device times: a simulator N times faster than real time moves N times faster.
+            dev = [(self.device_s(t), w) for t, w in samples]
+            measured, uncertainty, used, method = fit_speed(
+                dev, here, there, self.device_s(duration), self.device_s(poll), reported
+            )
+            m = SpeedMeasurement(speed, measured, uncertainty, used, method)
+            self.speeds.append(m)
+            self.lines.append(speed_verdict(m, self.tolerance))
+            ok = abs(end - there) <= POSITION_TOLERANCE * stroke_mm
+            self.add(
+                f"end of move at {speed:g} mm/s",
+                f"{end:.1f} mm",
+                f"{there:.1f} mm ±{POSITION_TOLERANCE * stroke_mm:.1f}",
+                "PASS" if ok else "WARN",
+                "" if ok else "the move ended away from its target",
+                value=end,
+            )
+            took = self.device_s(duration)
+            expected = abs(there - here) / speed
+            self.add(
+                f"duration at {speed:g} mm/s",
+                f"{took:.2f} s",
+                f"{expected:.2f} s at the requested speed",
+                "INFO",
+                value=took,
+            )
+            here, there = there, here
+
+    def close_without_part(self) -> None:
+        if abs(self.g.state().width * 1000 - self.hi_mm) > POSITION_TOLERANCE * self.g.limits.stroke * 1000:
+            self.g.move(self.hi_mm / 1000)
+        start = time.monotonic()
+        result = self.g.grasp(self.lo_mm / 1000, force=self.force)
+        took = self.device_s(time.monotonic() - start)
+        self.add(
+            "close without a part",
+            "no part" if not result.grasped else f"holding at {result.width * 1000:.1f} mm",
+            "no part",
+            "WARN" if result.grasped else "PASS",
+            "reported a part in empty jaws: stall detection too eager, or the jaws are not empty"
+            if result.grasped
+            else "",
+        )
+        self.add("close duration", f"{took:.2f} s", "-", "INFO", value=took)
+        self.g.release()
+
+    def settings(self) -> None:
+        from .settings_cmd import _msg_read, _wsg_read, has_vendor_driver
+
+        info = self.g.info()
+        driver = self.g.driver
+        if not has_vendor_driver(self.g):
+            self.add(
+                "settings",
+                "-",
+                "-",
+                "INFO",
+                "not served over the network: run selftest on the serving machine",
+            )
+            return
+        if info.family == "wsg":
+            values = _wsg_read(driver)
+            accel = values.get("acceleration_mm_s2")
+            mech = self.g.profile.mechanics
+            if (
+                isinstance(accel, float)
+                and mech.min_accel_mm_s2 is not None
+                and mech.max_accel_mm_s2 is not None
+            ):
+                ok = mech.min_accel_mm_s2 <= accel <= mech.max_accel_mm_s2
+                self.add(
+                    "acceleration",
+                    f"{accel:g} mm/s²",
+                    f"{mech.min_accel_mm_s2:g}..{mech.max_accel_mm_s2:g} mm/s²",
+                    "PASS" if ok else "WARN",
+                )
+            force = values.get("force_limit_n")
+            if isinstance(force, float):
+                self.add("force limit", f"{force:g} N", f"<= {self.g.limits.max_force:g} N", "INFO")
+            soft = values.get("soft_limits")
+            if isinstance(soft, dict) and "min_mm" in soft:
+                self.add(
+                    "soft limits",
+                    f"{soft['min_mm']:g}..{soft['max_mm']:g} mm",
+                    "not set",
+                    "WARN",
+                    "the device refuses motion outside them",
+                )
+            else:
+                self.add("soft limits", "not set", "not set", "PASS")
+            return
+        values = _msg_read(driver)
+        if "node_id" in values:
+            self.add("node id", str(values["node_id"]), "-", "INFO")
+        if hasattr(driver, "error_state"):
+            es = driver.error_state()
+            names = [n for n in ("temperature", "encoder", "vbus", "driver", "velocity", "current", "estop")]
+            active = [n for n in names if getattr(es, n, False)]
+            self.add(
+                "driver errors (26)",
+                ", ".join(active) or "none",
+                "none",
+                "WARN" if active else "PASS",
+            )
+            tripped = bool(getattr(es, "watchdog", False))
+            self.add(
+                "watchdog",
+                "tripped" if tripped else "not tripped",
+                "not tripped",
+                "WARN" if tripped else "PASS",
+                "the node cannot report its watchdog period; grippers settings --watchdog 0 --save clears it",
+            )
+            heard = getattr(driver, "last_heartbeat", None) is not None
+            self.add(
+                "heartbeat",
+                "heard" if heard else "not heard",
+                "-",
+                "INFO",
+                "sent only after silence, so a polled node sends none",
+            )
+
+
+def _document(run: _Run, args: argparse.Namespace, info: Any, written: str | None) -> dict[str, Any]:
+    from dataclasses import asdict
+
+    warn = sum(1 for ln in run.lines if ln.verdict == "WARN")
+    return {
+        "schema": SELFTEST_SCHEMA_ID,
+        "target": args.target,
+        "family": info.family,
+        "profile": info.profile,
+        "time_scale": run.scale,
+        "tolerance": run.tolerance,
+        "lines": [{k: v for k, v in asdict(ln).items()} for ln in run.lines],
+        "warnings": warn,
+        "ok": warn == 0,
+        "written_profile": written,
+    }
+
+
+def _write_profile(run: _Run, path: str, name: str | None) -> str:
+    from grippers.errors import ProfileError
+    from grippers.profiles import load_file
+
+    from .selftest_checks import measured_profile
+    from .toml_out import dumps
+
+    profile = run.g.profile
+    doc = measured_profile(profile, run.lines, run.speeds, name or f"{profile.name}-measured", run.stroke_mm)
+    target = Path(path)
+    header = (
+        "# Written by `grippers selftest`: the base profile with what was measured on this unit.\n"
+        "# `extends` names the base: keep this file on the profile search path (docs/profiles.md).\n"
+    )
+    try:
+        target.write_text(header + dumps(doc), encoding="utf-8")
+    except OSError as exc:
+        raise UsageError(f"{path}: cannot write: {exc.strerror or exc}") from None
+    try:
+        load_file(target)  # what is written must load back through the loader every command uses
+    except ProfileError as exc:
+        raise UsageError(f"{path}: the written profile does not load: {exc.message}") from None
+    return str(target)
+
+
+def _check_profile_target(profile: Any, path: str) -> None:
+    """Before anything moves: the written file will be writable, and its ``extends`` will find the base.
+
+    The written profile names its base, so the base must be found by that name on the search path; a base
+    read from a file elsewhere would make the file unloadable after the whole run."""
+    import os
+
+    from grippers.errors import ProfileError
+    from grippers.profiles import load_profile
+
+    folder = Path(path).resolve().parent
+    if not folder.is_dir() or not os.access(folder, os.W_OK):
+        raise UsageError(f"--write-profile {path}: cannot write in {folder}")
+    try:
+        found = load_profile(profile.name)
+    except ProfileError:
+        found = None
+    if found is None or (
+        profile.path and found.path and Path(found.path).resolve() != Path(profile.path).resolve()
+    ):
+        raise UsageError(
+            f"--write-profile: the profile {profile.name!r} (from {profile.path}) is not the one its name "
+            "finds on the search path, so a profile extending it would not load; put its folder on "
+            "GRIPPERS_PROFILE_PATH (docs/profiles.md)"
+        )
+
+
+def run(args: argparse.Namespace) -> int:
+    if not args.yes and not sys.stdin.isatty():
+        raise UsageError("selftest moves the gripper: add --yes to run it without a terminal to ask on")
+    if args.write_profile and not args.write_profile.lower().endswith(".toml"):
+        raise UsageError(f"{args.write_profile}: the profile's name must end in .toml")
+    scale = _time_scale(args)
+    gripper = open_gripper(args)
+    try:
+        if args.write_profile:
+            _check_profile_target(gripper.profile, args.write_profile)
+        info = gripper.info()
+        st = _Run(gripper, scale, args.tolerance)
+        _confirm(plan_text(gripper.name, st.lo_mm, st.hi_mm, st.speed_list, st.force), args.yes)
+        st.faults("before")
+        st.home("1st")
+        st.home("2nd")
+        st.stroke()
+        st.moves()
+        st.close_without_part()
+        st.settings()
+        st.faults("after")
+    finally:
+        gripper.close()
+    written = _write_profile(st, args.write_profile, args.profile_name) if args.write_profile else None
+    document = _document(st, args, info, written)
+    if args.json:
+        write_json(document)
+    else:
+        rows = [(ln.check, ln.measured, ln.expected, ln.verdict, ln.note) for ln in st.lines]
+        print(table(rows, ("check", "measured", "expected", "verdict", "note")))
+        summary = "all PASS" if document["ok"] else f"{document['warnings']} WARN"
+        print(f"\n{summary}" + (f"; wrote {written}" if written else ""))
+    return EXIT_OK if document["ok"] else EXIT_WARN
