@@ -8,225 +8,39 @@ handles, state streams, and release of every resource on close.
 
 from __future__ import annotations
 
-import enum
 import logging
-import math
-import queue
 import threading
-import time
 from abc import ABC, abstractmethod
-from collections.abc import Callable, Iterator
-from dataclasses import dataclass, field
+from collections.abc import Callable
 from typing import Any, TypeVar
 
-from .errors import GripperError, GripperTimeout, LimitError, NotSupported
+from grippers.drivers.numbers import finite
+
+from .errors import DeviceMismatch, FastStopActive, GripperError, LimitError, NotSupported
 from .motions import MotionHandle, MotionSupervisor, wait_seconds
-from .profiles import Limits, ProfileBase
+from .profiles import ProfileBase
+
+# Re-exported: these lived here before they moved to their own modules; ``from grippers.gripper import
+# GripperState`` and the like keep working.
+from .states import Capability, DeviceInfo, GraspResult, GraspState, GripperState, MotionResult
+from .streams import StateStream, put_dropping_oldest
+
+__all__ = [
+    "Capability",
+    "DeviceInfo",
+    "FastStopActive",
+    "GraspResult",
+    "GraspState",
+    "Gripper",
+    "GripperState",
+    "MotionResult",
+    "StateStream",
+    "put_dropping_oldest",
+]
 
 T = TypeVar("T")
 
 log = logging.getLogger(__name__)
-
-
-class GraspState(enum.Enum):
-    """One grasp state for every family (WSG grasping states; MSG object detection mapped onto them)."""
-
-    IDLE = "idle"
-    POSITIONING = "positioning"
-    GRASPING = "grasping"
-    HOLDING = "holding"
-    NO_PART = "no_part"
-    PART_LOST = "part_lost"
-    RELEASING = "releasing"
-    ERROR = "error"
-
-
-class Capability(enum.Enum):
-    FORCE_CONTROL = "force_control"  # grasp force set in newtons on the device
-    CURRENT_CONTROL = "current_control"  # force estimated from a motor current limit
-    SOFT_LIMITS = "soft_limits"
-    TEMPERATURE = "temperature"
-    DEVICE_TAG = "device_tag"
-    FINGER_DATA = "finger_data"
-    CALIBRATION = "calibration"  # home() calibrates the stroke (MSG)
-    HOMING = "homing"  # home() references the axis (WSG)
-    FORCE_MEASUREMENT = "force_measurement"  # state().force is measured
-    PUSH_UPDATES = "push_updates"  # the device streams state by itself
-
-
-@dataclass(frozen=True, slots=True)
-class GripperState:
-    """A snapshot in SI units. ``force`` is None where the device reports only ``current`` (A)."""
-
-    width: float
-    speed: float | None
-    force: float | None
-    current: float | None
-    grasp: GraspState
-    moving: bool
-    referenced: bool
-    faults: tuple[str, ...]
-    timestamp: float  # time.time() when the snapshot was taken
-    gap: bool = False  # the first state after a reconnection: states were missed before it (reconnect=true)
-
-    @property
-    def fast_stopped(self) -> bool:
-        return "fast_stop" in self.faults
-
-
-@dataclass(frozen=True, slots=True)
-class MotionResult:
-    width: float
-    state: GraspState
-
-
-@dataclass(frozen=True, slots=True)
-class GraspResult:
-    """``grasped`` tells whether a part is held; ``reason`` says why not when it is not."""
-
-    grasped: bool
-    width: float
-    force: float | None
-    state: GraspState
-    reason: str | None = None
-
-
-@dataclass(frozen=True)
-class DeviceInfo:
-    family: str
-    vendor: str
-    model: str
-    serial: str | None
-    firmware: str | None
-    hardware: str | None
-    limits: Limits
-    url: str
-    profile: str
-    extra: dict[str, Any] = field(default_factory=dict)
-
-    @property
-    def stroke(self) -> float:
-        return self.limits.stroke
-
-
-def put_dropping_oldest(q: queue.Queue[Any], item: Any) -> int:
-    """Put ``item`` into a bounded queue, dropping the oldest entries to make room; returns how many went.
-
-    A state stream's reader that falls behind wants the newest states, never a producer that blocks."""
-    dropped = 0
-    while True:
-        try:
-            q.put_nowait(item)
-            return dropped
-        except queue.Full:
-            try:
-                q.get_nowait()
-                dropped += 1
-            except queue.Empty:
-                pass
-
-
-class StateStream:
-    """States at ``rate_hz``: iterate over it, or pass a callback. Bounded: a slow reader drops the oldest."""
-
-    def __init__(
-        self,
-        read: Callable[[], GripperState],
-        rate_hz: float,
-        callback: Callable[[GripperState], Any] | None = None,
-        maxsize: int = 64,
-        on_close: Callable[[StateStream], None] | None = None,
-    ) -> None:
-        if not (math.isfinite(rate_hz) and rate_hz > 0):
-            raise LimitError(f"rate_hz must be a positive number, not {rate_hz!r}", command="stream")
-        self.period = 1.0 / rate_hz
-        self._read = read
-        self._callback = callback
-        self._on_close = on_close
-        self._queue: queue.Queue[GripperState | BaseException] = queue.Queue(maxsize)
-        self._stop = threading.Event()
-        self.dropped = 0
-        self._thread = threading.Thread(target=self._run, name="grippers-stream", daemon=True)
-        self._thread.start()
-
-    def _run(self) -> None:
-        next_at = time.monotonic()
-        while not self._stop.is_set():
-            try:
-                item: GripperState | BaseException = self._read()
-            except BaseException as exc:
-                item = exc
-            if self._callback is not None and isinstance(item, GripperState):
-                try:
-                    self._callback(item)
-                except Exception:  # a bug in the user's callback must not end the stream silently
-                    log.exception("state stream callback raised; the stream goes on")
-            else:
-                self._put(item)
-            if isinstance(item, BaseException) and not isinstance(item, GripperTimeout):
-                return  # a lost connection ends the stream; the reader sees the error
-            next_at += self.period
-            delay = next_at - time.monotonic()
-            if delay < 0:  # fell behind: do not burst to catch up
-                next_at = time.monotonic()
-                delay = 0
-            self._stop.wait(delay)
-
-    def _put(self, item: GripperState | BaseException) -> None:
-        self.dropped += put_dropping_oldest(self._queue, item)
-
-    def __iter__(self) -> Iterator[GripperState]:
-        return self
-
-    def __next__(self) -> GripperState:
-        return self.get()
-
-    def get(self, timeout: float | None = None) -> GripperState:
-        """The next state; GripperTimeout when none comes within ``timeout`` (default: ten periods + 2 s)."""
-        if self._stop.is_set() and self._queue.empty():
-            raise StopIteration
-        chosen = wait_seconds(timeout, "stream")
-        wait = chosen if chosen is not None else 10 * self.period + 2.0
-        try:
-            item = self._queue.get(timeout=wait)
-        except queue.Empty:
-            raise GripperTimeout(f"no state within {wait:g} s", command="stream") from None
-        if isinstance(item, BaseException):
-            # A timeout is one missed reading (the stream thread goes on); anything else ended the stream.
-            if not isinstance(item, GripperTimeout):
-                self.close()
-            raise item
-        return item
-
-    def close(self) -> None:
-        self._stop.set()
-        if threading.current_thread() is not self._thread:
-            self._thread.join(timeout=5)
-        if self._on_close is not None:
-            self._on_close(self)
-            self._on_close = None
-
-    def __enter__(self) -> StateStream:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
-
-
-class FastStopActive(GripperError):
-    """A fast stop (WSG FAST STOP, MSG e-stop) is active: motion is refused until ``acknowledge()``."""
-
-
-def _finite(value: float, name: str, command: str, device: str) -> float:
-    try:
-        number = float(value)
-    except OverflowError:  # float(10**400)
-        raise LimitError(f"{name} is too large for a float", device=device, command=command) from None
-    except (TypeError, ValueError):
-        raise LimitError(f"{name} must be a number, not {value!r}", device=device, command=command) from None
-    if not math.isfinite(number):
-        raise LimitError(f"{name} must be finite, not {value!r}", device=device, command=command)
-    return number
 
 
 class Gripper(ABC):
@@ -263,6 +77,7 @@ class Gripper(ABC):
         self.simulator: Any = None  # the in-process simulator server behind a sim:// gripper
         self._servo_loop: Any = None  # grippers.servo.ServoLoop while servoing
         self._watch: Any = None  # grippers.reconnect.LinkWatch when opened with reconnect=true
+        self._opened_identity: dict[str, str] = {}  # _identity() when reconnection was switched on
 
     # -- what a backend provides (device units are its business) -------------------------------------------
 
@@ -331,7 +146,7 @@ class Gripper(ABC):
             )
 
     def _width(self, width: float, command: str) -> float:
-        w = _finite(width, "width", command, self.name)
+        w = finite(width, "width", device=self.name, command=command)
         lo, hi = self.limits.min_width, self.limits.max_width
         if not lo - 1e-9 <= w <= hi + 1e-9:
             raise LimitError(
@@ -347,7 +162,7 @@ class Gripper(ABC):
             # self.limits): sending it unchecked would bypass them, refusing it would break every call.
             default = self.profile.mechanics.default_speed_mm_s / 1000
             return min(max(default, self.limits.min_speed), self.limits.max_speed)
-        s = _finite(speed, "speed", command, self.name)
+        s = finite(speed, "speed", device=self.name, command=command)
         lo, hi = self.limits.min_speed, self.limits.max_speed
         if not lo - 1e-9 <= s <= hi + 1e-9 or s <= 0:
             raise LimitError(
@@ -361,7 +176,7 @@ class Gripper(ABC):
         if force is None:
             default = self.profile.mechanics.default_force_n  # clamped for the reason given in _speed
             return min(max(default, self.limits.min_force), self.limits.max_force)
-        f = _finite(force, "force", command, self.name)
+        f = finite(force, "force", device=self.name, command=command)
         lo, hi = self.limits.min_force, self.limits.max_force
         if not lo - 1e-9 <= f <= hi + 1e-9:
             raise LimitError(f"force {f:g} N is outside {lo:g}..{hi:g} N", device=self.name, command=command)
@@ -399,7 +214,7 @@ class Gripper(ABC):
         self, name: str, call: Callable[[], T], wait: bool, *, timeout: float = 0.0, what: str = ""
     ) -> T | MotionHandle[T]:
         """Run a backend motion under the one rule (grippers/motions.py): supersede, abort, Ctrl-C stops."""
-        return self._motions.run(name, call, wait, timeout=timeout, what=what)  # type: ignore[no-any-return]
+        return self._motions.run(name, call, wait, timeout=timeout, what=what)
 
     def home(self, timeout: float | None = None, *, wait: bool = True) -> None | MotionHandle[None]:
         """Reference the axis (WSG homing) or calibrate the stroke (MSG); blocks until done."""
@@ -560,6 +375,8 @@ class Gripper(ABC):
         w, s = self._width(width, "servo"), self._speed(speed, "servo")
         f = None if force is None else self._force(force, "servo")
         self._check_motion("servo")
+        if self._servo_loop is None:  # servoing begins: it takes over from a running motion, which ends now
+            self._motions.supersede(f"servo to {w * 1000:g} mm")
         with self._lock:
             self._check_open("servo")
             loop = self._servo_loop
@@ -589,8 +406,9 @@ class Gripper(ABC):
         """Called (under the lock) before the first target of a servoing; NotSupported by default."""
         raise NotSupported("this backend cannot stream targets", device=self.name, command="servo")
 
-    def _servo(self, target: Any) -> bool:
-        """Put one target on the wire without waiting for the motion; False if nothing needed sending."""
+    def _servo(self, target: Any) -> bool | None:
+        """Put one target on the wire without waiting for the motion; False if nothing needed sending, None
+        to put it off (grippers/servo.py offers it again)."""
         raise NotSupported("this backend cannot stream targets", device=self.name, command="servo")
 
     def _servo_end(self) -> None:
@@ -623,7 +441,30 @@ class Gripper(ABC):
 
         return remove
 
-    # Backends that can re-establish their link override these two (reconnect=true).
+    # Backends that can re-establish their link override these (reconnect=true).
+    def _identity(self) -> dict[str, str]:
+        """What tells this device from another of its family (model, serial), read without traffic where
+        the backend can. Recorded when reconnection is switched on; empty: devices cannot be told apart."""
+        return {}
+
+    def _check_same_device(self, found: dict[str, str]) -> None:
+        """Called by a backend's ``_reconnect`` before it swaps a fresh link in: DeviceMismatch when another
+        device answers where the opened one was. Refused rather than adopted: the profile, the limits and the
+        application's idea of the cell all belong to the opened device (a WSG 25 taking a WSG 50's 70 N
+        grasp), so the caller reopens on purpose if the new device is meant."""
+        opened = self._opened_identity
+        if not opened:
+            return
+        differs = {k: v for k, v in found.items() if k in opened and opened[k] != v}
+        if differs:
+            was = ", ".join(f"{k} {opened[k]}" for k in differs)
+            now = ", ".join(f"{k} {v}" for k, v in differs.items())
+            raise DeviceMismatch(
+                f"another device answers here ({now}; opened: {was}): refused, reopen to use it",
+                device=self.name,
+                command="reconnect",
+            )
+
     def _link_alive(self) -> bool:
         """Cheap, no traffic: whether the driver has noticed its link is gone."""
         return True

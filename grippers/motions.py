@@ -72,7 +72,7 @@ class MotionHandle(Generic[T]):
         self,
         name: str,
         run: Callable[[], T] | None = None,
-        cancel: Callable[[], None] | None = None,
+        cancel: Callable[[], object] | None = None,
         *,
         device: str | None = None,
     ) -> None:
@@ -269,6 +269,35 @@ class MotionSupervisor:
                 h.join(max(0.0, deadline - time.monotonic()))
         self.may_send(handle)
         return call()
+
+    def supersede(self, by: str) -> None:
+        """End the running motions for a command that is not a motion of its own (``servo()``), as
+        :meth:`run` does for a newer motion: they raise "superseded by …" at once, the device is stopped,
+        and their calls are given (bounded) time to return, so nothing of theirs lands after ``by`` begins.
+
+        Without it a servo target waited for a WSG move to end (the device refuses a motion while one
+        runs), an MSG move took the servo target's arrival for its own and reported success at another
+        width, and an MSG home() overtaken by servo() ran on to its timeout."""
+        device = self._device()
+        me = threading.current_thread()
+        with self._lock:
+            running = [h for h in self.handles if h._busy() and h._thread is not me]
+            marked = [
+                h
+                for h in running
+                if h._mark_aborted(CommandFailed(f"superseded by {by}", device=device, command=h.name))
+            ]
+        for h in marked:
+            h._settle_aborted()
+        if not running:
+            return
+        try:
+            self._supersede()
+        except Exception as exc:  # the newer command goes on; it meets the device's state itself
+            log.debug("%s: stopping the superseded motion failed: %s", device, exc)
+        deadline = time.monotonic() + self._settle_time()
+        for h in running:
+            h.join(max(0.0, deadline - time.monotonic()))
 
     def may_send(self, handle: MotionHandle[Any]) -> None:
         """Raise instead of sending when the motion was ended (or the gripper closed) before it began."""

@@ -40,6 +40,10 @@ MAX_FORCE_N = 100_000.0
 MAX_TIMEOUT_S = 3600.0  # an exchange that takes longer than an hour is not an exchange
 MAX_TIME_SCALE = 1_000_000.0
 MAX_PROFILE_BYTES = 1 << 20  # 1 MiB: every shipped profile is under 2 kB; a bigger file is not a profile
+# How many ``extends`` a profile may stand on. Each level searches the profile path and validates its base, so
+# a chain of 300 took two minutes to load (and ``profiles list`` loads every file): no real family tree of
+# grippers is deeper than a handful (vendor, model, variant, site), so a deeper one is refused by name.
+MAX_EXTENDS_DEPTH = 16
 
 NonNegative = Annotated[float, Field(ge=0, allow_inf_nan=False)]
 Positive = Annotated[float, Field(gt=0, allow_inf_nan=False)]
@@ -132,9 +136,10 @@ class Connection(_Model):
     """Automatic reconnection (grippers/reconnect.py); URL parameters and keywords of the same names win."""
 
     reconnect: bool = False
-    reconnect_backoff_s: Positive = 0.1  # first retry after this, doubling up to the maximum
-    reconnect_backoff_max_s: Positive = 5.0
-    heartbeat_s: Positive = 0.5  # a state query this often notices a link that died while idle
+    # Bounded like a timeout: a backoff of 1e308 s overflows the condition wait of the reconnection thread.
+    reconnect_backoff_s: Timeout = 0.1  # first retry after this, doubling up to the maximum
+    reconnect_backoff_max_s: Timeout = 5.0
+    heartbeat_s: Timeout = 0.5  # a state query this often notices a link that died while idle
     acknowledge_on_reconnect: bool = False  # a safety decision: off unless the application says so
 
 
@@ -481,6 +486,11 @@ def _load(path: Path, chain: tuple[str, ...]) -> tuple[ProfileBase, tuple[tuple[
     if base_name is not None:
         if not isinstance(base_name, str) or not base_name.strip():
             raise ProfileError(f"{where}: extends: must be the name of a profile, not {base_name!r}")
+        if len(chain) >= MAX_EXTENDS_DEPTH:
+            raise ProfileError(
+                f"{where}: extends: more than {MAX_EXTENDS_DEPTH} levels of extends "
+                f"(from {chain[0]}); flatten the chain"
+            )
         skip = {*chain, me}
         base_path, in_chain = _find(base_name, skip)
         if base_path is None:

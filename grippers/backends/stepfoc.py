@@ -640,6 +640,10 @@ class MsgGripper(Gripper):
             return bus is not None and bus.alive
         return not link.driver.closed
 
+    def _identity(self) -> dict[str, str]:
+        serial = self._link.identity().get("serial")  # over CAN only: the UART protocol reports none
+        return {} if serial is None else {"serial": str(serial)}
+
     def _reconnect(self) -> None:
         link = self._link
         if isinstance(link, _UartLink):
@@ -654,6 +658,7 @@ class MsgGripper(Gripper):
             old.close()
         else:
             link.status()  # the bus stays open: the node answering again is the reconnection
+            self._check_same_device(self._identity())  # another MSG put on this node is refused
         # A gripper that was power-cycled has lost its calibration (docs/protocols.md §2) and anything
         # it held.
         self._mode, self._held = "idle", False
