@@ -10,6 +10,7 @@ as the data package ``grippers._profiles``.
 
 from __future__ import annotations
 
+import contextvars
 import json
 import logging
 import os
@@ -461,19 +462,37 @@ def _find(name: str, skip: set[str], *, names_only: bool = False) -> tuple[Path 
     """The first file on the search path declaring ``name``, not in ``skip``; and the first one in ``skip``
     that declares it (to tell a cycle from a missing base)."""
     key, skipped = _key(name), None
-    for path in _candidate_files():
-        try:
-            declared = _declared(path, names_only)
-        except ProfileError:
+    for path, absolute, every, names in _scan_index.get() or _index_files():
+        declared = names if names_only else every
+        if declared is None:
             if _key(path.stem) == key:
-                raise  # meant to be that profile, and broken: never fall back to another one
+                _declared(path, names_only)  # meant to be that profile, and broken: raise its ProfileError
             continue
         if key in declared:
-            if os.path.abspath(path) in skip:
+            if absolute in skip:
                 skipped = skipped or path
                 continue
             return path, skipped
     return None, skipped
+
+
+_Indexed = tuple[Path, str, set[str] | None, set[str] | None]  # path, its absolute form, names+aliases, names
+
+# The search path's files and the names they declare, while scan_profiles() runs: every ``extends`` of every
+# file is looked up here instead of stat-ing and reading the whole path again (a 300-file chain made the
+# listing cubic in the number of files).
+_scan_index: contextvars.ContextVar[list[_Indexed] | None] = contextvars.ContextVar(
+    "_scan_index", default=None
+)
+
+
+def _index_files() -> Iterator[_Indexed]:
+    for path in _candidate_files():
+        try:
+            every, names = _declared(path), _declared(path, names_only=True)
+        except ProfileError:
+            every = names = None
+        yield path, os.path.abspath(path), every, names
 
 
 def _load(path: Path, chain: tuple[str, ...]) -> tuple[ProfileBase, tuple[tuple[str, Stamp], ...]]:
@@ -609,16 +628,21 @@ def scan_profiles() -> ProfileScan:
     seen: dict[str, ProfileBase] = {}
     problems: list[tuple[str, str]] = []
     shadowed: list[tuple[str, str]] = []
-    for path in _candidate_files():
-        try:
-            profile = load_file(path)
-        except ProfileError as exc:
-            problems.append((str(path), str(exc)))
-            continue
-        if profile.name in seen:
-            shadowed.append((str(path), str(seen[profile.name].path)))
-        else:
-            seen[profile.name] = profile
+    index = list(_index_files())
+    token = _scan_index.set(index)
+    try:
+        for path, *_ in index:
+            try:
+                profile = load_file(path)
+            except ProfileError as exc:
+                problems.append((str(path), str(exc)))
+                continue
+            if profile.name in seen:
+                shadowed.append((str(path), str(seen[profile.name].path)))
+            else:
+                seen[profile.name] = profile
+    finally:
+        _scan_index.reset(token)
     return ProfileScan(list(seen.values()), problems, shadowed)
 
 
