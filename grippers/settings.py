@@ -84,6 +84,11 @@ class Settings:
     def str(self, name: str, default: Any) -> Any:
         return self._take(name, default, lambda v, _n, _u: _text(v))
 
+    @property
+    def taken(self) -> frozenset[_text]:
+        """The names a backend has asked for so far (whether or not they were given)."""
+        return frozenset(self._known)
+
     def add_defaults(self, values: dict[_text, Any]) -> None:
         """Settings that apply unless the user gave their own (a simulator's URL parameters)."""
         for key, value in values.items():
