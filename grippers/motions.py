@@ -61,6 +61,14 @@ def wait_seconds(timeout: Any, command: str, device: str | None = None) -> float
     return min(seconds, threading.TIMEOUT_MAX)
 
 
+# Starts ``body`` (named, for thread names) somewhere it may block until the motion ends.
+Spawn = Callable[[Callable[[], None], str], None]
+
+
+def _thread_of_its_own(body: Callable[[], None], name: str) -> None:
+    threading.Thread(target=body, name=name, daemon=True).start()
+
+
 class MotionHandle(Generic[T]):
     """A motion started with ``wait=False``: poll ``done()``, ``wait()`` for the result, or ``cancel()``.
 
@@ -85,17 +93,27 @@ class MotionHandle(Generic[T]):
         self._error: BaseException | None = None
         self._abort: CommandFailed | None = None  # set once by whoever ends the motion early
         self._callbacks: list[Callable[[MotionHandle[T]], Any]] = []
-        self._thread: threading.Thread | None = None
+        self._submitted = False
+        self._returned = threading.Event()  # the backend call behind the motion has returned
+        self._runner: threading.Thread | None = None  # the thread running that call, once it runs
         if run is not None:
             self._start(run)
 
     # -- the side that runs and ends motions (the Gripper) ---------------------------------------------
 
-    def _start(self, run: Callable[[], T]) -> None:
-        self._thread = threading.Thread(
-            target=self._run, args=(run,), name=f"grippers-{self.name}", daemon=True
-        )
-        self._thread.start()
+    def _start(self, run: Callable[[], T], spawn: Spawn | None = None) -> None:
+        """Run the backend call in a thread of its own, or through ``spawn`` (the asyncio face runs motions
+        on a fixed pool of threads, so concurrent awaits never add one)."""
+
+        def body() -> None:
+            self._runner = threading.current_thread()
+            try:
+                self._run(run)
+            finally:
+                self._returned.set()
+
+        self._submitted = True
+        (spawn or _thread_of_its_own)(body, f"grippers-{self.name}")
 
     def _run(self, run: Callable[[], T]) -> None:
         try:
@@ -141,8 +159,11 @@ class MotionHandle(Generic[T]):
         return self._done.is_set() or self._abort is not None
 
     def _busy(self) -> bool:
-        """Its backend call still runs (even when the handle has been settled as superseded)."""
-        return self._thread is not None and self._thread.is_alive()
+        """Its backend call is still to run or runs (even when the handle has been settled as superseded)."""
+        return self._submitted and not self._returned.is_set()
+
+    def _runs_in(self, thread: threading.Thread) -> bool:
+        return self._runner is thread and self._busy()
 
     def _call(self, fn: Callable[[MotionHandle[T]], Any]) -> None:
         try:
@@ -185,8 +206,8 @@ class MotionHandle(Generic[T]):
 
     def join(self, timeout: float) -> None:
         """Wait (bounded) until the backend call behind this motion has returned, not only its outcome."""
-        if self._thread is not None and self._thread is not threading.current_thread():
-            self._thread.join(wait_seconds(timeout, self.name, self.device))
+        if self._submitted and self._runner is not threading.current_thread():
+            self._returned.wait(wait_seconds(timeout, self.name, self.device))
 
     def __repr__(self) -> str:
         state = "done" if self.done() else "running"
@@ -219,6 +240,7 @@ class MotionSupervisor:
         self._supersede = supersede
         self._settle_time = settle_time
         self.handles: list[MotionHandle[Any]] = []
+        self.spawn: Spawn | None = None  # where motions run; None: a thread each (grippers.aio sets a pool)
 
     def run(self, name: str, call: Callable[[], T], wait: bool, *, timeout: float, what: str = "") -> Any:
         """Start ``call`` (the backend's blocking motion) in its own thread, superseding any running motion;
@@ -234,14 +256,14 @@ class MotionSupervisor:
             handle: MotionHandle[T] = MotionHandle(name, device=device)
             handle._cancel = lambda: self.abort("cancel()", handle)
             me = threading.current_thread()  # a done callback starting a motion must not wait for itself
-            previous = [h for h in self.handles if h._busy() and h._thread is not me]
+            previous = [h for h in self.handles if h._busy() and h._runner is not me]
             for h in previous:
                 error = CommandFailed(f"superseded by {name}{what}", device=device, command=h.name)
                 if h._mark_aborted(error):
                     superseded.append(h)
             self.handles = [*previous, handle]
             stop_first = bool(superseded)  # an older motion still ran: stop it on the device first
-            handle._start(lambda: self._body(handle, call, previous, stop_first))
+            handle._start(lambda: self._body(handle, call, previous, stop_first), self.spawn)
         for h in superseded:  # outside the lock: done callbacks may call back into the gripper
             h._settle_aborted()
         if not wait:
@@ -281,7 +303,7 @@ class MotionSupervisor:
         device = self._device()
         me = threading.current_thread()
         with self._lock:
-            running = [h for h in self.handles if h._busy() and h._thread is not me]
+            running = [h for h in self.handles if h._busy() and h._runner is not me]
             marked = [
                 h
                 for h in running
@@ -315,7 +337,7 @@ class MotionSupervisor:
         """The motion whose thread calls this (a backend call checking it may go on), if any."""
         me = threading.current_thread()
         with self._lock:
-            return next((h for h in self.handles if h._thread is me), None)
+            return next((h for h in self.handles if h._runs_in(me)), None)
 
     def take_all(self) -> list[MotionHandle[Any]]:
         """Forget every handle (the gripper closes); the caller holds the lock."""
