@@ -1,10 +1,9 @@
 """Target 12 (issue 20 §2): ``await g.state()`` against the threaded ``g.state()`` of the same gripper.
 
 Both faces drive one gripper, so the device, the transport and the backend are shared and the ratio is the
-cost of the asyncio face alone. Batches of each alternate (drift on a shared machine hits both alike); the figure
-is the median latency of each. WSG over loopback TCP to a simulator in a child process; MSG over a python-can
-``virtual`` bus to an in-process simulator (its replies come from a thread of this process, as on a real bus
-through a kernel socket).
+cost of the asyncio face alone. Batches of each alternate (drift on a shared machine hits both alike); the
+figure is the median latency of each. WSG over loopback TCP to a simulator in a child process; MSG over a
+python-can ``virtual`` bus to an in-process simulator.
 """
 
 from __future__ import annotations

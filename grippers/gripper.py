@@ -12,7 +12,7 @@ import logging
 import threading
 from abc import ABC, abstractmethod
 from collections.abc import Callable
-from typing import Any, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
 from grippers.drivers.numbers import finite
 
@@ -24,6 +24,10 @@ from .profiles import ProfileBase
 # GripperState`` and the like keep working.
 from .states import Capability, DeviceInfo, GraspResult, GraspState, GripperState, MotionResult
 from .streams import StateStream, put_dropping_oldest
+
+if TYPE_CHECKING:
+    from .reconnect import LinkWatch
+    from .servo import ServoLoop, ServoStats, ServoTarget
 
 __all__ = [
     "Capability",
@@ -74,9 +78,12 @@ class Gripper(ABC):
         )
         self._streams: list[StateStream] = []
         self._on_close: list[Callable[[], None]] = []
-        self.simulator: Any = None  # the in-process simulator server behind a sim:// gripper
-        self._servo_loop: Any = None  # grippers.servo.ServoLoop while servoing
-        self._watch: Any = None  # grippers.reconnect.LinkWatch when opened with reconnect=true
+        # The in-process simulator behind a sim:// gripper, for tests and demos (its model and fault hooks are
+        # the family's own: grippers.drivers.wsg.sim, grippers.drivers.stepfoc.sim).
+        self.simulator: Any = None
+        self._servo_loop: ServoLoop | None = None  # while servoing (grippers/servo.py)
+        self._last_servo_loop: ServoLoop | None = None  # its counters stay readable after it ended
+        self._watch: LinkWatch | None = None  # when opened with reconnect=true (grippers/reconnect.py)
         self._opened_identity: dict[str, str] = {}  # _identity() when reconnection was switched on
 
     # -- what a backend provides (device units are its business) -------------------------------------------
@@ -269,8 +276,8 @@ class Gripper(ABC):
     GRASP_CLEARANCE = 0.005  # m: where grasp() opens to when the jaws start inside the part's width
 
     def _grips_from_inside(self) -> bool:
-        """Whether a grasp opens onto the part (MSG ``maps.inside_grip``); others grip from outside."""
-        return bool(getattr(getattr(self.profile, "maps", None), "inside_grip", False))
+        """Whether a grasp opens onto the part; a backend whose device can grip from inside says so."""
+        return False
 
     def _grasp_with_room(self, width: float, speed: float, force: float, timeout: float) -> GraspResult:
         try:
@@ -386,9 +393,9 @@ class Gripper(ABC):
         loop.submit(ServoTarget(w, s, f))
 
     @property
-    def servo_stats(self) -> Any:
+    def servo_stats(self) -> ServoStats | None:
         """Counts of the current (or last) servoing: received, sent, coalesced, unchanged, failed."""
-        loop = self._servo_loop or getattr(self, "_last_servo_loop", None)
+        loop = self._servo_loop or self._last_servo_loop
         return None if loop is None else loop.stats
 
     def _end_servo(self, *, stop_device: bool) -> None:
@@ -406,7 +413,7 @@ class Gripper(ABC):
         """Called (under the lock) before the first target of a servoing; NotSupported by default."""
         raise NotSupported("this backend cannot stream targets", device=self.name, command="servo")
 
-    def _servo(self, target: Any) -> bool | None:
+    def _servo(self, target: ServoTarget) -> bool | None:
         """Put one target on the wire without waiting for the motion; False if nothing needed sending, None
         to put it off (grippers/servo.py offers it again)."""
         raise NotSupported("this backend cannot stream targets", device=self.name, command="servo")

@@ -515,6 +515,9 @@ class MsgGripper(Gripper):
             else f"reached {self._width_of(st.position) * 1000:.1f} mm without meeting a part",
         )
 
+    def _grips_from_inside(self) -> bool:
+        return self._maps.inside_grip
+
     def _default_release_width(self) -> float:
         # A part gripped from inside is let go by closing: "fully open" would push into it.
         return self.limits.min_width if self._maps.inside_grip else self.limits.max_width

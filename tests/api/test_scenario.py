@@ -45,7 +45,7 @@ def _open(kind: str, profile: str, sim_process) -> grippers.Gripper:
 @pytest.mark.parametrize("profile", SHIPPED)
 def test_scenario(profile: str, kind: str, sim_process) -> None:
     with _open(kind, profile, sim_process) as g:
-        run_scenario(g, profile, _part_mm(profile) / 1000, slow=g.limits.max_speed / 4)
+        run_scenario(g, profile, _part_mm(profile) / 1000)
 
 
 @pytest.mark.parametrize("profile", ["wsg50", "msg-150"])

@@ -29,9 +29,7 @@ def pair() -> Iterator[ServeProcess]:
 @pytest.mark.parametrize(("name", "profile"), [("wsg", "wsg50"), ("msg", "msg-150")])
 def test_scenario(pair: ServeProcess, name: str, profile: str) -> None:
     with grippers.open(pair.urls[name]) as g:
-        # Slow enough that the served state (refreshed at 50 Hz) shows the motion at time scale 50.
-        slow = max(g.limits.min_speed, g.limits.max_speed / 40)
-        run_scenario(g, profile, PARTS_MM[profile] / 1000, slow=slow)
+        run_scenario(g, profile, PARTS_MM[profile] / 1000)
 
 
 @pytest.mark.timeout(60)
