@@ -337,8 +337,14 @@ class AsyncGripper:
         await self._call(lambda: self.sync.set_device_tag(tag))
 
     async def servo(self, width: float, speed: float | None = None, force: float | None = None) -> None:
-        """Returns at once (the servo loop has its own sender): no worker is needed, nothing waits."""
-        self.sync.servo(width, speed, force)
+        """Returns at once once servoing runs (the servo loop has its own sender). The first target of a
+        servoing takes over from a running motion (a stop, and the motion's call winding down): that one goes
+        through a worker, so the event loop never waits on the device."""
+        if self.sync._servo_loop is None:
+            self.sync.check(width, speed, force, command="servo")  # limits raise here, before anything runs
+            await self._call(lambda: self.sync.servo(width, speed, force))
+        else:
+            self.sync.servo(width, speed, force)
 
     async def stream(self, rate_hz: float = 50.0) -> AsyncIterator[GripperState]:
         """States at ``rate_hz`` as an async iterator, polled from this task (no thread of its own).

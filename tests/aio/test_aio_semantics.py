@@ -122,3 +122,20 @@ def test_async_methods_match_the_gripper() -> None:
         mine = [(p.name, p.kind, p.default) for p in inspect.signature(member).parameters.values()]
         theirs = [(p.name, p.kind, p.default) for p in inspect.signature(twin).parameters.values()]
         assert mine == theirs, f"{name}: {mine} != {theirs}"
+
+
+@pytest.mark.parametrize("url", URLS)
+def test_servo_takes_over_from_an_awaited_move(url: str) -> None:
+    async def main() -> None:
+        async with grippers.aio.open(url) as g:
+            await g.home()
+            top = g.limits.max_width
+            await g.move(top * 0.2)
+            moving = asyncio.ensure_future(g.move(top * 0.9, g.limits.min_speed * 2))
+            while abs((await g.state()).width - top * 0.2) < 1e-3:
+                await asyncio.sleep(0.01)
+            await g.servo(top * 0.5)
+            with pytest.raises(CommandFailed, match="superseded by servo"):
+                await moving
+
+    run(main())
