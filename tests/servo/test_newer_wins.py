@@ -3,7 +3,7 @@
 The first command runs when the second is given; the first never reports success (a motion raises
 "superseded by …"), the second does what it was asked, and a superseded call's backend work has ended by the
 time the second command has taken over (an MSG home() overtaken by servo() used to run on to its timeout).
-Simulators over real transports: WSG over loopback TCP, MSG over a python-can virtual bus.
+Simulators over real transports: WSG over loopback TCP, MSG over a python-can virtual bus and a pty.
 """
 
 from __future__ import annotations
@@ -22,6 +22,7 @@ COMMANDS = ("move", "grasp", "home", "servo")
 URLS = {
     "wsg": "sim://wsg50?time_scale=10&part_width_mm=40",
     "msg": "sim://msg-150?time_scale=10&part_width_mm=40",
+    "msg-uart": "sim://msg-150?time_scale=10&part_width_mm=40&transport=pty",
 }
 
 
