@@ -16,7 +16,9 @@ from typing import TYPE_CHECKING, Any, TypeVar
 
 from grippers.drivers.numbers import finite
 
-from .errors import DeviceMismatch, FastStopActive, GripperError, LimitError, NotSupported
+from .connection import ConnectionHooks
+from .errors import FastStopActive, GripperError, LimitError, NotSupported
+from .features import OptionalFeatures
 from .motions import MotionHandle, MotionSupervisor, wait_seconds
 from .profiles import ProfileBase
 
@@ -47,7 +49,7 @@ T = TypeVar("T")
 log = logging.getLogger(__name__)
 
 
-class Gripper(ABC):
+class Gripper(OptionalFeatures, ConnectionHooks, ABC):
     """A gripper in SI units (m, m/s, N, A). Open one with :func:`grippers.open`.
 
     Every value is checked against the profile's limits before anything is sent (``LimitError``, also a
@@ -421,111 +423,6 @@ class Gripper(ABC):
     def _servo_end(self) -> None:
         """Servoing ended for another motion command: leave the device ready to take it."""
         return None
-
-    # -- connection (grippers/reconnect.py) -------------------------------------------------------------
-
-    @property
-    def connected(self) -> bool:
-        """False while a lost link is being re-established (reconnect=true) or after close()."""
-        if self._closed:
-            return False
-        return True if self._watch is None else self._watch.connected
-
-    def on_connection(self, callback: Callable[[bool], Any]) -> Callable[[], None]:
-        """Call ``callback(connected)`` from a background thread whenever the link is lost or back; returns
-        a function that unregisters it. Without reconnect=true only a loss at close() is reported."""
-        if self._watch is not None:
-            return self._watch.add_listener(callback)
-
-        def at_close() -> None:
-            callback(False)
-
-        self._on_close.append(at_close)
-
-        def remove() -> None:
-            if at_close in self._on_close:
-                self._on_close.remove(at_close)
-
-        return remove
-
-    # Backends that can re-establish their link override these (reconnect=true).
-    def _identity(self) -> dict[str, str]:
-        """What tells this device from another of its family (model, serial), read without traffic where
-        the backend can. Recorded when reconnection is switched on; empty: devices cannot be told apart."""
-        return {}
-
-    def _check_same_device(self, found: dict[str, str]) -> None:
-        """Called by a backend's ``_reconnect`` before it swaps a fresh link in: DeviceMismatch when another
-        device answers where the opened one was. Refused rather than adopted: the profile, the limits and the
-        application's idea of the cell all belong to the opened device (a WSG 25 taking a WSG 50's 70 N
-        grasp), so the caller reopens on purpose if the new device is meant."""
-        opened = self._opened_identity
-        if not opened:
-            return
-        differs = {k: v for k, v in found.items() if k in opened and opened[k] != v}
-        if differs:
-            was = ", ".join(f"{k} {opened[k]}" for k in differs)
-            now = ", ".join(f"{k} {v}" for k, v in differs.items())
-            raise DeviceMismatch(
-                f"another device answers here ({now}; opened: {was}): refused, reopen to use it",
-                device=self.name,
-                command="reconnect",
-            )
-
-    def _link_alive(self) -> bool:
-        """Cheap, no traffic: whether the driver has noticed its link is gone."""
-        return True
-
-    def _reconnect(self) -> None:
-        """Open a fresh driver on the same URL and swap it in; GripperError while the device is not back."""
-        raise NotSupported("this backend cannot reconnect", device=self.name, command="reconnect")
-
-    def require(self, capability: Capability, command: str) -> None:
-        if capability not in self.capabilities:
-            raise NotSupported(f"this device has no {capability.value}", device=self.name, command=command)
-
-    # -- optional features: a device without the capability raises NotSupported, nothing is sent ---------
-
-    def temperature(self) -> float:
-        """The gripper's (or its driver's) temperature in °C."""
-        self._check_open("temperature")
-        self.require(Capability.TEMPERATURE, "temperature")
-        return self._temperature()
-
-    def set_soft_limits(self, min_width: float, max_width: float) -> None:
-        """Limits the device itself enforces on finger motion (m)."""
-        lo, hi = self._width(min_width, "set_soft_limits"), self._width(max_width, "set_soft_limits")
-        if lo >= hi:
-            raise LimitError("min_width must be below max_width", device=self.name, command="set_soft_limits")
-        self._check_open("set_soft_limits")
-        self.require(Capability.SOFT_LIMITS, "set_soft_limits")
-        self._set_soft_limits(lo, hi)
-
-    def clear_soft_limits(self) -> None:
-        self._check_open("clear_soft_limits")
-        self.require(Capability.SOFT_LIMITS, "clear_soft_limits")
-        self._set_soft_limits(None, None)
-
-    def device_tag(self) -> str:
-        """The user-defined name stored in the device."""
-        self._check_open("device_tag")
-        self.require(Capability.DEVICE_TAG, "device_tag")
-        return self._device_tag(None)
-
-    def set_device_tag(self, tag: str) -> None:
-        self._check_open("set_device_tag")
-        self.require(Capability.DEVICE_TAG, "set_device_tag")
-        self._device_tag(tag)
-
-    # Backends override these when they declare the matching capability.
-    def _temperature(self) -> float:
-        raise NotSupported("not implemented by this backend", device=self.name, command="temperature")
-
-    def _set_soft_limits(self, min_width: float | None, max_width: float | None) -> None:
-        raise NotSupported("not implemented by this backend", device=self.name, command="set_soft_limits")
-
-    def _device_tag(self, tag: str | None) -> str:
-        raise NotSupported("not implemented by this backend", device=self.name, command="device_tag")
 
     def close(self) -> None:
         """Stop streams, let running motions end (bounded), release the transport. Idempotent.

@@ -644,7 +644,9 @@ class MsgGripper(Gripper):
         return not link.driver.closed
 
     def _identity(self) -> dict[str, str]:
-        serial = self._link.identity().get("serial")  # over CAN only: the UART protocol reports none
+        if not isinstance(self._link, _CanLink):
+            return {}  # the UART protocol reports no serial: nothing to ask
+        serial = self._link.identity().get("serial")
         return {} if serial is None else {"serial": str(serial)}
 
     def _reconnect(self) -> None:
