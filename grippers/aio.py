@@ -15,23 +15,29 @@ from __future__ import annotations
 
 import asyncio
 import dataclasses
-import math
+import logging
 import os
 import queue
 import threading
-from collections.abc import AsyncIterator, Awaitable, Callable, Generator
+from collections.abc import AsyncIterator, Callable, Generator
 from typing import Any, Generic, TypeVar
 
-from .errors import ConnectionLost, GripperError, GripperTimeout
+from grippers.drivers.numbers import finite
+
+from .errors import CommandFailed, ConnectionLost, GripperError, GripperTimeout, LimitError
 from .gripper import DeviceInfo, GraspResult, Gripper, GripperState, MotionResult
+from .motions import MotionHandle, wait_seconds
 
 __all__ = ["AsyncGripper", "AsyncMotionHandle", "open"]
 
 T = TypeVar("T")
 
+log = logging.getLogger(__name__)
+
 # Workers for ordinary calls (a motion blocks one while it runs; state queries take the others), plus one
 # that only ever runs stop, fast stop and acknowledge, so a cancel can always reach the device at once.
 WORKERS = 3
+MOTION_WORKERS = 2  # a running motion and the newer one that supersedes it, while the older one winds down
 STOP_GRACE = 2.0  # s beyond the gripper's timeout for a cancelled motion to report back after the stop
 
 
@@ -39,7 +45,7 @@ class _Workers:
     """A fixed pool of threads for the blocking calls of one gripper (never grows; started at once)."""
 
     def __init__(self, name: str, size: int = WORKERS) -> None:
-        self._jobs: queue.SimpleQueue[tuple[Callable[[], Any], asyncio.Future[Any]] | None]
+        self._jobs: queue.SimpleQueue[tuple[Callable[[], Any], asyncio.Future[Any] | None] | None]
         self._jobs = queue.SimpleQueue()
         self._threads = [
             threading.Thread(target=self._run, name=f"grippers-aio {name} {i}", daemon=True)
@@ -47,6 +53,10 @@ class _Workers:
         ]
         for t in self._threads:
             t.start()
+
+    def spawn(self, body: Callable[[], None], name: str) -> None:
+        """Run ``body`` on the pool, no result wanted (a motion's backend call; its handle reports)."""
+        self._jobs.put((body, None))
 
     def submit(self, fn: Callable[[], T]) -> asyncio.Future[T]:
         fut: asyncio.Future[T] = asyncio.get_running_loop().create_future()
@@ -59,6 +69,12 @@ class _Workers:
             if job is None:
                 return
             fn, fut = job
+            if fut is None:
+                try:
+                    fn()
+                except BaseException:  # a motion body settles its handle itself; nothing may end the worker
+                    log.exception("a motion's call raised past its handle")
+                continue
             loop = fut.get_loop()
             if fut.cancelled():
                 continue
@@ -96,44 +112,101 @@ def _deliver(
 
 
 class AsyncMotionHandle(Generic[T]):
-    """A motion started with ``wait=False``: ``await`` it for the result, ``cancel()`` to stop it."""
+    """A motion started with ``wait=False``: ``await`` it for the result, ``cancel()`` to stop it. It was
+    registered when the call returned, so a later call supersedes it, in call order."""
 
-    def __init__(self, name: str, task: asyncio.Task[T]) -> None:
-        self.name = name
-        self._task = task
+    def __init__(self, owner: AsyncGripper, handle: MotionHandle[T]) -> None:
+        self.name = handle.name
+        self._owner = owner
+        self._handle = handle
+        self._cancelled = False
+        loop = asyncio.get_running_loop()
+        self._future: asyncio.Future[T] = loop.create_future()
+        # Retrieved at once: a superseded motion nobody awaits is an expected outcome, not asyncio's
+        # "exception was never retrieved" on stderr.
+        self._future.add_done_callback(_retrieve)
+        handle.add_done_callback(lambda h: _deliver_handle(loop, self._future, h))
 
     def __await__(self) -> Generator[Any, None, T]:
-        return self._task.__await__()
+        return self._result().__await__()
+
+    async def _result(self) -> T:
+        try:
+            return await asyncio.shield(self._future)
+        except CommandFailed:
+            if self._cancelled:
+                raise asyncio.CancelledError from None  # as for any asyncio future that was cancelled
+            raise
+        except asyncio.CancelledError:
+            # The task awaiting the motion was cancelled: stop the motion on the device first (bounded), then
+            # let the cancellation go on, whatever the stop met (a gripper closing meanwhile included).
+            if not self._future.done():
+                await self._owner._stop_after_cancel(self._handle, self._future)
+            raise
 
     def done(self) -> bool:
-        return self._task.done()
+        return self._handle.done()
 
     async def wait(self, timeout: float | None = None) -> T:
         """The result; GripperTimeout if still running after ``timeout`` (the motion goes on)."""
-        done, _ = await asyncio.wait({self._task}, timeout=timeout)
+        done, _ = await asyncio.wait({self._future}, timeout=wait_seconds(timeout, self.name))
         if not done:
             raise GripperTimeout(f"still running after {timeout:g} s", command=self.name)
-        return self._task.result()
+        if self._cancelled and self._future.exception() is not None:
+            raise asyncio.CancelledError
+        return self._future.result()
 
     async def cancel(self) -> None:
-        """Stop the motion on the device; returns once the device has reported back (bounded)."""
-        if self._task.done():
-            return
-        self._task.cancel()
-        await asyncio.wait({self._task})
+        """Stop the motion on the device; returns once the device has reported back (bounded). Awaiting the
+        handle then raises CancelledError, as for any cancelled asyncio future."""
+        if not self._future.done():
+            self._cancelled = True
+            await self._owner._stop_after_cancel(self._handle, self._future)
 
     def add_done_callback(self, fn: Callable[[AsyncMotionHandle[T]], Any]) -> None:
-        self._task.add_done_callback(lambda _t: fn(self))
+        self._future.add_done_callback(lambda _f: fn(self))
+
+
+def _close_opened(fut: asyncio.Future[Gripper]) -> None:
+    if not fut.cancelled() and fut.exception() is None:
+        fut.result().close()
+
+
+def _retrieve(fut: asyncio.Future[Any]) -> None:
+    if not fut.cancelled():
+        fut.exception()
+
+
+def _deliver_handle(
+    loop: asyncio.AbstractEventLoop, fut: asyncio.Future[Any], handle: MotionHandle[Any]
+) -> None:
+    try:
+        result, error = handle.wait(0), None
+    except BaseException as exc:  # handed to whoever awaits
+        result, error = None, exc
+    _deliver(loop, fut, result, error)
+
+
+def _motion_handle(started: object) -> MotionHandle[Any]:
+    assert isinstance(started, MotionHandle)  # wait=False always returns one
+    return started
 
 
 class AsyncGripper:
     """Every :class:`grippers.Gripper` method, awaitable. Open one with :func:`open`; ``.sync`` is the
-    gripper underneath (its limits, profile and capabilities are plain attributes, read without awaiting)."""
+    gripper underneath (its limits, profile and capabilities are plain attributes, read without awaiting).
+
+    Motions are registered on the threaded gripper in the calling task, before the first ``await``: the newer
+    motion wins exactly as in the threaded API (grippers/motions.py). Their blocking backend calls run on a
+    fixed pool of threads, like every other call, so concurrent awaits never add a thread.
+    """
 
     def __init__(self, gripper: Gripper, workers: _Workers) -> None:
         self.sync = gripper
         self._workers = workers
         self._control = _Workers(f"{gripper.name} control", 1)
+        self._motion_pool = _Workers(f"{gripper.name} motion", MOTION_WORKERS)
+        gripper._motions.spawn = self._motion_pool.spawn
         self._closed = False
 
     # -- plumbing ------------------------------------------------------------------------------------------
@@ -143,31 +216,22 @@ class AsyncGripper:
             raise GripperError("the gripper is closed", device=self.sync.name)
         return (self._control if control else self._workers).submit(fn)
 
-    async def _motion(self, name: str, fn: Callable[[], T]) -> T:
-        fut = self._call(fn)
-        try:
-            return await asyncio.shield(fut)
-        except asyncio.CancelledError:
-            if not fut.done():
-                await self._stop_after_cancel(fut)
-            raise
+    async def _stop_after_cancel(self, handle: MotionHandle[Any], fut: asyncio.Future[Any]) -> None:
+        """Stop the device, then let the blocking motion call report (bounded); never raises but a cancel."""
+        bound = self.sync.timeout + STOP_GRACE
+        if self._closed:  # close() ends the motion itself (and its control worker is gone)
+            await asyncio.wait({fut}, timeout=bound)
+            return
+        stop = self._control.submit(handle.cancel)
+        stop.add_done_callback(_retrieve)  # a stop that failed (the link went) is no news to the canceller
+        await asyncio.wait({stop}, timeout=bound)
+        await asyncio.wait({fut}, timeout=bound)
 
-    async def _stop_after_cancel(self, fut: asyncio.Future[Any]) -> None:
-        """Stop the device, then let the blocking motion call report (bounded) before the cancel goes on."""
-        stop = self._call(self.sync.stop, control=True)
-        try:
-            await asyncio.wait({stop}, timeout=self.sync.timeout + STOP_GRACE)
-            await asyncio.wait({fut}, timeout=self.sync.timeout + STOP_GRACE)
-        finally:
-            for f in (stop, fut):  # retrieve outcomes nobody will look at (no "never retrieved" noise)
-                if f.done() and not f.cancelled():
-                    f.exception()
-
-    def _start(self, name: str, fn: Callable[[], T], wait: bool) -> Awaitable[T] | AsyncMotionHandle[T]:
-        if wait:
-            return self._motion(name, fn)
-        task = asyncio.ensure_future(self._motion(name, fn))
-        return AsyncMotionHandle(name, task)
+    async def _motion(self, start: Callable[[], object], wait: bool) -> Any:
+        if self._closed:
+            raise GripperError("the gripper is closed", device=self.sync.name)
+        handle = AsyncMotionHandle(self, _motion_handle(start()))
+        return await handle if wait else handle
 
     # -- the interface ------------------------------------------------------------------------------------
 
@@ -199,16 +263,21 @@ class AsyncGripper:
 
         return self.sync.on_connection(relay)
 
-    async def home(self, timeout: float | None = None) -> None:
-        await self._motion("home", lambda: self.sync.home(timeout))
+    async def home(
+        self, timeout: float | None = None, *, wait: bool = True
+    ) -> None | AsyncMotionHandle[None]:
+        result: None | AsyncMotionHandle[None] = await self._motion(
+            lambda: self.sync.home(timeout, wait=False), wait
+        )
+        return result
 
     async def move(
         self, width: float, speed: float | None = None, *, wait: bool = True, timeout: float | None = None
     ) -> MotionResult | AsyncMotionHandle[MotionResult]:
-        self.sync.check(width, speed, command="move")  # limits raise here, before anything is queued
-        call: Callable[[], Any] = lambda: self.sync.move(width, speed, timeout=timeout)  # noqa: E731
-        started = self._start("move", call, wait)
-        return await started if wait else started  # type: ignore[misc]
+        result: MotionResult | AsyncMotionHandle[MotionResult] = await self._motion(
+            lambda: self.sync.move(width, speed, wait=False, timeout=timeout), wait
+        )
+        return result
 
     async def grasp(
         self,
@@ -219,10 +288,10 @@ class AsyncGripper:
         wait: bool = True,
         timeout: float | None = None,
     ) -> GraspResult | AsyncMotionHandle[GraspResult]:
-        self.sync.check(width, speed, force, command="grasp")
-        call: Callable[[], Any] = lambda: self.sync.grasp(width, speed, force, timeout=timeout)  # noqa: E731
-        started = self._start("grasp", call, wait)
-        return await started if wait else started  # type: ignore[misc]
+        result: GraspResult | AsyncMotionHandle[GraspResult] = await self._motion(
+            lambda: self.sync.grasp(width, speed, force, wait=False, timeout=timeout), wait
+        )
+        return result
 
     async def release(
         self,
@@ -232,10 +301,10 @@ class AsyncGripper:
         wait: bool = True,
         timeout: float | None = None,
     ) -> MotionResult | AsyncMotionHandle[MotionResult]:
-        self.sync.check(width, speed, command="release")
-        call: Callable[[], Any] = lambda: self.sync.release(width, speed, timeout=timeout)  # noqa: E731
-        started = self._start("release", call, wait)
-        return await started if wait else started  # type: ignore[misc]
+        result: MotionResult | AsyncMotionHandle[MotionResult] = await self._motion(
+            lambda: self.sync.release(width, speed, wait=False, timeout=timeout), wait
+        )
+        return result
 
     async def stop(self) -> None:
         await self._call(self.sync.stop, control=True)
@@ -268,8 +337,14 @@ class AsyncGripper:
         await self._call(lambda: self.sync.set_device_tag(tag))
 
     async def servo(self, width: float, speed: float | None = None, force: float | None = None) -> None:
-        """Returns at once (the servo loop has its own sender): no worker is needed, nothing waits."""
-        self.sync.servo(width, speed, force)
+        """Returns at once once servoing runs (the servo loop has its own sender). The first target of a
+        servoing takes over from a running motion (a stop, and the motion's call winding down): that one goes
+        through a worker, so the event loop never waits on the device."""
+        if self.sync._servo_loop is None:
+            self.sync.check(width, speed, force, command="servo")  # limits raise here, before anything runs
+            await self._call(lambda: self.sync.servo(width, speed, force))
+        else:
+            self.sync.servo(width, speed, force)
 
     async def stream(self, rate_hz: float = 50.0) -> AsyncIterator[GripperState]:
         """States at ``rate_hz`` as an async iterator, polled from this task (no thread of its own).
@@ -277,9 +352,10 @@ class AsyncGripper:
         A slow consumer does not make the stream burst to catch up; a missed reading (timeout) is skipped.
         With reconnect=true, a lost link pauses the stream and the first state after it has ``gap`` set.
         """
-        if not (math.isfinite(rate_hz) and rate_hz > 0):
-            raise ValueError(f"rate_hz must be a positive number, not {rate_hz!r}")
-        period = 1.0 / rate_hz
+        rate = finite(rate_hz, "rate_hz", command="stream")
+        if rate <= 0:
+            raise LimitError(f"rate_hz must be a positive number, not {rate_hz!r}", command="stream")
+        period = 1.0 / rate
         loop = asyncio.get_running_loop()
         next_at = loop.time()
         gap = False
@@ -318,6 +394,7 @@ class AsyncGripper:
         finally:
             self._workers.close()
             self._control.close()
+            self._motion_pool.close()
 
     async def __aenter__(self) -> AsyncGripper:
         return self
@@ -346,7 +423,7 @@ class _Opening:
             gripper = await asyncio.shield(opening)
         except BaseException:
             if not opening.done():  # cancelled while connecting: close what the worker opens, later
-                opening.add_done_callback(lambda f: f.exception() or f.result().close())
+                opening.add_done_callback(_close_opened)
             workers.close(timeout=0)
             raise
         return AsyncGripper(gripper, workers)

@@ -18,6 +18,8 @@ __all__ = [
     "GripperWarning",
     "ProfileAssumed",
     "ConnectionLost",
+    "DeviceMismatch",
+    "FastStopActive",
     "GripperError",
     "GripperTimeout",
     "LimitError",
@@ -26,6 +28,15 @@ __all__ = [
     "ProtocolError",
     "URLError",
 ]
+
+
+class FastStopActive(GripperError):
+    """A fast stop (WSG FAST STOP, MSG e-stop) is active: motion is refused until ``acknowledge()``."""
+
+
+class DeviceMismatch(ConnectionLost):
+    """Another device answers where the gripper was (``reconnect=true``): it is refused, never driven with the
+    limits of the one that was opened. A :class:`ConnectionLost`: to the caller the opened gripper is gone."""
 
 
 class ProfileError(GripperError, ValueError):

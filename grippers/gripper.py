@@ -8,233 +8,48 @@ handles, state streams, and release of every resource on close.
 
 from __future__ import annotations
 
-import enum
 import logging
-import math
-import queue
 import threading
-import time
 from abc import ABC, abstractmethod
-from collections.abc import Callable, Iterator
-from dataclasses import dataclass, field
-from typing import Any, TypeVar
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any, TypeVar
 
-from .errors import GripperError, GripperTimeout, LimitError, NotSupported
+from grippers.drivers.numbers import finite
+
+from .connection import ConnectionHooks
+from .errors import FastStopActive, GripperError, LimitError, NotSupported
+from .features import OptionalFeatures
 from .motions import MotionHandle, MotionSupervisor, wait_seconds
-from .profiles import Limits, ProfileBase
+from .profiles import ProfileBase
+
+# Re-exported: these lived here before they moved to their own modules; ``from grippers.gripper import
+# GripperState`` and the like keep working.
+from .states import Capability, DeviceInfo, GraspResult, GraspState, GripperState, MotionResult
+from .streams import StateStream, put_dropping_oldest
+
+if TYPE_CHECKING:
+    from .reconnect import LinkWatch
+    from .servo import ServoLoop, ServoStats, ServoTarget
+
+__all__ = [
+    "Capability",
+    "DeviceInfo",
+    "FastStopActive",
+    "GraspResult",
+    "GraspState",
+    "Gripper",
+    "GripperState",
+    "MotionResult",
+    "StateStream",
+    "put_dropping_oldest",
+]
 
 T = TypeVar("T")
 
 log = logging.getLogger(__name__)
 
 
-class GraspState(enum.Enum):
-    """One grasp state for every family (WSG grasping states; MSG object detection mapped onto them)."""
-
-    IDLE = "idle"
-    POSITIONING = "positioning"
-    GRASPING = "grasping"
-    HOLDING = "holding"
-    NO_PART = "no_part"
-    PART_LOST = "part_lost"
-    RELEASING = "releasing"
-    ERROR = "error"
-
-
-class Capability(enum.Enum):
-    """Optional features a backend declares; a call needing one the device lacks raises NotSupported."""
-
-    FORCE_CONTROL = "force_control"  # grasp force set in newtons on the device
-    CURRENT_CONTROL = "current_control"  # force estimated from a motor current limit
-    SOFT_LIMITS = "soft_limits"
-    TEMPERATURE = "temperature"
-    DEVICE_TAG = "device_tag"
-    FINGER_DATA = "finger_data"
-    CALIBRATION = "calibration"  # home() calibrates the stroke (MSG)
-    HOMING = "homing"  # home() references the axis (WSG)
-    FORCE_MEASUREMENT = "force_measurement"  # state().force is measured
-    PUSH_UPDATES = "push_updates"  # the device streams state by itself
-
-
-@dataclass(frozen=True, slots=True)
-class GripperState:
-    """A snapshot in SI units. ``force`` is None where the device reports only ``current`` (A)."""
-
-    width: float
-    speed: float | None
-    force: float | None
-    current: float | None
-    grasp: GraspState
-    moving: bool
-    referenced: bool
-    faults: tuple[str, ...]
-    timestamp: float  # time.time() when the snapshot was taken
-    gap: bool = False  # the first state after a reconnection: states were missed before it (reconnect=true)
-
-    @property
-    def fast_stopped(self) -> bool:
-        """Whether the device is in FAST STOP (``acknowledge()`` clears it)."""
-        return "fast_stop" in self.faults
-
-
-@dataclass(frozen=True, slots=True)
-class MotionResult:
-    width: float
-    state: GraspState
-
-
-@dataclass(frozen=True, slots=True)
-class GraspResult:
-    """``grasped`` tells whether a part is held; ``reason`` says why not when it is not."""
-
-    grasped: bool
-    width: float
-    force: float | None
-    state: GraspState
-    reason: str | None = None
-
-
-@dataclass(frozen=True)
-class DeviceInfo:
-    family: str
-    vendor: str
-    model: str
-    serial: str | None
-    firmware: str | None
-    hardware: str | None
-    limits: Limits
-    url: str
-    profile: str
-    extra: dict[str, Any] = field(default_factory=dict)
-
-    @property
-    def stroke(self) -> float:
-        """The usable travel in m (the limits' max minus min width)."""
-        return self.limits.stroke
-
-
-def put_dropping_oldest(q: queue.Queue[Any], item: Any) -> int:
-    """Put ``item`` into a bounded queue, dropping the oldest entries to make room; returns how many went.
-
-    A state stream's reader that falls behind wants the newest states, never a producer that blocks."""
-    dropped = 0
-    while True:
-        try:
-            q.put_nowait(item)
-            return dropped
-        except queue.Full:
-            try:
-                q.get_nowait()
-                dropped += 1
-            except queue.Empty:
-                pass
-
-
-class StateStream:
-    """States at ``rate_hz``: iterate over it, or pass a callback. Bounded: a slow reader drops the oldest."""
-
-    def __init__(
-        self,
-        read: Callable[[], GripperState],
-        rate_hz: float,
-        callback: Callable[[GripperState], Any] | None = None,
-        maxsize: int = 64,
-        on_close: Callable[[StateStream], None] | None = None,
-    ) -> None:
-        if not (math.isfinite(rate_hz) and rate_hz > 0):
-            raise LimitError(f"rate_hz must be a positive number, not {rate_hz!r}", command="stream")
-        self.period = 1.0 / rate_hz
-        self._read = read
-        self._callback = callback
-        self._on_close = on_close
-        self._queue: queue.Queue[GripperState | BaseException] = queue.Queue(maxsize)
-        self._stop = threading.Event()
-        self.dropped = 0
-        self._thread = threading.Thread(target=self._run, name="grippers-stream", daemon=True)
-        self._thread.start()
-
-    def _run(self) -> None:
-        next_at = time.monotonic()
-        while not self._stop.is_set():
-            try:
-                item: GripperState | BaseException = self._read()
-            except BaseException as exc:
-                item = exc
-            if self._callback is not None and isinstance(item, GripperState):
-                try:
-                    self._callback(item)
-                except Exception:  # a bug in the user's callback must not end the stream silently
-                    log.exception("state stream callback raised; the stream goes on")
-            else:
-                self._put(item)
-            if isinstance(item, BaseException) and not isinstance(item, GripperTimeout):
-                return  # a lost connection ends the stream; the reader sees the error
-            next_at += self.period
-            delay = next_at - time.monotonic()
-            if delay < 0:  # fell behind: do not burst to catch up
-                next_at = time.monotonic()
-                delay = 0
-            self._stop.wait(delay)
-
-    def _put(self, item: GripperState | BaseException) -> None:
-        self.dropped += put_dropping_oldest(self._queue, item)
-
-    def __iter__(self) -> Iterator[GripperState]:
-        return self
-
-    def __next__(self) -> GripperState:
-        return self.get()
-
-    def get(self, timeout: float | None = None) -> GripperState:
-        """The next state; GripperTimeout when none comes within ``timeout`` (default: ten periods + 2 s)."""
-        if self._stop.is_set() and self._queue.empty():
-            raise StopIteration
-        chosen = wait_seconds(timeout, "stream")
-        wait = chosen if chosen is not None else 10 * self.period + 2.0
-        try:
-            item = self._queue.get(timeout=wait)
-        except queue.Empty:
-            raise GripperTimeout(f"no state within {wait:g} s", command="stream") from None
-        if isinstance(item, BaseException):
-            # A timeout is one missed reading (the stream thread goes on); anything else ended the stream.
-            if not isinstance(item, GripperTimeout):
-                self.close()
-            raise item
-        return item
-
-    def close(self) -> None:
-        """Stop the stream (its thread, if it has one); idempotent."""
-        self._stop.set()
-        if threading.current_thread() is not self._thread:
-            self._thread.join(timeout=5)
-        if self._on_close is not None:
-            self._on_close(self)
-            self._on_close = None
-
-    def __enter__(self) -> StateStream:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
-
-
-class FastStopActive(GripperError):
-    """A fast stop (WSG FAST STOP, MSG e-stop) is active: motion is refused until ``acknowledge()``."""
-
-
-def _finite(value: float, name: str, command: str, device: str) -> float:
-    try:
-        number = float(value)
-    except OverflowError:  # float(10**400)
-        raise LimitError(f"{name} is too large for a float", device=device, command=command) from None
-    except (TypeError, ValueError):
-        raise LimitError(f"{name} must be a number, not {value!r}", device=device, command=command) from None
-    if not math.isfinite(number):
-        raise LimitError(f"{name} must be finite, not {value!r}", device=device, command=command)
-    return number
-
-
-class Gripper(ABC):
+class Gripper(OptionalFeatures, ConnectionHooks, ABC):
     """A gripper in SI units (m, m/s, N, A). Open one with :func:`grippers.open`.
 
     Every value is checked against the profile's limits before anything is sent (``LimitError``, also a
@@ -266,9 +81,13 @@ class Gripper(ABC):
         )
         self._streams: list[StateStream] = []
         self._on_close: list[Callable[[], None]] = []
-        self.simulator: Any = None  # the in-process simulator server behind a sim:// gripper
-        self._servo_loop: Any = None  # grippers.servo.ServoLoop while servoing
-        self._watch: Any = None  # grippers.reconnect.LinkWatch when opened with reconnect=true
+        # The in-process simulator behind a sim:// gripper, for tests and demos (its model and fault hooks are
+        # the family's own: grippers.drivers.wsg.sim, grippers.drivers.stepfoc.sim).
+        self.simulator: Any = None
+        self._servo_loop: ServoLoop | None = None  # while servoing (grippers/servo.py)
+        self._last_servo_loop: ServoLoop | None = None  # its counters stay readable after it ended
+        self._watch: LinkWatch | None = None  # when opened with reconnect=true (grippers/reconnect.py)
+        self._opened_identity: dict[str, str] = {}  # _identity() when reconnection was switched on
 
     # -- what a backend provides (device units are its business) -------------------------------------------
 
@@ -338,7 +157,7 @@ class Gripper(ABC):
             )
 
     def _width(self, width: float, command: str) -> float:
-        w = _finite(width, "width", command, self.name)
+        w = finite(width, "width", device=self.name, command=command)
         lo, hi = self.limits.min_width, self.limits.max_width
         if not lo - 1e-9 <= w <= hi + 1e-9:
             raise LimitError(
@@ -354,7 +173,7 @@ class Gripper(ABC):
             # self.limits): sending it unchecked would bypass them, refusing it would break every call.
             default = self.profile.mechanics.default_speed_mm_s / 1000
             return min(max(default, self.limits.min_speed), self.limits.max_speed)
-        s = _finite(speed, "speed", command, self.name)
+        s = finite(speed, "speed", device=self.name, command=command)
         lo, hi = self.limits.min_speed, self.limits.max_speed
         if not lo - 1e-9 <= s <= hi + 1e-9 or s <= 0:
             raise LimitError(
@@ -368,7 +187,7 @@ class Gripper(ABC):
         if force is None:
             default = self.profile.mechanics.default_force_n  # clamped for the reason given in _speed
             return min(max(default, self.limits.min_force), self.limits.max_force)
-        f = _finite(force, "force", command, self.name)
+        f = finite(force, "force", device=self.name, command=command)
         lo, hi = self.limits.min_force, self.limits.max_force
         if not lo - 1e-9 <= f <= hi + 1e-9:
             raise LimitError(f"force {f:g} N is outside {lo:g}..{hi:g} N", device=self.name, command=command)
@@ -406,7 +225,7 @@ class Gripper(ABC):
         self, name: str, call: Callable[[], T], wait: bool, *, timeout: float = 0.0, what: str = ""
     ) -> T | MotionHandle[T]:
         """Run a backend motion under the one rule (grippers/motions.py): supersede, abort, Ctrl-C stops."""
-        return self._motions.run(name, call, wait, timeout=timeout, what=what)  # type: ignore[no-any-return]
+        return self._motions.run(name, call, wait, timeout=timeout, what=what)
 
     def home(self, timeout: float | None = None, *, wait: bool = True) -> None | MotionHandle[None]:
         """Reference the axis (WSG homing) or calibrate the stroke (MSG); blocks until done."""
@@ -461,8 +280,8 @@ class Gripper(ABC):
     GRASP_CLEARANCE = 0.005  # m: where grasp() opens to when the jaws start inside the part's width
 
     def _grips_from_inside(self) -> bool:
-        """Whether a grasp opens onto the part (MSG ``maps.inside_grip``); others grip from outside."""
-        return bool(getattr(getattr(self.profile, "maps", None), "inside_grip", False))
+        """Whether a grasp opens onto the part; a backend whose device can grip from inside says so."""
+        return False
 
     def _grasp_with_room(self, width: float, speed: float, force: float, timeout: float) -> GraspResult:
         try:
@@ -589,6 +408,8 @@ class Gripper(ABC):
         w, s = self._width(width, "servo"), self._speed(speed, "servo")
         f = None if force is None else self._force(force, "servo")
         self._check_motion("servo")
+        if self._servo_loop is None:  # servoing begins: it takes over from a running motion, which ends now
+            self._motions.supersede(f"servo to {w * 1000:g} mm")
         with self._lock:
             self._check_open("servo")
             loop = self._servo_loop
@@ -598,9 +419,9 @@ class Gripper(ABC):
         loop.submit(ServoTarget(w, s, f))
 
     @property
-    def servo_stats(self) -> Any:
+    def servo_stats(self) -> ServoStats | None:
         """Counts of the current (or last) servoing: received, sent, coalesced, unchanged, failed."""
-        loop = self._servo_loop or getattr(self, "_last_servo_loop", None)
+        loop = self._servo_loop or self._last_servo_loop
         return None if loop is None else loop.stats
 
     def _end_servo(self, *, stop_device: bool) -> None:
@@ -618,98 +439,14 @@ class Gripper(ABC):
         """Called (under the lock) before the first target of a servoing; NotSupported by default."""
         raise NotSupported("this backend cannot stream targets", device=self.name, command="servo")
 
-    def _servo(self, target: Any) -> bool:
-        """Put one target on the wire without waiting for the motion; False if nothing needed sending."""
+    def _servo(self, target: ServoTarget) -> bool | None:
+        """Put one target on the wire without waiting for the motion; False if nothing needed sending, None
+        to put it off (grippers/servo.py offers it again)."""
         raise NotSupported("this backend cannot stream targets", device=self.name, command="servo")
 
     def _servo_end(self) -> None:
         """Servoing ended for another motion command: leave the device ready to take it."""
         return None
-
-    # -- connection (grippers/reconnect.py) -------------------------------------------------------------
-
-    @property
-    def connected(self) -> bool:
-        """False while a lost link is being re-established (reconnect=true) or after close()."""
-        if self._closed:
-            return False
-        return True if self._watch is None else self._watch.connected
-
-    def on_connection(self, callback: Callable[[bool], Any]) -> Callable[[], None]:
-        """Call ``callback(connected)`` from a background thread whenever the link is lost or back; returns
-        a function that unregisters it. Without reconnect=true only a loss at close() is reported."""
-        if self._watch is not None:
-            return self._watch.add_listener(callback)
-
-        def at_close() -> None:
-            callback(False)
-
-        self._on_close.append(at_close)
-
-        def remove() -> None:
-            if at_close in self._on_close:
-                self._on_close.remove(at_close)
-
-        return remove
-
-    # Backends that can re-establish their link override these two (reconnect=true).
-    def _link_alive(self) -> bool:
-        """Cheap, no traffic: whether the driver has noticed its link is gone."""
-        return True
-
-    def _reconnect(self) -> None:
-        """Open a fresh driver on the same URL and swap it in; GripperError while the device is not back."""
-        raise NotSupported("this backend cannot reconnect", device=self.name, command="reconnect")
-
-    def require(self, capability: Capability, command: str) -> None:
-        """Raise NotSupported (naming ``command``) unless the device has ``capability``; nothing is sent."""
-        if capability not in self.capabilities:
-            raise NotSupported(f"this device has no {capability.value}", device=self.name, command=command)
-
-    # -- optional features: a device without the capability raises NotSupported, nothing is sent ---------
-
-    def temperature(self) -> float:
-        """The gripper's (or its driver's) temperature in °C."""
-        self._check_open("temperature")
-        self.require(Capability.TEMPERATURE, "temperature")
-        return self._temperature()
-
-    def set_soft_limits(self, min_width: float, max_width: float) -> None:
-        """Limits the device itself enforces on finger motion (m)."""
-        lo, hi = self._width(min_width, "set_soft_limits"), self._width(max_width, "set_soft_limits")
-        if lo >= hi:
-            raise LimitError("min_width must be below max_width", device=self.name, command="set_soft_limits")
-        self._check_open("set_soft_limits")
-        self.require(Capability.SOFT_LIMITS, "set_soft_limits")
-        self._set_soft_limits(lo, hi)
-
-    def clear_soft_limits(self) -> None:
-        """Remove the limits :meth:`set_soft_limits` stored in the device (NotSupported where it has none)."""
-        self._check_open("clear_soft_limits")
-        self.require(Capability.SOFT_LIMITS, "clear_soft_limits")
-        self._set_soft_limits(None, None)
-
-    def device_tag(self) -> str:
-        """The user-defined name stored in the device."""
-        self._check_open("device_tag")
-        self.require(Capability.DEVICE_TAG, "device_tag")
-        return self._device_tag(None)
-
-    def set_device_tag(self, tag: str) -> None:
-        """Store a user-defined name in the device (NotSupported where it has none)."""
-        self._check_open("set_device_tag")
-        self.require(Capability.DEVICE_TAG, "set_device_tag")
-        self._device_tag(tag)
-
-    # Backends override these when they declare the matching capability.
-    def _temperature(self) -> float:
-        raise NotSupported("not implemented by this backend", device=self.name, command="temperature")
-
-    def _set_soft_limits(self, min_width: float | None, max_width: float | None) -> None:
-        raise NotSupported("not implemented by this backend", device=self.name, command="set_soft_limits")
-
-    def _device_tag(self, tag: str | None) -> str:
-        raise NotSupported("not implemented by this backend", device=self.name, command="device_tag")
 
     def close(self) -> None:
         """Stop streams, let running motions end (bounded), release the transport. Idempotent.

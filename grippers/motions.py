@@ -61,6 +61,14 @@ def wait_seconds(timeout: Any, command: str, device: str | None = None) -> float
     return min(seconds, threading.TIMEOUT_MAX)
 
 
+# Starts ``body`` (named, for thread names) somewhere it may block until the motion ends.
+Spawn = Callable[[Callable[[], None], str], None]
+
+
+def _thread_of_its_own(body: Callable[[], None], name: str) -> None:
+    threading.Thread(target=body, name=name, daemon=True).start()
+
+
 class MotionHandle(Generic[T]):
     """A motion started with ``wait=False``: poll ``done()``, ``wait()`` for the result, or ``cancel()``.
 
@@ -72,7 +80,7 @@ class MotionHandle(Generic[T]):
         self,
         name: str,
         run: Callable[[], T] | None = None,
-        cancel: Callable[[], None] | None = None,
+        cancel: Callable[[], object] | None = None,
         *,
         device: str | None = None,
     ) -> None:
@@ -85,17 +93,27 @@ class MotionHandle(Generic[T]):
         self._error: BaseException | None = None
         self._abort: CommandFailed | None = None  # set once by whoever ends the motion early
         self._callbacks: list[Callable[[MotionHandle[T]], Any]] = []
-        self._thread: threading.Thread | None = None
+        self._submitted = False
+        self._returned = threading.Event()  # the backend call behind the motion has returned
+        self._runner: threading.Thread | None = None  # the thread running that call, once it runs
         if run is not None:
             self._start(run)
 
     # -- the side that runs and ends motions (the Gripper) ---------------------------------------------
 
-    def _start(self, run: Callable[[], T]) -> None:
-        self._thread = threading.Thread(
-            target=self._run, args=(run,), name=f"grippers-{self.name}", daemon=True
-        )
-        self._thread.start()
+    def _start(self, run: Callable[[], T], spawn: Spawn | None = None) -> None:
+        """Run the backend call in a thread of its own, or through ``spawn`` (the asyncio face runs motions
+        on a fixed pool of threads, so concurrent awaits never add one)."""
+
+        def body() -> None:
+            self._runner = threading.current_thread()
+            try:
+                self._run(run)
+            finally:
+                self._returned.set()
+
+        self._submitted = True
+        (spawn or _thread_of_its_own)(body, f"grippers-{self.name}")
 
     def _run(self, run: Callable[[], T]) -> None:
         try:
@@ -141,8 +159,11 @@ class MotionHandle(Generic[T]):
         return self._done.is_set() or self._abort is not None
 
     def _busy(self) -> bool:
-        """Its backend call still runs (even when the handle has been settled as superseded)."""
-        return self._thread is not None and self._thread.is_alive()
+        """Its backend call is still to run or runs (even when the handle has been settled as superseded)."""
+        return self._submitted and not self._returned.is_set()
+
+    def _runs_in(self, thread: threading.Thread) -> bool:
+        return self._runner is thread and self._busy()
 
     def _call(self, fn: Callable[[MotionHandle[T]], Any]) -> None:
         try:
@@ -186,8 +207,8 @@ class MotionHandle(Generic[T]):
 
     def join(self, timeout: float) -> None:
         """Wait (bounded) until the backend call behind this motion has returned, not only its outcome."""
-        if self._thread is not None and self._thread is not threading.current_thread():
-            self._thread.join(wait_seconds(timeout, self.name, self.device))
+        if self._submitted and self._runner is not threading.current_thread():
+            self._returned.wait(wait_seconds(timeout, self.name, self.device))
 
     def __repr__(self) -> str:
         state = "done" if self.done() else "running"
@@ -220,6 +241,7 @@ class MotionSupervisor:
         self._supersede = supersede
         self._settle_time = settle_time
         self.handles: list[MotionHandle[Any]] = []
+        self.spawn: Spawn | None = None  # where motions run; None: a thread each (grippers.aio sets a pool)
 
     def run(self, name: str, call: Callable[[], T], wait: bool, *, timeout: float, what: str = "") -> Any:
         """Start ``call`` (the backend's blocking motion) in its own thread, superseding any running motion;
@@ -235,14 +257,14 @@ class MotionSupervisor:
             handle: MotionHandle[T] = MotionHandle(name, device=device)
             handle._cancel = lambda: self.abort("cancel()", handle)
             me = threading.current_thread()  # a done callback starting a motion must not wait for itself
-            previous = [h for h in self.handles if h._busy() and h._thread is not me]
+            previous = [h for h in self.handles if h._busy() and h._runner is not me]
             for h in previous:
                 error = CommandFailed(f"superseded by {name}{what}", device=device, command=h.name)
                 if h._mark_aborted(error):
                     superseded.append(h)
             self.handles = [*previous, handle]
             stop_first = bool(superseded)  # an older motion still ran: stop it on the device first
-            handle._start(lambda: self._body(handle, call, previous, stop_first))
+            handle._start(lambda: self._body(handle, call, previous, stop_first), self.spawn)
         for h in superseded:  # outside the lock: done callbacks may call back into the gripper
             h._settle_aborted()
         if not wait:
@@ -271,6 +293,35 @@ class MotionSupervisor:
         self.may_send(handle)
         return call()
 
+    def supersede(self, by: str) -> None:
+        """End the running motions for a command that is not a motion of its own (``servo()``), as
+        :meth:`run` does for a newer motion: they raise "superseded by …" at once, the device is stopped,
+        and their calls are given (bounded) time to return, so nothing of theirs lands after ``by`` begins.
+
+        Without it a servo target waited for a WSG move to end (the device refuses a motion while one
+        runs), an MSG move took the servo target's arrival for its own and reported success at another
+        width, and an MSG home() overtaken by servo() ran on to its timeout."""
+        device = self._device()
+        me = threading.current_thread()
+        with self._lock:
+            running = [h for h in self.handles if h._busy() and h._runner is not me]
+            marked = [
+                h
+                for h in running
+                if h._mark_aborted(CommandFailed(f"superseded by {by}", device=device, command=h.name))
+            ]
+        for h in marked:
+            h._settle_aborted()
+        if not running:
+            return
+        try:
+            self._supersede()
+        except Exception as exc:  # the newer command goes on; it meets the device's state itself
+            log.debug("%s: stopping the superseded motion failed: %s", device, exc)
+        deadline = time.monotonic() + self._settle_time()
+        for h in running:
+            h.join(max(0.0, deadline - time.monotonic()))
+
     def may_send(self, handle: MotionHandle[Any]) -> None:
         """Raise instead of sending when the motion was ended (or the gripper closed) before it began."""
         with self._lock:
@@ -287,7 +338,7 @@ class MotionSupervisor:
         """The motion whose thread calls this (a backend call checking it may go on), if any."""
         me = threading.current_thread()
         with self._lock:
-            return next((h for h in self.handles if h._thread is me), None)
+            return next((h for h in self.handles if h._runs_in(me)), None)
 
     def take_all(self) -> list[MotionHandle[Any]]:
         """Forget every handle (the gripper closes); the caller holds the lock."""

@@ -10,6 +10,7 @@ as the data package ``grippers._profiles``.
 
 from __future__ import annotations
 
+import contextvars
 import json
 import logging
 import os
@@ -40,6 +41,10 @@ MAX_FORCE_N = 100_000.0
 MAX_TIMEOUT_S = 3600.0  # an exchange that takes longer than an hour is not an exchange
 MAX_TIME_SCALE = 1_000_000.0
 MAX_PROFILE_BYTES = 1 << 20  # 1 MiB: every shipped profile is under 2 kB; a bigger file is not a profile
+# How many ``extends`` a profile may stand on. Each level searches the profile path and validates its base, so
+# a chain of 300 took two minutes to load (and ``profiles list`` loads every file): no real family tree of
+# grippers is deeper than a handful (vendor, model, variant, site), so a deeper one is refused by name.
+MAX_EXTENDS_DEPTH = 16
 
 NonNegative = Annotated[float, Field(ge=0, allow_inf_nan=False)]
 Positive = Annotated[float, Field(gt=0, allow_inf_nan=False)]
@@ -133,9 +138,10 @@ class Connection(_Model):
     """Automatic reconnection (grippers/reconnect.py); URL parameters and keywords of the same names win."""
 
     reconnect: bool = False
-    reconnect_backoff_s: Positive = 0.1  # first retry after this, doubling up to the maximum
-    reconnect_backoff_max_s: Positive = 5.0
-    heartbeat_s: Positive = 0.5  # a state query this often notices a link that died while idle
+    # Bounded like a timeout: a backoff of 1e308 s overflows the condition wait of the reconnection thread.
+    reconnect_backoff_s: Timeout = 0.1  # first retry after this, doubling up to the maximum
+    reconnect_backoff_max_s: Timeout = 5.0
+    heartbeat_s: Timeout = 0.5  # a state query this often notices a link that died while idle
     acknowledge_on_reconnect: bool = False  # a safety decision: off unless the application says so
 
 
@@ -470,19 +476,37 @@ def _find(name: str, skip: set[str], *, names_only: bool = False) -> tuple[Path 
     """The first file on the search path declaring ``name``, not in ``skip``; and the first one in ``skip``
     that declares it (to tell a cycle from a missing base)."""
     key, skipped = _key(name), None
-    for path in _candidate_files():
-        try:
-            declared = _declared(path, names_only)
-        except ProfileError:
+    for path, absolute, every, names in _scan_index.get() or _index_files():
+        declared = names if names_only else every
+        if declared is None:
             if _key(path.stem) == key:
-                raise  # meant to be that profile, and broken: never fall back to another one
+                _declared(path, names_only)  # meant to be that profile, and broken: raise its ProfileError
             continue
         if key in declared:
-            if os.path.abspath(path) in skip:
+            if absolute in skip:
                 skipped = skipped or path
                 continue
             return path, skipped
     return None, skipped
+
+
+_Indexed = tuple[Path, str, set[str] | None, set[str] | None]  # path, its absolute form, names+aliases, names
+
+# The search path's files and the names they declare, while scan_profiles() runs: every ``extends`` of every
+# file is looked up here instead of stat-ing and reading the whole path again (a 300-file chain made the
+# listing cubic in the number of files).
+_scan_index: contextvars.ContextVar[list[_Indexed] | None] = contextvars.ContextVar(
+    "_scan_index", default=None
+)
+
+
+def _index_files() -> Iterator[_Indexed]:
+    for path in _candidate_files():
+        try:
+            every, names = _declared(path), _declared(path, names_only=True)
+        except ProfileError:
+            every = names = None
+        yield path, os.path.abspath(path), every, names
 
 
 def _load(path: Path, chain: tuple[str, ...]) -> tuple[ProfileBase, tuple[tuple[str, Stamp], ...]]:
@@ -495,6 +519,11 @@ def _load(path: Path, chain: tuple[str, ...]) -> tuple[ProfileBase, tuple[tuple[
     if base_name is not None:
         if not isinstance(base_name, str) or not base_name.strip():
             raise ProfileError(f"{where}: extends: must be the name of a profile, not {base_name!r}")
+        if len(chain) >= MAX_EXTENDS_DEPTH:
+            raise ProfileError(
+                f"{where}: extends: more than {MAX_EXTENDS_DEPTH} levels of extends "
+                f"(from {chain[0]}); flatten the chain"
+            )
         skip = {*chain, me}
         base_path, in_chain = _find(base_name, skip)
         if base_path is None:
@@ -613,16 +642,21 @@ def scan_profiles() -> ProfileScan:
     seen: dict[str, ProfileBase] = {}
     problems: list[tuple[str, str]] = []
     shadowed: list[tuple[str, str]] = []
-    for path in _candidate_files():
-        try:
-            profile = load_file(path)
-        except ProfileError as exc:
-            problems.append((str(path), str(exc)))
-            continue
-        if profile.name in seen:
-            shadowed.append((str(path), str(seen[profile.name].path)))
-        else:
-            seen[profile.name] = profile
+    index = list(_index_files())
+    token = _scan_index.set(index)
+    try:
+        for path, *_ in index:
+            try:
+                profile = load_file(path)
+            except ProfileError as exc:
+                problems.append((str(path), str(exc)))
+                continue
+            if profile.name in seen:
+                shadowed.append((str(path), str(seen[profile.name].path)))
+            else:
+                seen[profile.name] = profile
+    finally:
+        _scan_index.reset(token)
     return ProfileScan(list(seen.values()), problems, shadowed)
 
 

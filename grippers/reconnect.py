@@ -251,6 +251,7 @@ def attach(gripper: Gripper, settings: Settings) -> None:
         from .errors import NotSupported
 
         raise NotSupported("this backend cannot reconnect", device=gripper.name, command="open")
+    gripper._opened_identity = gripper._identity()  # a device that comes back must be this one
     gripper._watch = LinkWatch(gripper, policy)
 
 

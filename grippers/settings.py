@@ -14,6 +14,7 @@ from .errors import URLError
 from .urls import to_bool, to_float, to_int
 
 T = TypeVar("T")
+_text = str  # the builtin, for use inside Settings (whose method ``str`` hides it in the class body)
 
 
 # The range of every setting that has one, checked where it is taken, so a backend never hands a socket or a
@@ -31,6 +32,11 @@ RANGES: dict[str, tuple[float, float]] = {
     "bytesize": (5, 8),
     "serial": (0, 0xFFFFFFFF),
     "timeout": (0, 3600.0),  # an exchange longer than an hour is not an exchange
+    # The reconnection thread waits on a condition for these: 1e308 s overflowed it (OverflowError), and a
+    # retry or heartbeat an hour apart is no longer a reconnection (grippers/reconnect.py).
+    "reconnect_backoff_s": (0, 3600.0),
+    "reconnect_backoff_max_s": (0, 3600.0),
+    "heartbeat_s": (0, 3600.0),
     "time_scale": (0, 1_000_000.0),
     "part_width_mm": (0, 10_000.0),
     "clamping_travel_mm": (0, 10_000.0),
@@ -76,9 +82,14 @@ class Settings:
         return self._take(name, default, to_bool)
 
     def str(self, name: str, default: Any) -> Any:
-        return self._take(name, default, lambda v, _n, _u: str(v))
+        return self._take(name, default, lambda v, _n, _u: _text(v))
 
-    def add_defaults(self, values: dict[str, Any]) -> None:
+    @property
+    def taken(self) -> frozenset[_text]:
+        """The names a backend has asked for so far (whether or not they were given)."""
+        return frozenset(self._known)
+
+    def add_defaults(self, values: dict[_text, Any]) -> None:
         """Settings that apply unless the user gave their own (a simulator's URL parameters)."""
         for key, value in values.items():
             self._values.setdefault(key, value)

@@ -20,10 +20,11 @@ a plain device path is written with its leading slash (``wsg+serial:///dev/ttyUS
 from __future__ import annotations
 
 import ipaddress
-import math
 from dataclasses import dataclass, field
 from typing import Any
 from urllib.parse import SplitResult, parse_qsl, unquote, urlsplit
+
+from grippers.drivers.numbers import finite
 
 from .errors import URLError
 
@@ -171,13 +172,7 @@ def to_int(value: Any, name: str, url: str = "") -> int:
 def to_float(value: Any, name: str, url: str = "") -> float:
     """A finite number: no setting (timeout, time scale, a width) means anything as nan or inf, and a nan
     timeout would make every deadline comparison false, i.e. a wait without end."""
-    try:
-        number = float(value)
-    except (TypeError, ValueError):
-        raise URLError(f"{url or 'settings'}: {name} must be a number, not {value!r}") from None
-    if not math.isfinite(number):
-        raise URLError(f"{url or 'settings'}: {name} must be a finite number, not {value!r}")
-    return number
+    return finite(value, name, device=url or "settings", error=URLError)
 
 
 def to_bool(value: Any, name: str, url: str = "") -> bool:

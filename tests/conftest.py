@@ -13,6 +13,7 @@ import subprocess
 import sys
 from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 from hypothesis import HealthCheck, settings
@@ -115,3 +116,24 @@ def sim_process() -> Iterator[Callable[..., SimProcess]]:
     yield start
     for sim in started:
         sim.close()
+
+
+@pytest.fixture
+def wsg_sim() -> Iterator[Callable[..., Any]]:
+    """``wsg_sim(listen, time_scale=50, **model_kw)``: a WSG simulator (``serve(WsgModel(**model_kw))``) at
+    the driver level; every server is closed after the test, which fails if a simulator thread died (a crash
+    in the simulator must not pass for a device that went silent). Profile-level tests use ``gripper_sim``
+    (grippers/testing.py) instead."""
+    from grippers.drivers.wsg.sim import WsgModel, serve
+
+    servers: list[Any] = []
+
+    def start(listen: str = "tcp://127.0.0.1:0", *, time_scale: float = 50.0, **model_kw: Any) -> Any:
+        server = serve(WsgModel(**model_kw), listen, time_scale=time_scale)
+        servers.append(server)
+        return server
+
+    yield start
+    for s in servers:
+        s.close()
+        assert s.error is None, f"simulator thread died: {s.error!r}"

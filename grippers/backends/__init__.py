@@ -10,7 +10,8 @@ point in the group ``grippers.backends`` (see docs/backends.md), with no change 
 A backend is any object with ``family`` (the URL scheme's first part), ``profile_model`` (a
 :class:`grippers.profiles.ProfileBase` subclass, or None to reuse a built-in family's), ``open(url, profile,
 settings) -> Gripper`` and, optionally, ``simulate(profile, settings)`` returning a running simulator (an
-object with ``url`` and ``close()``) for ``sim://``.
+object with ``url`` and ``close()``) for ``sim://``. The protocols below declare every call the API, the CLI
+and grippers.testing make on a backend.
 """
 
 from __future__ import annotations
@@ -38,6 +39,8 @@ BUILTIN_BACKENDS: dict[str, str] = {
 
 
 class Backend(Protocol):
+    """What :func:`grippers.open` needs of a family: its name, its profile model and a way to connect."""
+
     family: str
     profile_model: type[ProfileBase] | None
 
@@ -45,10 +48,25 @@ class Backend(Protocol):
 
 
 class SimulatedBackend(Backend, Protocol):
+    """A family with a simulator: ``sim://`` (:meth:`simulate`), ``grippers sim`` and the ``gripper_sim``
+    fixture (:meth:`simulator`, which serves where ``listen`` says, or on the family's default transport)."""
+
     def simulate(self, profile: ProfileBase, settings: Settings) -> SimServer: ...
+
+    def simulator(self, profile: ProfileBase, settings: Settings, listen: str | None = None) -> SimServer: ...
+
+
+class BusSimulatedBackend(SimulatedBackend, Protocol):
+    """A family whose simulator serves several nodes on one bus (``grippers sim msg --nodes``)."""
+
+    def sim_model(self, profile: ProfileBase, node: int, part_width_mm: float | None) -> Any: ...
+
+    def serve(self, models: list[Any], listen: str, settings: Settings) -> SimServer: ...
 
 
 class SimServer(Protocol):
+    """A running simulator: where to connect, and how to stop it."""
+
     url: str
 
     def close(self) -> None: ...

@@ -515,6 +515,9 @@ class MsgGripper(Gripper):
             else f"reached {self._width_of(st.position) * 1000:.1f} mm without meeting a part",
         )
 
+    def _grips_from_inside(self) -> bool:
+        return self._maps.inside_grip
+
     def _default_release_width(self) -> float:
         # A part gripped from inside is let go by closing: "fully open" would push into it.
         return self.limits.min_width if self._maps.inside_grip else self.limits.max_width
@@ -640,6 +643,12 @@ class MsgGripper(Gripper):
             return bus is not None and bus.alive
         return not link.driver.closed
 
+    def _identity(self) -> dict[str, str]:
+        if not isinstance(self._link, _CanLink):
+            return {}  # the UART protocol reports no serial: nothing to ask
+        serial = self._link.identity().get("serial")
+        return {} if serial is None else {"serial": str(serial)}
+
     def _reconnect(self) -> None:
         link = self._link
         if isinstance(link, _UartLink):
@@ -654,6 +663,7 @@ class MsgGripper(Gripper):
             old.close()
         else:
             link.status()  # the bus stays open: the node answering again is the reconnection
+            self._check_same_device(self._identity())  # another MSG put on this node is refused
         # A gripper that was power-cycled has lost its calibration (docs/protocols.md §2) and anything
         # it held.
         self._mode, self._held = "idle", False

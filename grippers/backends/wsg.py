@@ -11,6 +11,7 @@ import logging
 import math
 import time
 import uuid
+from collections.abc import Callable
 from typing import Any
 
 from grippers.drivers.errors import CommandFailed
@@ -240,6 +241,9 @@ class WsgGripper(Gripper):
             self._client.stop()  # the next motion command would meet E_ALREADY_RUNNING otherwise
         self._servo_pending = None
 
+    def _identity(self) -> dict[str, str]:
+        return _identity(self._system_info)
+
     def _link_alive(self) -> bool:
         return self._client.connection_lost is None and not self._client.closed
 
@@ -253,7 +257,8 @@ class WsgGripper(Gripper):
             old.close()  # a serial port must be free before it is opened again
             new = self._reopen(old)
         try:
-            new.system_info()  # the firmware version decides which commands exist
+            found = new.system_info()  # the firmware version decides which commands exist
+            self._check_same_device(_identity(found))  # never drive another gripper with this one's limits
             # Manual 4.0.x §1.4.2: a TCP connection closed without 07h leaves the gripper in FAST STOP.
             fast = bool(new.system_state() & SystemFlags.SF_FAST_STOP)
         except BaseException:
@@ -263,6 +268,8 @@ class WsgGripper(Gripper):
         self._client = new
         self._fast_stopped = fast
         self._servo_pending = None
+
+    _connect: Callable[[], WsgClient]  # set by WsgBackend.open: the client as it was opened
 
     def _reopen(self, old: WsgClient) -> WsgClient:
         """A client like ``old`` on the same URL (a serial port keeps the framing ``old`` used)."""
@@ -283,7 +290,12 @@ class WsgGripper(Gripper):
                 stopbits=framing["stopbits"],
                 **common,
             )
-        return WsgClient.from_url(self.url, **common)
+        return self._connect()
+
+
+def _identity(info: SystemInfo) -> dict[str, str]:
+    """What tells one WSG from another: device type and serial of 50h (WSG manual 4.0.x §3.5.1)."""
+    return {"device type": str(int(info.device_type)), "serial": str(info.serial)}
 
 
 def _narrow(limits: Limits, device: SystemLimits, profile: str) -> tuple[Limits, list[str]]:
@@ -344,38 +356,45 @@ class WsgBackend:
             "timeout": timeout,
             "verify_checksum": settings.bool("verify_checksum", t.verify_checksum),
         }
+        # Every setting is taken once, here; reconnection reuses this connector, so it dials exactly what was
+        # opened (a profile's tcp_port, the URL's local_port), never a re-parse of the URL (issue 20 §1).
+        connect: Callable[[], WsgClient]
         if url.transport == "tcp":
-            client = WsgClient.tcp(url.host, url.port or t.tcp_port, **common)
+            host, port = url.host, url.port or t.tcp_port
+            connect = lambda: WsgClient.tcp(host, port, **common)  # noqa: E731
         elif url.transport == "udp":
             local_port = settings.int("local_port", t.udp_local_port)
-            client = WsgClient.udp(url.host, url.port or t.udp_port, local_port=local_port, **common)
+            host, port = url.host, url.port or t.udp_port
+            connect = lambda: WsgClient.udp(host, port, local_port=local_port, **common)  # noqa: E731
         elif url.transport == "serial":
-            client = WsgClient.serial(
-                url.serial_port,
-                baudrate=settings.int("baudrate", t.baudrate),
-                bytesize=settings.int("bytesize", t.bytesize),
-                parity=settings.str("parity", t.parity),
-                stopbits=settings.float("stopbits", t.stopbits),
-                **common,
-            )
+            framing = {
+                "baudrate": settings.int("baudrate", t.baudrate),
+                "bytesize": settings.int("bytesize", t.bytesize),
+                "parity": settings.str("parity", t.parity),
+                "stopbits": settings.float("stopbits", t.stopbits),
+            }
+            connect = lambda: WsgClient.serial(url.serial_port, **framing, **common)  # noqa: E731
         else:
-            client = WsgClient.can(
-                interface=settings.str("interface", url.interface),
-                channel=settings.str("channel", url.channel),
-                bitrate=settings.int("bitrate", t.can_bitrate),
-                send_id=settings.int("send_id", t.can_send_id),
-                recv_id=settings.int("recv_id", t.can_recv_id),
-                **common,
-            )
+            can = {
+                "interface": settings.str("interface", url.interface),
+                "channel": settings.str("channel", url.channel),
+                "bitrate": settings.int("bitrate", t.can_bitrate),
+                "send_id": settings.int("send_id", t.can_send_id),
+                "recv_id": settings.int("recv_id", t.can_recv_id),
+            }
+            connect = lambda: WsgClient.can(**can, **common)  # noqa: E731
+        client = connect()
         try:
             info = client.system_info()
             if not isinstance(profile, WsgProfile):
                 profile = wsg_profile_for_device_type(int(info.device_type)) or load_profile(FALLBACK_PROFILE)
             device_limits = client.system_limits()
             assert isinstance(profile, WsgProfile)
-            return WsgGripper(
+            gripper = WsgGripper(
                 client, profile, url.url, timeout=timeout, system_info=info, device_limits=device_limits
             )
+            gripper._connect = connect
+            return gripper
         except BaseException:
             client.close()
             raise

@@ -7,13 +7,11 @@ the WSG, the UART pseudo-terminal for the MSG), the way a user would reach hardw
 
 from __future__ import annotations
 
-import time
-
 import pytest
 
 import grippers
-from grippers import GraspState, LimitError
 
+from ..scenario import run_scenario
 from .conftest import SHIPPED, TIME_SCALE
 
 PART_SHARE = 0.3  # the part's width as a share of the stroke: the moves stay above it
@@ -46,61 +44,8 @@ def _open(kind: str, profile: str, sim_process) -> grippers.Gripper:
 @pytest.mark.parametrize("kind", ["in-process", "subprocess"])
 @pytest.mark.parametrize("profile", SHIPPED)
 def test_scenario(profile: str, kind: str, sim_process) -> None:
-    part = _part_mm(profile) / 1000
     with _open(kind, profile, sim_process) as g:
-        assert g.profile.name == profile
-        info = g.info()
-        assert info.model == g.profile.model
-        assert info.limits.max_width > part
-
-        g.home()
-        assert g.state().referenced
-
-        top = g.limits.max_width
-        result = g.move(top * 0.95)
-        assert result.width == pytest.approx(top * 0.95, abs=0.002)
-
-        # State is readable while a motion runs.
-        handle = g.move(top * 0.5, g.limits.max_speed / 4, wait=False)
-        seen_moving = False
-        widths = []
-        while not handle.done():
-            st = g.state()
-            widths.append(st.width)
-            seen_moving |= st.moving
-            time.sleep(0.002)
-        handle.wait(5)
-        assert seen_moving or len(set(widths)) > 1
-        assert g.state().width == pytest.approx(top * 0.5, abs=0.002)
-
-        g.release()
-        grasp = g.grasp(part, force=g.limits.max_force / 2)
-        assert grasp.grasped, grasp.reason
-        assert grasp.state is GraspState.HOLDING
-        assert grasp.width == pytest.approx(part, abs=0.003)
-        assert g.state().grasp is GraspState.HOLDING
-
-        g.release()
-        assert g.state().grasp is GraspState.IDLE
-
-        with pytest.raises(LimitError, match="outside"):
-            g.move(top + 0.01)
-        with pytest.raises(LimitError):
-            g.grasp(part, force=g.limits.max_force * 2)
-
-        # A motion that cannot finish in time raises a timeout, and the next command still works.
-        with pytest.raises(grippers.GripperTimeout):
-            g.move(top * 0.4, g.limits.min_speed, timeout=0.02)
-        g.stop()
-        assert g.state().width <= top
-
-        g.fast_stop()
-        with pytest.raises(grippers.GripperError, match="fast stop"):
-            g.move(top * 0.6)
-        g.acknowledge()
-        assert "fast_stop" not in g.state().faults
-        g.move(top * 0.6)
-        assert g.state().width == pytest.approx(top * 0.6, abs=0.002)
+        run_scenario(g, profile, _part_mm(profile) / 1000)
 
 
 @pytest.mark.parametrize("profile", ["wsg50", "msg-150"])

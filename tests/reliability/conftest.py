@@ -20,7 +20,6 @@ import pytest
 
 from grippers.drivers.stepfoc.sim import MsgModel, serve_can, serve_uart
 from grippers.drivers.wsg.client import WsgClient
-from grippers.drivers.wsg.sim import WsgModel, serve
 
 WSG_TIME_SCALE = 50.0
 MSG_TIME_SCALE = 200.0  # an MSG calibration (~8 s simulated) then takes ~40 ms
@@ -91,24 +90,6 @@ def snapshot() -> Callable[[], ResourceSnapshot]:
 
 
 # ------------------------------------------------------------------------------------------------- WSG
-
-
-@pytest.fixture
-def wsg_sim() -> Iterator[Callable[..., Any]]:
-    """Start ``serve(WsgModel(**model_kw), listen)``; every server is closed after the test."""
-    servers: list[Any] = []
-
-    def start(
-        listen: str = "tcp://127.0.0.1:0", *, time_scale: float = WSG_TIME_SCALE, **model_kw: Any
-    ) -> Any:
-        server = serve(WsgModel(**model_kw), listen, time_scale=time_scale)
-        servers.append(server)
-        return server
-
-    yield start
-    for s in servers:
-        s.close()
-        assert s.error is None, f"simulator thread died: {s.error!r}"
 
 
 @pytest.fixture

@@ -8,8 +8,8 @@ from collections.abc import Iterator
 import pytest
 
 import grippers
-from grippers import GraspState, LimitError
 
+from ..scenario import run_scenario
 from .conftest import ServeProcess, sim
 
 PARTS_MM = {"wsg50": 33.0, "msg-150": 31.5}  # 30 % of the stroke, as in tests/api
@@ -28,61 +28,8 @@ def pair() -> Iterator[ServeProcess]:
 @pytest.mark.timeout(60)
 @pytest.mark.parametrize(("name", "profile"), [("wsg", "wsg50"), ("msg", "msg-150")])
 def test_scenario(pair: ServeProcess, name: str, profile: str) -> None:
-    part = PARTS_MM[profile] / 1000
     with grippers.open(pair.urls[name]) as g:
-        assert g.profile.name == profile
-        info = g.info()
-        assert info.model == g.profile.model
-        assert info.limits.max_width > part
-        assert g.limits == info.limits
-
-        g.home()
-        assert g.state().referenced
-
-        top = g.limits.max_width
-        result = g.move(top * 0.95)
-        assert result.width == pytest.approx(top * 0.95, abs=0.002)
-
-        # Slow enough that the served state (refreshed at 50 Hz) shows the motion at time scale 50.
-        slow = max(g.limits.min_speed, g.limits.max_speed / 40)
-        handle = g.move(top * 0.5, slow, wait=False)
-        seen_moving, widths = False, []
-        while not handle.done():
-            st = g.state()
-            widths.append(st.width)
-            seen_moving |= st.moving
-            time.sleep(0.002)
-        handle.wait(5)
-        assert seen_moving or len(set(widths)) > 1
-        assert g.state().width == pytest.approx(top * 0.5, abs=0.002)
-
-        g.release()
-        grasp = g.grasp(part, force=g.limits.max_force / 2)
-        assert grasp.grasped, grasp.reason
-        assert grasp.state is GraspState.HOLDING
-        assert grasp.width == pytest.approx(part, abs=0.003)
-        assert g.state().grasp is GraspState.HOLDING
-
-        g.release()
-        assert g.state().grasp is GraspState.IDLE
-
-        with pytest.raises(LimitError, match="outside"):
-            g.move(top + 0.01)
-        with pytest.raises(LimitError):
-            g.grasp(part, force=g.limits.max_force * 2)
-
-        with pytest.raises(grippers.GripperTimeout):
-            g.move(top * 0.4, g.limits.min_speed, timeout=0.02)
-        g.stop()
-        assert g.state().width <= top
-
-        g.fast_stop()
-        with pytest.raises(grippers.GripperError, match="fast stop"):
-            g.move(top * 0.6)
-        g.acknowledge()
-        assert "fast_stop" not in g.state().faults
-        g.move(top * 0.6)
-        assert g.state().width == pytest.approx(top * 0.6, abs=0.002)
+        run_scenario(g, profile, PARTS_MM[profile] / 1000)
 
 
 @pytest.mark.timeout(60)

@@ -53,22 +53,6 @@ def can_channel() -> str:
 
 
 @pytest.fixture
-def wsg_sim() -> Iterator[Callable[..., object]]:
-    """Start WSG simulators (wsg-sim helper's ``serve``) at time scale 50; all are closed at teardown."""
-    sim = pytest.importorskip("grippers.drivers.wsg.sim")
-    servers = []
-
-    def start(listen: str, *, time_scale: float = 50.0, **model_kw: object) -> object:
-        server = sim.serve(sim.WsgModel(**model_kw), listen, time_scale=time_scale)
-        servers.append(server)
-        return server
-
-    yield start
-    for server in servers:
-        server.close()
-
-
-@pytest.fixture
 def wsg_client_factory() -> Iterator[Callable[..., object]]:
     """Open WsgClients from URLs; every client is closed at teardown."""
     from grippers.drivers.wsg.client import WsgClient

@@ -1,0 +1,85 @@
+"""A gripper's link to its device as the user sees it (``connected``, ``on_connection``), and the hooks a
+backend implements so that ``reconnect=true`` (grippers/reconnect.py) can bring the link back: apart from
+the core of :class:`~grippers.gripper.Gripper`, which it is a mixin of.
+"""
+
+from __future__ import annotations
+
+from abc import abstractmethod
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
+
+from .errors import DeviceMismatch, NotSupported
+
+if TYPE_CHECKING:
+    from .reconnect import LinkWatch
+
+
+class ConnectionHooks:
+    """Connection state for users, reconnection hooks for backends."""
+
+    # Set by Gripper.__init__ (and by grippers/reconnect.py's attach for the last two).
+    _closed: bool
+    _on_close: list[Callable[[], None]]
+    _watch: LinkWatch | None
+    _opened_identity: dict[str, str]
+
+    @property
+    @abstractmethod
+    def name(self) -> str: ...
+
+    @property
+    def connected(self) -> bool:
+        """False while a lost link is being re-established (reconnect=true) or after close()."""
+        if self._closed:
+            return False
+        return True if self._watch is None else self._watch.connected
+
+    def on_connection(self, callback: Callable[[bool], Any]) -> Callable[[], None]:
+        """Call ``callback(connected)`` from a background thread whenever the link is lost or back; returns
+        a function that unregisters it. Without reconnect=true only a loss at close() is reported."""
+        if self._watch is not None:
+            return self._watch.add_listener(callback)
+
+        def at_close() -> None:
+            callback(False)
+
+        self._on_close.append(at_close)
+
+        def remove() -> None:
+            if at_close in self._on_close:
+                self._on_close.remove(at_close)
+
+        return remove
+
+    # Backends that can re-establish their link override these (reconnect=true).
+    def _identity(self) -> dict[str, str]:
+        """What tells this device from another of its family (model, serial), read without traffic where
+        the backend can. Recorded when reconnection is switched on; empty: devices cannot be told apart."""
+        return {}
+
+    def _check_same_device(self, found: dict[str, str]) -> None:
+        """Called by a backend's ``_reconnect`` before it swaps a fresh link in: DeviceMismatch when another
+        device answers where the opened one was. Refused rather than adopted: the profile, the limits and the
+        application's idea of the cell all belong to the opened device (a WSG 25 taking a WSG 50's 70 N
+        grasp), so the caller reopens on purpose if the new device is meant."""
+        opened = self._opened_identity
+        if not opened:
+            return
+        differs = {k: v for k, v in found.items() if k in opened and opened[k] != v}
+        if differs:
+            was = ", ".join(f"{k} {opened[k]}" for k in differs)
+            now = ", ".join(f"{k} {v}" for k, v in differs.items())
+            raise DeviceMismatch(
+                f"another device answers here ({now}; opened: {was}): refused, reopen to use it",
+                device=self.name,
+                command="reconnect",
+            )
+
+    def _link_alive(self) -> bool:
+        """Cheap, no traffic: whether the driver has noticed its link is gone."""
+        return True
+
+    def _reconnect(self) -> None:
+        """Open a fresh driver on the same URL and swap it in; GripperError while the device is not back."""
+        raise NotSupported("this backend cannot reconnect", device=self.name, command="reconnect")
