@@ -64,7 +64,7 @@ def run(quick: bool) -> list[Result]:
         ratio = awaited / threaded
         results.append(
             Result(
-                f"12 aio state() {label}",
+                f"13 aio state() {label}",
                 us(awaited),
                 us(threaded) + " (threaded g.state())",
                 f"{ratio:.2f}x",
