@@ -19,6 +19,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from enum import Enum, IntEnum
 from typing import Any, NamedTuple
+from urllib.parse import parse_qs
 
 from ..errors import LimitError, ProtocolError
 
@@ -26,6 +27,7 @@ __all__ = [
     "COMMANDS",
     "CanFrame",
     "Cmd",
+    "parse_can_url",
     "CommandSpec",
     "DeviceInfo",
     "Detection",
@@ -655,3 +657,17 @@ def describe(arbitration_id: int, data: bytes | bytearray, is_remote: bool = Fal
         return f"node {node} {_command_name(command)}{err} BAD LENGTH {bytes(data).hex(' ')} ({exc.message})"
     except ProtocolError as exc:
         return f"0x{arbitration_id:03X} {bytes(data).hex(' ')} ({exc})"
+
+
+def parse_can_url(listen: str) -> tuple[str, str, dict[str, str]]:
+    """``can://INTERFACE/CHANNEL?k=v`` -> (interface, channel, query). Parsed by hand because a multicast
+    channel may be an IPv6 address full of colons."""
+    scheme, sep, rest = listen.partition("://")
+    if not sep or scheme not in ("can", "stepfoc+can"):
+        raise ValueError(f"not a CAN URL: {listen!r} (expected can://INTERFACE/CHANNEL)")
+    rest, _, query = rest.partition("?")
+    interface, _, channel = rest.partition("/")
+    if not interface or not channel:
+        raise ValueError(f"CAN URL needs an interface and a channel: {listen!r}")
+    params = {k: v[-1] for k, v in parse_qs(query).items()}
+    return interface, channel, params

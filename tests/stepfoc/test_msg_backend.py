@@ -121,7 +121,7 @@ def test_the_client_never_repeats_a_motion_61_byte_for_byte() -> None:
 def test_command_0_from_another_host_is_a_fast_stop_and_acknowledge_recovers() -> None:
     with sim("can") as g:
         g.home()
-        handle = g.move(0.09, 0.002, wait=False)
+        handle = g.move(0.09, 0.0025, wait=False)
         time.sleep(0.1)
         send_raw(g, Cmd.ESTOP)
         with pytest.raises(FastStopActive, match="e-stop"):
@@ -135,7 +135,7 @@ def test_command_0_from_another_host_is_a_fast_stop_and_acknowledge_recovers() -
 def test_a_61_with_the_estop_bit_from_another_host_is_a_fast_stop() -> None:
     with sim("can") as g:
         g.home()
-        handle = g.move(0.09, 0.002, wait=False)
+        handle = g.move(0.09, 0.0025, wait=False)
         time.sleep(0.1)
         send_raw(g, Cmd.GRIPPER_COMMAND, encode_command(GripperCommand(0, 0, 100, True, False, True)))
         with pytest.raises(FastStopActive):
@@ -184,7 +184,7 @@ def test_two_devices_with_one_node_id_are_an_error_naming_the_node() -> None:
 def test_a_newer_motion_supersedes_the_waiting_one(transport: str) -> None:
     with sim(transport) as g:
         g.home()
-        handle = g.move(0.09, 0.002, wait=False)
+        handle = g.move(0.09, 0.0025, wait=False)
         time.sleep(0.1)
         second = g.move(0.01)
         assert second.width == pytest.approx(0.01, abs=0.001)
@@ -198,14 +198,14 @@ def test_stop_from_another_thread_aborts_the_blocking_motion(transport: str) -> 
         g.home()
         threading.Timer(0.15, g.stop).start()
         with pytest.raises(CommandFailed, match="aborted"):
-            g.move(0.09, 0.002)
+            g.move(0.09, 0.0025)
         assert not g.state().moving
 
 
 def test_stop_from_another_program_is_not_reported_as_done() -> None:
     with sim("can") as g:
         g.home()
-        handle = g.move(0.09, 0.002, wait=False)
+        handle = g.move(0.09, 0.0025, wait=False)
         time.sleep(0.1)
         # what `grippers stop URL` from another shell sends: a 61 with the action bit cleared
         last = g.driver.last_command
@@ -219,7 +219,7 @@ def test_stop_from_another_program_is_not_reported_as_done() -> None:
 def test_driver_idled_by_another_host_ends_the_wait_as_aborted(command: int) -> None:
     with sim("can") as g:
         g.home()
-        handle = g.move(0.09, 0.002, wait=False)
+        handle = g.move(0.09, 0.0025, wait=False)
         time.sleep(0.1)
         send_raw(g, command)  # the 60 frame cannot show the driver mode: the jaws stand still
         with pytest.raises(CommandFailed, match="aborted: the jaws stopped"):
@@ -258,7 +258,7 @@ def test_stop_from_a_keyboard_interrupt_handler_stops_the_gripper(transport: str
         for delay in (0.05, 0.11, 0.17):  # Ctrl-C at different moments of the wait loop
             threading.Timer(delay, _thread.interrupt_main).start()
             try:
-                g.move(0.09 if model.opening_mm < 45 else 0.0, 0.002)
+                g.move(0.09 if model.opening_mm < 45 else 0.0, 0.0025)
             except KeyboardInterrupt:
                 g.stop()  # what the base class does before the exception leaves the call
             else:

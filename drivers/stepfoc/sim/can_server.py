@@ -14,32 +14,18 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Iterable
-from urllib.parse import parse_qs
+from typing import Any
 
 import can
 
 from ...errors import ConnectionLost
 from ...simkit import FaultHooks, FaultKind, SimClock
-from ..can_protocol import DEFAULT_BITRATE, MAX_NODE, CanFrame
+from ..can_protocol import DEFAULT_BITRATE, MAX_NODE, CanFrame, parse_can_url
 from .model import MsgModel
 
 __all__ = ["CanSimServer", "parse_can_url", "serve_can"]
 
 _POLL_S = 0.02  # longest wall time the reader blocks, so heartbeats and close() stay prompt
-
-
-def parse_can_url(listen: str) -> tuple[str, str, dict[str, str]]:
-    """``can://INTERFACE/CHANNEL?k=v`` -> (interface, channel, query). Parsed by hand because a multicast
-    channel may be an IPv6 address full of colons."""
-    scheme, sep, rest = listen.partition("://")
-    if not sep or scheme not in ("can", "stepfoc+can"):
-        raise ValueError(f"not a CAN URL: {listen!r} (expected can://INTERFACE/CHANNEL)")
-    rest, _, query = rest.partition("?")
-    interface, _, channel = rest.partition("/")
-    if not interface or not channel:
-        raise ValueError(f"CAN URL needs an interface and a channel: {listen!r}")
-    params = {k: v[-1] for k, v in parse_qs(query).items()}
-    return interface, channel, params
 
 
 class CanSimServer:
@@ -208,7 +194,7 @@ def serve_can(
         raise ValueError(f"two simulated nodes share a node id: {nodes}")
     own = bus is None
     if bus is None:
-        kwargs: dict[str, object] = {}
+        kwargs: dict[str, Any] = {}
         if interface != "virtual":
             kwargs["bitrate"] = int(params.get("bitrate", DEFAULT_BITRATE))
         if interface == "udp_multicast":

@@ -17,6 +17,7 @@ import time
 import tty
 from collections import deque
 from collections.abc import Sequence
+from typing import Any
 
 from ...simkit import FaultHooks, FaultKind, SimClock
 from ..uart_protocol import (
@@ -41,7 +42,7 @@ KEPT_REQUESTS = 256  # the most recent requests kept for tests; a long run must 
 
 # Motor constants the firmware prints in #Info (public firmware, communication.cpp). The notes give no values;
 # these are plausible numbers for a small BLDC so the lines are present and parse, nothing depends on them.
-SIM_MOTOR_INFO = {
+SIM_MOTOR_INFO: dict[str, Any] = {
     "phase_direction": 0,
     "phase_order": 0,
     "pole_pairs": 7,
@@ -269,6 +270,8 @@ class UartSimServer:
         if name == "Idle" and not has_arg:
             m.idle(now)
             return [COMMANDS[name].render()]
+        if name == "Error":
+            return m.error_lines()  # communication.cpp: the driver's error state, one line per cause
         if name == "Mode":
             line = MODE_LINES.get(m.mode.value if isinstance(m.mode, Mode) else int(m.mode))
             return None if line is None else [line]  # gripper mode (11) prints nothing (communication.cpp)
@@ -286,8 +289,8 @@ class UartSimServer:
             estop=bool(m.estop),  # the firmware prints the estop bit, not the estop error
             action=m.action,
             detection=m.detection,
-            max_open_position=m.min_position,  # calibrated end stops in encoder ticks
-            max_closed_position=m.max_position,
+            max_open_position=m.open_position,  # the stored end stops in encoder ticks
+            max_closed_position=m.closed_position,
         )
 
     def info(self) -> UartInfo:
