@@ -18,14 +18,15 @@ from enum import Enum
 class SimClock:
     """Simulated seconds since start: wall time multiplied by ``time_scale`` (tests use 10-100)."""
 
-    def __init__(self, time_scale: float = 1.0) -> None:
+    def __init__(self, time_scale: float = 1.0, *, start: float = 0.0) -> None:
         if not time_scale > 0:
             raise ValueError(f"time_scale must be positive, not {time_scale!r}")
         self.time_scale = float(time_scale)
+        self.start = float(start)  # simulated seconds at creation (a model prepared in simulated time)
         self._t0 = time.monotonic()
 
     def now(self) -> float:
-        return (time.monotonic() - self._t0) * self.time_scale
+        return self.start + (time.monotonic() - self._t0) * self.time_scale
 
     def wall(self, simulated_seconds: float) -> float:
         """Wall-clock seconds that ``simulated_seconds`` of device time take."""

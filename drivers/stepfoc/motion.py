@@ -42,6 +42,7 @@ __all__ = [
 IDLE_CURRENT_MA = 80  # above the largest idle reading (offset tens of mA plus noise)
 CONFIRM_S = 0.05  # an object flag with the jaws not yet moved must last this long (start-up lasts ms)
 CAL_REST_S = 0.25  # closed stop, low current, this long: the calibration has ended (ramps last < 0.1 s)
+FIRST_REST_S = 1.0  # the same before the first calibration, at an idle current (see CalibrationTracker)
 CAL_CLOSED_BYTE = 254  # the calibrated closed stop reads 255; allow one byte of truncation
 CAL_IDLE_CURRENT_MA = 300  # half the calibration current: no longer pushing on the stop
 RAMP_MA_PER_S_AT_0 = 800.0 / 2.5  # blocked current rise at speed byte 0 (the slowest)
@@ -77,8 +78,8 @@ class MotionTracker:
     """One motion from the command to its end. ``stall_s``: how long the jaws may stand still with an idle
     current before the motion counts as stopped elsewhere; ``limit_ma``: the command's current limit."""
 
-    def __init__(self, start: int, target: int, now: float, *, stall_s: float, limit_ma: int) -> None:
-        self.start = start
+    def __init__(self, start: int | None, target: int, now: float, *, stall_s: float, limit_ma: int) -> None:
+        self.start = start  # None: the first reading's position
         self.target = target
         self.stall_s = stall_s
         self.push_bound_s = ramp_bound_s(limit_ma)
@@ -88,6 +89,9 @@ class MotionTracker:
         self._still_since = now
 
     def update(self, r: Reading, now: float) -> Verdict:
+        if self.start is None:
+            self.start = self._last_position = r.position
+            self._still_since = now
         if r.position != self._last_position:
             self._last_position, self._still_since = r.position, now
         if r.position != self.start:
@@ -131,12 +135,18 @@ class CalibrationTracker:
             return Verdict.RETRY  # the firmware's calibration time-out cleared the bit
         if not self.was_calibrated and r.calibrated:
             return Verdict.ENDED
-        low = r.current_ma is None or abs(r.current_ma) < CAL_IDLE_CURRENT_MA
+        # Before the first calibration the position bytes use the firmware's default stops and saturate at 0
+        # or 255 over much of the travel: the jaws can move for seconds with a constant byte. So at rest means
+        # an idle current there (not merely below the calibration's), for longer.
+        threshold, window = (
+            (CAL_IDLE_CURRENT_MA, CAL_REST_S) if self.was_calibrated else (IDLE_CURRENT_MA, FIRST_REST_S)
+        )
+        low = r.current_ma is None or abs(r.current_ma) < threshold
         if not low or r.position != self._rest_where:
             self._rest_since = now if low else None
             self._rest_where = r.position if low else None
             return Verdict.RUNNING
-        if self._rest_since is None or now - self._rest_since < CAL_REST_S:
+        if self._rest_since is None or now - self._rest_since < window:
             return Verdict.RUNNING
         if self.was_calibrated and r.position >= CAL_CLOSED_BYTE:
             return Verdict.ENDED

@@ -216,8 +216,8 @@ class StepfocUart:
         self._exchange("Gripcal", None, self._single("Gripcal"), None)
 
     def calibration_verdict(self, *, command: str = "Gripcal") -> Verdict:
-        """RUNNING while ``#Mode`` says calibrating; ENDED once it idles after it was SEEN calibrating, with the
-        calibrated bit set and the jaws at the closed stop; RETRY when it idles without having been seen
+        """RUNNING while ``#Mode`` says calibrating; ENDED once it idles after it was SEEN calibrating, with
+        the calibrated bit set and the jaws at the closed stop; RETRY when it idles without having been seen
         running (it never started, or ended between two polls). CommandFailed when it ended any other way
         (aborted by a motion command, an error - named from ``#Error`` - or the calibration time-out)."""
         try:

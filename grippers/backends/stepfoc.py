@@ -446,12 +446,9 @@ class MsgGripper(Gripper):
         # say 3 early), 1/2 only once the jaws moved or it lasted (the start-up current can say it early), and
         # a slow motion's late contact flag is waited for while the current shows the jaws pushing.
         stall = self._stall_s(speed)
-        tracker: MotionTracker | None = None
+        tracker = MotionTracker(None, position, time.monotonic(), stall_s=stall, limit_ma=current_ma)
 
         def done(st: _Status, now: float) -> Verdict:
-            nonlocal tracker
-            if tracker is None:
-                tracker = MotionTracker(st.position, position, now, stall_s=stall, limit_ma=current_ma)
             return tracker.update(Reading(st.position, int(st.detection), st.calibrated, st.current_ma), now)
 
         return self._wait(command, motion, timeout, done, stall_s=stall)

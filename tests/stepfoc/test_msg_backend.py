@@ -152,7 +152,7 @@ def test_clear_error_resume_resends_the_motion() -> None:
     ):
         node = bus.node(0)
         node.calibrate(timeout=5.0)
-        node.command(0, 40)
+        node.command(0, 5)  # about 12 s of device time (0.25 s here): still running at the e-stop
         time.sleep(0.05)
         node.estop()
         stopped = server.model.ticks

@@ -40,13 +40,14 @@ class CanSimServer:
         channel: str,
         own_bus: bool,
         time_scale: float = 1.0,
+        clock: SimClock | None = None,
     ) -> None:
         self.models = models
         self.bus = bus
         self.interface = interface
         self.channel = channel
         self.faults = FaultHooks()
-        self.clock = SimClock(time_scale)
+        self.clock = clock or SimClock(time_scale)
         self.error: BaseException | None = None  # what stopped the thread, if anything did
         self._own_bus = own_bus
         self._lock = threading.Lock()  # guards the models against a test poking them from another thread
@@ -58,6 +59,11 @@ class CanSimServer:
             m.advance(now)
         self._thread = threading.Thread(target=self._run, name=f"stepfoc-can-sim {channel}", daemon=True)
         self._thread.start()
+
+    @property
+    def lock(self) -> threading.Lock:
+        """Hold it to read or change the models while the server runs (as the UART server's ``lock``)."""
+        return self._lock
 
     @property
     def model(self) -> MsgModel:
@@ -171,10 +177,12 @@ def serve_can(
     *,
     bus: can.BusABC | None = None,
     time_scale: float = 1.0,
+    clock: SimClock | None = None,
 ) -> CanSimServer:
     """Start a CAN simulator. ``listen``: ``can://INTERFACE/CHANNEL[?node=N&bitrate=B]``; ``node`` renumbers a
     single model (or creates one when ``models`` is None). ``bus`` (optional) is used instead of opening one
-    and is left open on close."""
+    and is left open on close. ``clock`` (optional) replaces the
+    scaled clock (a test that prepared a model in simulated time starts the clock where the model is)."""
     interface, channel, params = parse_can_url(listen)
     if models is None:
         model_list = [MsgModel(node=int(params.get("node", 0)))]
@@ -207,7 +215,13 @@ def serve_can(
             raise ConnectionLost(f"cannot open the CAN bus: {exc}", device=listen, command="serve") from exc
     try:
         return CanSimServer(
-            model_list, bus, interface=interface, channel=channel, own_bus=own, time_scale=time_scale
+            model_list,
+            bus,
+            interface=interface,
+            channel=channel,
+            own_bus=own,
+            time_scale=time_scale,
+            clock=clock,
         )
     except BaseException:  # whatever the server refused, a bus it opened must not leak
         if own:

@@ -40,8 +40,10 @@ come from :mod:`grippers.drivers.stepfoc.speed`, the one model the profiles use 
   id, the watchdog and the heartbeat periods (``EEPROM.cpp``): they survive reset (14).
 * E-stop: command 0 sets only the DRIVER's e-stop error; a 61 with its estop bit sets the gripper's estop
   error (the 60 flag) and comes back after clear (1) while the stored 61 still has it.
-* Spectral Micro (``variant``): its stop (action 0) switches the bridge off: no holding force, a part is let
-  go (detection 0, current 0).
+* Stop (a 61 with action 0): STEPFOC runs velocity mode with setpoint 0, so jaws pressing on a part keep
+  their current and the part stays held (detection 1/2 from the "idle or disabled" branch); Spectral Micro
+  (``driver``) pulls the bridge's SLEEP and RESET low: no holding force, the part is let go (detection 0,
+  current 0).
 
 Not modelled (what the firmware does and this model does not):
 
@@ -450,6 +452,10 @@ class MsgModel:
         if not (self.gripper_mode and self.calibrated and self.activated and self.action):
             if self.driver.stop_releases:
                 self._stop(Phase.RELEASED)  # Spectral Micro: SLEEP and RESET low, the bridge is off
+            elif self.phase is Phase.PUSHING:
+                # STEPFOC: velocity mode with setpoint 0; the jaws already stand still on the part, so the
+                # loop keeps the current it had: the part stays held (and detection keeps saying so)
+                self._ramp = 0.0
             elif self.phase is not Phase.IDLE:
                 self._stop(Phase.IDLE)
             return
