@@ -232,7 +232,7 @@ class Watchdog:
     """Command 15: time-out in ms (0 = off) and what the driver does when it fires."""
 
     timeout_ms: int
-    action: WatchdogAction = WatchdogAction.IDLE
+    action: WatchdogAction | int = WatchdogAction.IDLE
 
 
 class CanFrame(NamedTuple):
@@ -375,8 +375,11 @@ def _encode_error_state(es: ErrorState) -> bytes:
 
 def _decode_error_state(data: bytes) -> ErrorState:
     b0, b1 = data[0], data[1]
-    bits0 = [bool(b0 & (0x80 >> i)) for i in range(8)]
-    return ErrorState(*bits0, bool(b1 & 0x80), bool(b1 & 0x40), bool(b1 & 0x20))
+    names = ("error", "temperature", "encoder", "vbus", "driver", "velocity", "current", "estop")
+    flags = {n: bool(b0 & (0x80 >> i)) for i, n in enumerate(names)}
+    return ErrorState(
+        **flags, calibrated=bool(b1 & 0x80), activated=bool(b1 & 0x40), watchdog=bool(b1 & 0x20)
+    )
 
 
 # --------------------------------------------------------------------------------------------- the table
@@ -415,8 +418,8 @@ def _scalar(fmt: str, unit: str, label: str, valid: tuple[int, int] | None = Non
     return Layout(s.size, enc, dec, lambda v: f"{label}={v}{unit}")
 
 
-def _record(fmt: str, cls: type, label: str, convert: Callable[[Any], tuple] | None = None) -> Layout:
-    s = struct.Struct(fmt)
+def _record(fmt: str, cls: Any, label: str, convert: Callable[[Any], tuple] | None = None) -> Layout:
+    s = struct.Struct(fmt)  # cls: a dataclass (its fields, in order, are the record's)
 
     def enc(v: Any) -> bytes:
         values = convert(v) if convert else tuple(getattr(v, f) for f in cls.__dataclass_fields__)
@@ -460,7 +463,9 @@ def _watchdog_decode(d: bytes) -> Watchdog:
     try:
         return Watchdog(ms, WatchdogAction(action))
     except ValueError:
-        return Watchdog(ms, action)  # type: ignore[arg-type]  # unknown action byte kept as a plain int
+        return Watchdog(
+            ms, action
+        )  # an unknown action byte kept as a plain int (the firmware never reads it)
 
 
 _WATCHDOG_LAYOUT = Layout(

@@ -114,7 +114,7 @@ class StepfocUart:
             self._ser = serial.serial_for_url(
                 self.port, baudrate=baudrate, timeout=min(_POLL_S, self.timeout), write_timeout=self.timeout
             )
-        except (*_PORT_ERRORS, ValueError) as exc:
+        except (*_PORT_ERRORS, ValueError) as exc:  # type: ignore[misc]  # a tuple of exception classes
             raise ConnectionLost(f"cannot open serial port: {exc}", device=self.device) from exc
 
     # -- lifecycle ------------------------------------------------------------------------------------------

@@ -113,8 +113,8 @@ def test_requests_are_not_kept_forever(port) -> None:
 
 
 def test_a_driver_error_forces_idle_and_error_prints_it(port) -> None:
-    """Issue 19 §1: any driver error forces mode 0, so ``#Gripcal`` does not run: ``#Mode`` prints "Idle mode",
-    ``#Gripinfo`` shows only the estop bit (0 for command 0's e-stop), ``#Error`` names the cause
+    """Issue 19 §1: any driver error forces mode 0, so ``#Gripcal`` does not run: ``#Mode`` prints "Idle
+    mode", ``#Gripinfo`` shows only the estop bit (0 for command 0's e-stop), ``#Error`` names the cause
     (STEPFOC firmware communication.cpp "Error")."""
     server, raw = port
     assert raw.ask(b"#Error\n", quiet=0.2) == ["No errors!"]
