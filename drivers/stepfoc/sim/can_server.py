@@ -19,7 +19,7 @@ from typing import Any
 import can
 
 from ...errors import ConnectionLost
-from ...simkit import FaultHooks, FaultKind, SimClock
+from ...simkit import FaultHooks, SimClock, apply_fault, first_half, flip_last_byte
 from ..can_protocol import DEFAULT_BITRATE, MAX_NODE, CanFrame, parse_can_url
 from .model import MsgModel
 
@@ -114,24 +114,21 @@ class CanSimServer:
     def _reply(self, frame: CanFrame) -> None:
         if self.faults.silent:
             return
-        fault = self.faults.take()
-        arbitration_id, data = frame.arbitration_id, frame.data
-        if fault is not None:
-            if fault.kind is FaultKind.DROP:
-                return
-            if fault.kind is FaultKind.ERROR_BIT:
-                arbitration_id |= 1
-            elif fault.kind is FaultKind.CORRUPT and data:
-                data = data[:-1] + bytes([data[-1] ^ 0xFF])
-            elif fault.kind is FaultKind.TRUNCATE:
-                data = data[: len(data) // 2]
-            elif fault.kind is FaultKind.DELAY:
-                timer = threading.Timer(fault.seconds, self._send, (CanFrame(arbitration_id, data, False),))
+        out, delay = apply_fault(
+            frame,
+            self.faults.take(),
+            corrupt=lambda f: CanFrame(f.arbitration_id, flip_last_byte(f.data), False),
+            truncate=lambda f: CanFrame(f.arbitration_id, first_half(f.data), False),
+            error_bit=lambda f: CanFrame(f.arbitration_id | 1, f.data, False),
+        )
+        for reply in out:
+            if delay:
+                timer = threading.Timer(delay, self._send, (reply,))
                 timer.daemon = True
                 self._timers.append(timer)
                 timer.start()
-                return
-        self._send(CanFrame(arbitration_id, data, False))
+            else:
+                self._send(reply)
 
     def _send(self, frame: CanFrame) -> None:
         if self._closed:

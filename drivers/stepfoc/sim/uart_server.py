@@ -19,7 +19,7 @@ from collections import deque
 from collections.abc import Sequence
 from typing import Any
 
-from ...simkit import FaultHooks, FaultKind, SimClock
+from ...simkit import FaultHooks, SimClock, apply_fault, first_half
 from ..uart_protocol import (
     COMMANDS,
     MODE_LINES,
@@ -51,6 +51,13 @@ SIM_MOTOR_INFO: dict[str, Any] = {
     "kt": 0.05,
     "kv": 190.0,
 }
+
+
+def _corrupt_text(data: bytes) -> bytes:
+    bad = bytearray(data)
+    if len(bad) > 1:
+        bad[1] ^= 0x01
+    return bytes(bad)
 
 
 class UartSimServer:
@@ -206,21 +213,16 @@ class UartSimServer:
         if self.faults.silent:
             return
         garbage = self.faults.take_garbage()
-        fault = self.faults.take()
         if garbage:
             self._queue(garbage)
-        if fault is None or fault.kind is FaultKind.ERROR_BIT:  # no error bit on a text line
-            self._queue(data)
-        elif fault.kind is FaultKind.DROP:
-            return
-        elif fault.kind is FaultKind.DELAY:
-            self._delayed.append((time.monotonic() + fault.seconds, data))
-        elif fault.kind is FaultKind.CORRUPT:
-            bad = bytearray(data)
-            bad[1] ^= 0x01  # the answer's fixed text no longer matches: the client must not accept it
-            self._queue(bytes(bad))
-        elif fault.kind is FaultKind.TRUNCATE:
-            self._queue(data[: len(data) // 2])
+        # simkit.apply_fault: the one meaning of each fault; CORRUPT changes the answer's fixed text so the
+        # client must not accept it; a text line has no error bit
+        out, delay = apply_fault(data, self.faults.take(), corrupt=_corrupt_text, truncate=first_half)
+        for answer in out:
+            if delay:
+                self._delayed.append((time.monotonic() + delay, answer))
+            else:
+                self._queue(answer)
 
     # -- the firmware's command dispatch (docs/protocols.md §2 UART; public firmware communication.cpp) ------
 
