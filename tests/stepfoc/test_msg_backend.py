@@ -16,6 +16,7 @@ from grippers.drivers.errors import CommandFailed, ProtocolError
 from grippers.drivers.stepfoc.can_client import StepfocBus
 from grippers.drivers.stepfoc.can_protocol import Cmd, GripperCommand, encode_command, pack_id
 from grippers.drivers.stepfoc.sim import MsgModel, serve_can
+from grippers.drivers.stepfoc.sim.model import Phase
 from grippers.gripper import FastStopActive
 
 TRANSPORTS = ["can", "pty"]
@@ -196,10 +197,36 @@ def test_a_newer_motion_supersedes_the_waiting_one(transport: str) -> None:
 def test_stop_from_another_thread_aborts_the_blocking_motion(transport: str) -> None:
     with sim(transport) as g:
         g.home()
-        threading.Timer(0.15, g.stop).start()
+        model = g.simulator.model
+
+        def stop_once_moving() -> None:
+            # not a fixed delay: on a loaded machine the move may start late, and a stop sent before it would
+            # only stop nothing (issue 23 §1: the test must hold under load)
+            deadline = time.monotonic() + 30.0
+            while time.monotonic() < deadline and model.phase not in (Phase.STARTING, Phase.MOVING):
+                time.sleep(0.002)
+            g.stop()
+
+        stopper = threading.Thread(target=stop_once_moving, daemon=True)
+        stopper.start()
         with pytest.raises(CommandFailed, match="aborted"):
             g.move(0.09, 0.0025)
+        stopper.join(5.0)
         assert not g.state().moving
+
+
+def test_a_motion_superseded_by_another_program_never_reports_success_elsewhere() -> None:
+    """Issue 23 §1 (MSG): a move(100 mm) returned success at 30.5 mm when another program sent the jaws
+    there: detection 3 counts only at this motion's own target."""
+    with sim("can") as g:
+        g.home()
+        handle = g.move(0.1, 0.0025, wait=False)
+        time.sleep(0.1)
+        other = GripperCommand(180, 255, 500, activate=True, action=True, estop=False)  # about 31 mm
+        send_raw(g, Cmd.GRIPPER_COMMAND, encode_command(other))
+        with pytest.raises(CommandFailed, match="aborted"):
+            handle.wait(10.0)
+        assert g.simulator.model.opening_mm == pytest.approx(31.0, abs=1.0)
 
 
 def test_stop_from_another_program_is_not_reported_as_done() -> None:
