@@ -261,12 +261,11 @@ class MsgMaps(_Model):
     open_width_mm: Length
     closed_width_mm: Length = 0.0
     # The one speed model (drivers/stepfoc/speed.py): the driver's firmware maps the speed byte to ticks/s,
-    # ticks_per_mm (from the calibrated stops) makes it mm/s. speed_at_* are derived from them; given by
-    # hand they must agree, or a requested speed would not be the speed the jaws move (issue 19).
+    # ticks_per_mm (from the calibrated stops) makes it mm/s. speed_at_* are derived from them (properties,
+    # so a profile that extends another with another driver gets its own); given by hand they must agree,
+    # or a requested speed would not be the speed the jaws move (issue 19).
     driver: Literal["stepfoc", "spectral-micro"] = "stepfoc"
     ticks_per_mm: Annotated[float, Field(gt=0, le=1e6, allow_inf_nan=False)] = 200.0
-    speed_at_0_mm_s: PositiveSpeed
-    speed_at_255_mm_s: PositiveSpeed
     newton_per_amp: Annotated[float, Field(gt=0, le=MAX_FORCE_N, allow_inf_nan=False)]
     min_current_ma: Annotated[int, Field(ge=0)] = 150  # below about 150 mA the motion is unstable (MSG doc)
     max_current_ma: Annotated[int, Field(gt=0, le=2800)] = 1000  # MSG doc: 0-1000 mA
@@ -294,22 +293,34 @@ class MsgMaps(_Model):
         }
         out = dict(data)
         for key, value in derived.items():
-            given = out.get(key)
+            given = out.pop(key, None)
             if given is None:
-                out[key] = value
-            elif isinstance(given, int | float) and abs(float(given) - value) > 0.01 * value:
+                continue
+            if not isinstance(given, int | float) or abs(float(given) - value) > 0.01 * value:
                 raise ValueError(
-                    f"{key} = {given:g} disagrees with the {driver.name} speed map at {tpm:g} ticks/mm "
+                    f"{key} = {given!r} disagrees with the {driver.name} speed map at {tpm:g} ticks/mm "
                     f"({value:g} mm/s): set maps.ticks_per_mm (calibrated stops / stroke) instead"
                 )
         return out
+
+    @property
+    def speed_at_0_mm_s(self) -> float:
+        """Jaw speed of speed byte 0 (mm/s), from the driver's speed map and ticks_per_mm."""
+        from .drivers.stepfoc.speed import speed_mm_s, variant
+
+        return speed_mm_s(0, self.ticks_per_mm, variant(self.driver))
+
+    @property
+    def speed_at_255_mm_s(self) -> float:
+        """Jaw speed of speed byte 255 (mm/s)."""
+        from .drivers.stepfoc.speed import speed_mm_s, variant
+
+        return speed_mm_s(255, self.ticks_per_mm, variant(self.driver))
 
     @model_validator(mode="after")
     def _ordered(self) -> MsgMaps:
         if self.open_width_mm <= self.closed_width_mm:
             raise ValueError("needs open_width_mm > closed_width_mm")
-        if self.speed_at_255_mm_s <= self.speed_at_0_mm_s:
-            raise ValueError("needs speed_at_255_mm_s > speed_at_0_mm_s")
         if not self.min_current_ma <= self.default_current_ma <= self.max_current_ma:
             raise ValueError("needs min_current_ma <= default_current_ma <= max_current_ma")
         return self

@@ -139,3 +139,21 @@ def test_motion_tracker_needs_the_target_for_a_latched_3_and_tolerates_current_n
     pushing = MotionTracker(None, 60, 0.0, stall_s=0.5, limit_ma=800)
     assert pushing.update(Reading(150, 0, True, -300), 0.0) is Verdict.RUNNING
     assert pushing.update(Reading(150, 0, True, -400), 1.5) is Verdict.RUNNING  # still ramping up
+
+
+def test_the_spectral_micro_profile_selects_the_variant_and_its_stop_releases_the_part(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    from pathlib import Path
+
+    folder = Path(__file__).parents[2] / "profiles" / "spectral-micro"
+    monkeypatch.setenv("GRIPPERS_PROFILE_PATH", str(folder))
+    assert load_profile("msg-100-spectral").maps.driver == "spectral-micro"
+    with grippers.open("sim://msg-100-spectral?time_scale=50&part_width_mm=20") as g:
+        model = g.simulator.model
+        assert model.driver.name == "spectral-micro"
+        g.home()
+        assert g.grasp(0.020).grasped
+        g.stop()  # Spectral Micro: the bridge goes off and the part is released
+        time.sleep(0.05)
+        assert model.phase is Phase.RELEASED and model.current_ma == 0
