@@ -11,21 +11,26 @@ from __future__ import annotations
 import threading
 import time
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass
 from enum import Enum
+from typing import TypeVar
+
+R = TypeVar("R")
 
 
 class SimClock:
     """Simulated seconds since start: wall time multiplied by ``time_scale`` (tests use 10-100)."""
 
-    def __init__(self, time_scale: float = 1.0) -> None:
+    def __init__(self, time_scale: float = 1.0, *, start: float = 0.0) -> None:
         if not time_scale > 0:
             raise ValueError(f"time_scale must be positive, not {time_scale!r}")
         self.time_scale = float(time_scale)
+        self.start = float(start)  # simulated seconds at creation (a model prepared in simulated time)
         self._t0 = time.monotonic()
 
     def now(self) -> float:
-        return (time.monotonic() - self._t0) * self.time_scale
+        return self.start + (time.monotonic() - self._t0) * self.time_scale
 
     def wall(self, simulated_seconds: float) -> float:
         """Wall-clock seconds that ``simulated_seconds`` of device time take."""
@@ -33,11 +38,15 @@ class SimClock:
 
 
 class FaultKind(Enum):
+    """What a fault does to one reply, the same on every simulator and transport (see :func:`apply_fault`)."""
+
     DROP = "drop"  # the reply is never sent
     DELAY = "delay"  # the reply is sent ``seconds`` (wall time) later
-    CORRUPT = "corrupt"  # one byte of the reply is flipped (WSG: a checksum byte; CAN: a data byte)
+    CORRUPT = (
+        "corrupt"  # one byte of the reply is flipped (WSG: a checksum byte; CAN: a data byte; UART: text)
+    )
     TRUNCATE = "truncate"  # only the first half of the reply is sent
-    ERROR_BIT = "error_bit"  # STEPFOC: the reply's identifier carries the error bit
+    ERROR_BIT = "error_bit"  # STEPFOC CAN: the identifier carries the error bit; elsewhere sent unchanged
     DUPLICATE = "duplicate"  # the reply is sent twice (a network or proxy that repeats a packet)
 
 
@@ -45,6 +54,46 @@ class FaultKind(Enum):
 class Fault:
     kind: FaultKind
     seconds: float = 0.0
+
+
+def apply_fault(
+    reply: R,
+    fault: Fault | None,
+    *,
+    corrupt: Callable[[R], R],
+    truncate: Callable[[R], R],
+    error_bit: Callable[[R], R] | None = None,
+) -> tuple[list[R], float]:
+    """The one rule for what a fault does to a reply: the replies to put on the wire (in order) and the wall
+    seconds to wait before sending them (0: now). Every simulator server calls this, so a fault means the
+    same on the WSG and the MSG, over TCP, UDP, serial, CAN and the UART (issue 23 §3: ``duplicate_replies``
+    used to duplicate on the WSG, send once on MSG over CAN and drop the reply on MSG over the UART). The
+    callables supply the transport's own way to corrupt, truncate and (CAN only) set the error bit; a
+    protocol without an error bit sends the reply unchanged for ERROR_BIT."""
+    if fault is None:
+        return [reply], 0.0
+    kind = fault.kind
+    if kind is FaultKind.DROP:
+        return [], 0.0
+    if kind is FaultKind.DELAY:
+        return [reply], max(0.0, fault.seconds)
+    if kind is FaultKind.CORRUPT:
+        return [corrupt(reply)], 0.0
+    if kind is FaultKind.TRUNCATE:
+        return [truncate(reply)], 0.0
+    if kind is FaultKind.DUPLICATE:
+        return [reply, reply], 0.0
+    if kind is FaultKind.ERROR_BIT:
+        return [reply if error_bit is None else error_bit(reply)], 0.0
+    raise AssertionError(kind)
+
+
+def flip_last_byte(data: bytes) -> bytes:
+    return data[:-1] + bytes([data[-1] ^ 0xFF]) if data else data
+
+
+def first_half(data: bytes) -> bytes:
+    return data[: len(data) // 2]
 
 
 class FaultHooks:

@@ -276,8 +276,12 @@ class MsgMaps(_Model):
 
     open_width_mm: Length
     closed_width_mm: Length = 0.0
-    speed_at_0_mm_s: PositiveSpeed
-    speed_at_255_mm_s: PositiveSpeed
+    # The one speed model (drivers/stepfoc/speed.py): the driver's firmware maps the speed byte to ticks/s,
+    # ticks_per_mm (from the calibrated stops) makes it mm/s. speed_at_* are derived from them (properties,
+    # so a profile that extends another with another driver gets its own); given by hand they must agree,
+    # or a requested speed would not be the speed the jaws move (issue 19).
+    driver: Literal["stepfoc", "spectral-micro"] = "stepfoc"
+    ticks_per_mm: Annotated[float, Field(gt=0, le=1e6, allow_inf_nan=False)] = 200.0
     newton_per_amp: Annotated[float, Field(gt=0, le=MAX_FORCE_N, allow_inf_nan=False)]
     min_current_ma: Annotated[int, Field(ge=0)] = 150  # below about 150 mA the motion is unstable (MSG doc)
     max_current_ma: Annotated[int, Field(gt=0, le=2800)] = 1000  # MSG doc: 0-1000 mA
@@ -285,12 +289,54 @@ class MsgMaps(_Model):
     grasp_travel_mm: Length = 10.0  # a grasp commands this far inside the nominal width
     inside_grip: bool = False  # a part gripped from inside (object detected while opening)
 
+    @model_validator(mode="before")
+    @classmethod
+    def _speeds_from_the_driver(cls, data: Any) -> Any:
+        if not isinstance(data, dict):
+            return data
+        from .drivers.stepfoc.speed import speed_mm_s, variant
+
+        try:
+            driver = variant(str(data.get("driver", "stepfoc")))
+            tpm = float(data.get("ticks_per_mm", 200.0))
+        except (TypeError, ValueError):
+            return data  # the field validators name the problem
+        if not tpm > 0:
+            return data
+        derived = {
+            "speed_at_0_mm_s": speed_mm_s(0, tpm, driver),
+            "speed_at_255_mm_s": speed_mm_s(255, tpm, driver),
+        }
+        out = dict(data)
+        for key, value in derived.items():
+            given = out.pop(key, None)
+            if given is None:
+                continue
+            if not isinstance(given, int | float) or abs(float(given) - value) > 0.01 * value:
+                raise ValueError(
+                    f"{key} = {given!r} disagrees with the {driver.name} speed map at {tpm:g} ticks/mm "
+                    f"({value:g} mm/s): set maps.ticks_per_mm (calibrated stops / stroke) instead"
+                )
+        return out
+
+    @property
+    def speed_at_0_mm_s(self) -> float:
+        """Jaw speed of speed byte 0 (mm/s), from the driver's speed map and ticks_per_mm."""
+        from .drivers.stepfoc.speed import speed_mm_s, variant
+
+        return speed_mm_s(0, self.ticks_per_mm, variant(self.driver))
+
+    @property
+    def speed_at_255_mm_s(self) -> float:
+        """Jaw speed of speed byte 255 (mm/s)."""
+        from .drivers.stepfoc.speed import speed_mm_s, variant
+
+        return speed_mm_s(255, self.ticks_per_mm, variant(self.driver))
+
     @model_validator(mode="after")
     def _ordered(self) -> MsgMaps:
         if self.open_width_mm <= self.closed_width_mm:
             raise ValueError("needs open_width_mm > closed_width_mm")
-        if self.speed_at_255_mm_s <= self.speed_at_0_mm_s:
-            raise ValueError("needs speed_at_255_mm_s > speed_at_0_mm_s")
         if not self.min_current_ma <= self.default_current_ma <= self.max_current_ma:
             raise ValueError("needs min_current_ma <= default_current_ma <= max_current_ma")
         return self
@@ -319,6 +365,16 @@ class MsgProfile(ProfileBase):
             raise ValueError(
                 f"maps: closed_width_mm..open_width_mm ({maps.closed_width_mm:g}..{maps.open_width_mm:g} mm) "
                 f"must cover the stroke ({m.min_width_mm:g}..{m.max_width_mm:g} mm), or moves end early"
+            )
+        # The speed limits must be speeds the driver can run (bytes 0..255 of the one speed model).
+        if (
+            m.min_speed_mm_s < maps.speed_at_0_mm_s * 0.999
+            or m.max_speed_mm_s > maps.speed_at_255_mm_s * 1.001
+        ):
+            raise ValueError(
+                f"mechanics speeds {m.min_speed_mm_s:g}..{m.max_speed_mm_s:g} mm/s must lie within what the "
+                f"driver runs ({maps.speed_at_0_mm_s:g}..{maps.speed_at_255_mm_s:g} mm/s at "
+                f"{maps.ticks_per_mm:g} ticks/mm)"
             )
         # The force is estimated from the current limit: the currents the driver may use must give a force
         # inside the mechanics' range, or every grasp is refused.

@@ -57,9 +57,11 @@ from .can_protocol import (
     encode_command,
     encode_frame,
     pack_id,
+    parse_can_url,
     unpack_id,
 )
 from .dissect import log_can_frame
+from .motion import CalibrationTracker, Reading, Verdict
 
 __all__ = ["CalibrationWatch", "StepfocBus", "StepfocNode", "open_node", "parse_url"]
 
@@ -68,46 +70,37 @@ log = logging.getLogger(__name__)
 _READ_POLL_S = 0.05  # the reader's longest block, so close() returns promptly
 DUPLICATE_WINDOW_S = 0.05  # two nodes with one id answer one request within microseconds of each other
 
-# End of a RE-calibration, read from the 60 frames (docs/protocols.md §2 "Firmware behaviour a client must
-# survive": the calibrated bit stays set, so the jaws tell): they leave the closed stop, travel to the open
-# stop and back, and the driver idles at the closed stop (position 255, motor current ~0 after Brake_Coast).
-CAL_LEFT_CLOSED = 245  # a position below this: the calibration is under way
-CAL_AT_CLOSED = 250  # at or above: back at the closed stop
-CAL_IDLE_CURRENT_MA = 300  # below half the calibration current (600 mA): no longer pushing on the stop
-CAL_SETTLED_POLLS = 2  # consecutive polls that must agree
+# After a 5-byte 61 the firmware resets its at-position latch at the next control tick (160 us on STEPFOC,
+# 200 us on Spectral Micro); a poll that reaches the node before that tick cancels the reset and the motion
+# reports detection 3 throughout (docs/protocols.md §2). A node handle waits this long before its next poll.
+LATCH_GUARD_S = 0.0005
 
 
 class CalibrationWatch:
-    """Tells from successive 60 frames when a calibration the host started has ended. Sans-IO.
-
-    A first calibration ends when the calibrated bit goes to 1. A recalibration leaves that bit set the whole
-    time (firmware ``Calibrate_gripper``), so its end is read from the jaws, see the constants above. A
-    calibrated bit that drops during a recalibration is the firmware's calibration time-out.
-    """
+    """Tells from successive 60 frames when a calibration the host started has ended: the sans-IO
+    :class:`~grippers.drivers.stepfoc.motion.CalibrationTracker` with this client's clock."""
 
     def __init__(self, was_calibrated: bool) -> None:
         self.was_calibrated = was_calibrated
-        self.left_closed = False
-        self.settled = 0
+        self.tracker = CalibrationTracker(was_calibrated, time.monotonic())
 
     def update(self, st: GripperStatus) -> bool | str:
-        """True when done, False while running, a reason (str) when the calibration failed."""
-        if not self.was_calibrated:
-            return bool(st.calibrated)
-        if not st.calibrated:
-            return "the calibrated bit dropped (the firmware's calibration time-out)"
-        if st.position < CAL_LEFT_CLOSED:
-            self.left_closed = True
-        at_rest = st.position >= CAL_AT_CLOSED and abs(st.current_ma) < CAL_IDLE_CURRENT_MA
-        self.settled = self.settled + 1 if (self.left_closed and at_rest) else 0
-        return self.settled >= CAL_SETTLED_POLLS
+        """True when done, False while running, a reason (str) when the calibration ended without success."""
+        verdict = self.tracker.update(
+            Reading(st.position, int(st.detection), st.calibrated, st.current_ma), time.monotonic()
+        )
+        if verdict is Verdict.RETRY:
+            return (
+                "the calibrated bit dropped (the firmware's calibration time-out)"
+                if self.was_calibrated and not st.calibrated
+                else f"the jaws rest at position {st.position} without a completed calibration"
+            )
+        return verdict is Verdict.ENDED
 
 
 def parse_url(url: str) -> tuple[str, str, dict[str, str]]:
     """``stepfoc+can://INTERFACE/CHANNEL?node=N&bitrate=B`` -> (interface, channel, query)."""
-    from .sim.can_server import parse_can_url  # the one parser, shared with the simulator
-
-    return parse_can_url(url)
+    return parse_can_url(url)  # the one parser, shared with the simulator
 
 
 def _byte(value: Any, what: str, device: str, command: str) -> int:
@@ -433,6 +426,7 @@ class StepfocNode:
         self.current_limit_ma = int(current_limit_ma)
         self.timeout = timeout
         self.last_command: GripperCommand | None = None  # the last 5-byte 61 this handle sent
+        self._commanded_at = 0.0  # time.monotonic() of the last 5-byte 61 (see LATCH_GUARD_S)
         self._owns_bus = owns_bus
 
     # ------------------------------------------------------------------------------------------ basics
@@ -480,7 +474,12 @@ class StepfocNode:
     # ------------------------------------------------------------------------------------------ gripper
 
     def poll(self, timeout: float | None = None) -> GripperStatus:
-        """Empty 61 -> 60: the status, changing nothing (safe during calibration, docs/protocols.md §2)."""
+        """Empty 61 -> 60: the status, changing nothing (safe during calibration, docs/protocols.md §2).
+        Never within :data:`LATCH_GUARD_S` of this handle's last command, where it would cancel the
+        command's latch reset."""
+        wait = self._commanded_at + LATCH_GUARD_S - time.monotonic()
+        if wait > 0:
+            time.sleep(wait)
         return self._status_request(b"", timeout, "poll")
 
     def make_command(
@@ -538,8 +537,21 @@ class StepfocNode:
         firmware treats such a frame as "same command" and keeps its at-position latch, so after a
         calibration, a clear error or a stop from elsewhere the node would report detection 3 at once while
         the jaws still travel (docs/protocols.md §2, "Firmware behaviour a client must survive"). The current
-        limit is moved by 1 mA instead, which changes nothing a user can measure."""
+        limit is moved by 1 mA instead, which changes nothing a user can measure.
+
+        The latch is the NODE's: it compares with the last 61 it received from anyone (a previous session,
+        another program). A handle that has sent nothing yet cannot know that frame, so its first motion goes
+        out twice, first with the current moved by 1 mA: the second frame then differs from the one before
+        it, whatever the node had (issue 19: the second run of a script returned at once)."""
         last = self.last_command
+        if cmd.action and last is None:
+            step = -1 if cmd.current_ma > 0 else 1
+            primer = GripperCommand(
+                cmd.position, cmd.speed, cmd.current_ma + step, cmd.activate, True, cmd.estop, cmd.release
+            )
+            self.last_command = primer
+            self._status_request(encode_command(primer), timeout, "command")
+            last = primer
         if cmd.action and last is not None and encode_command(cmd) == encode_command(last):
             step = -1 if cmd.current_ma > 0 else 1
             cmd = GripperCommand(
@@ -547,7 +559,10 @@ class StepfocNode:
             )
         data = encode_command(cmd)
         self.last_command = cmd
-        return self._status_request(data, timeout, "command")
+        try:
+            return self._status_request(data, timeout, "command")
+        finally:
+            self._commanded_at = time.monotonic()
 
     def fault(self, st: GripperStatus, timeout: float | None = None) -> str | None:
         """Why the node reports an error, or None. The 60 frame names the gripper's estop, watchdog and
@@ -637,7 +652,8 @@ class StepfocNode:
         from the jaws (:class:`CalibrationWatch`). ``last_command`` is kept: the node keeps the last 61's
         bytes over a calibration, and :meth:`send_command` makes the next motion differ from them.
         ``timeout`` is wall time; calibration takes seconds on the device."""
-        watch = self.start_calibration()
+        tracker = self.start_calibration()
+        watch = CalibrationWatch(tracker.was_calibrated)
         if not wait:
             return None
         deadline = time.monotonic() + timeout
@@ -669,12 +685,25 @@ class StepfocNode:
                 )
             time.sleep(poll_interval)
 
-    def start_calibration(self, timeout: float | None = None) -> CalibrationWatch:
-        """Send 62 after one poll that says whether this is a first calibration; returns the watch that
-        recognises its end from the following polls (for callers that run their own wait loop)."""
+    def start_calibration(
+        self, timeout: float | None = None, *, command: str = "calibrate"
+    ) -> CalibrationTracker:
+        """Send 62 after one poll that says whether this is a first calibration; returns the sans-IO tracker
+        that recognises its end from the following polls (for callers that run their own wait loop).
+
+        An active error forces the driver's mode to idle at its next control tick (docs/protocols.md §2), so
+        a 62 then does nothing: CommandFailed naming the driver's error (frame 26) instead."""
         before = self.poll(timeout)
+        cause = self.fault(before, timeout)
+        if cause is not None:
+            raise CommandFailed(
+                f"cannot calibrate: driver error active ({cause}); acknowledge it first",
+                status_name=cause,
+                device=self.device,
+                command=command,
+            )
         self.send(Cmd.GRIPPER_CALIBRATE)
-        return CalibrationWatch(before.calibrated)
+        return CalibrationTracker(before.calibrated, time.monotonic())
 
     def estop(self) -> None:
         """Command 0: the node stops and reports the estop error until :meth:`clear_error`."""

@@ -19,6 +19,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from enum import Enum, IntEnum
 from typing import Any, NamedTuple
+from urllib.parse import parse_qs
 
 from ..errors import LimitError, ProtocolError
 
@@ -26,6 +27,7 @@ __all__ = [
     "COMMANDS",
     "CanFrame",
     "Cmd",
+    "parse_can_url",
     "CommandSpec",
     "DeviceInfo",
     "Detection",
@@ -230,7 +232,7 @@ class Watchdog:
     """Command 15: time-out in ms (0 = off) and what the driver does when it fires."""
 
     timeout_ms: int
-    action: WatchdogAction = WatchdogAction.IDLE
+    action: WatchdogAction | int = WatchdogAction.IDLE
 
 
 class CanFrame(NamedTuple):
@@ -373,8 +375,11 @@ def _encode_error_state(es: ErrorState) -> bytes:
 
 def _decode_error_state(data: bytes) -> ErrorState:
     b0, b1 = data[0], data[1]
-    bits0 = [bool(b0 & (0x80 >> i)) for i in range(8)]
-    return ErrorState(*bits0, bool(b1 & 0x80), bool(b1 & 0x40), bool(b1 & 0x20))
+    names = ("error", "temperature", "encoder", "vbus", "driver", "velocity", "current", "estop")
+    flags = {n: bool(b0 & (0x80 >> i)) for i, n in enumerate(names)}
+    return ErrorState(
+        **flags, calibrated=bool(b1 & 0x80), activated=bool(b1 & 0x40), watchdog=bool(b1 & 0x20)
+    )
 
 
 # --------------------------------------------------------------------------------------------- the table
@@ -413,8 +418,8 @@ def _scalar(fmt: str, unit: str, label: str, valid: tuple[int, int] | None = Non
     return Layout(s.size, enc, dec, lambda v: f"{label}={v}{unit}")
 
 
-def _record(fmt: str, cls: type, label: str, convert: Callable[[Any], tuple] | None = None) -> Layout:
-    s = struct.Struct(fmt)
+def _record(fmt: str, cls: Any, label: str, convert: Callable[[Any], tuple] | None = None) -> Layout:
+    s = struct.Struct(fmt)  # cls: a dataclass (its fields, in order, are the record's)
 
     def enc(v: Any) -> bytes:
         values = convert(v) if convert else tuple(getattr(v, f) for f in cls.__dataclass_fields__)
@@ -458,7 +463,9 @@ def _watchdog_decode(d: bytes) -> Watchdog:
     try:
         return Watchdog(ms, WatchdogAction(action))
     except ValueError:
-        return Watchdog(ms, action)  # type: ignore[arg-type]  # unknown action byte kept as a plain int
+        return Watchdog(
+            ms, action
+        )  # an unknown action byte kept as a plain int (the firmware never reads it)
 
 
 _WATCHDOG_LAYOUT = Layout(
@@ -655,3 +662,17 @@ def describe(arbitration_id: int, data: bytes | bytearray, is_remote: bool = Fal
         return f"node {node} {_command_name(command)}{err} BAD LENGTH {bytes(data).hex(' ')} ({exc.message})"
     except ProtocolError as exc:
         return f"0x{arbitration_id:03X} {bytes(data).hex(' ')} ({exc})"
+
+
+def parse_can_url(listen: str) -> tuple[str, str, dict[str, str]]:
+    """``can://INTERFACE/CHANNEL?k=v`` -> (interface, channel, query). Parsed by hand because a multicast
+    channel may be an IPv6 address full of colons."""
+    scheme, sep, rest = listen.partition("://")
+    if not sep or scheme not in ("can", "stepfoc+can"):
+        raise ValueError(f"not a CAN URL: {listen!r} (expected can://INTERFACE/CHANNEL)")
+    rest, _, query = rest.partition("?")
+    interface, _, channel = rest.partition("/")
+    if not interface or not channel:
+        raise ValueError(f"CAN URL needs an interface and a channel: {listen!r}")
+    params = {k: v[-1] for k, v in parse_qs(query).items()}
+    return interface, channel, params

@@ -27,6 +27,7 @@ from ..errors import (
     ProtocolError,
 )
 from .dissect import log_uart_line
+from .motion import Verdict
 from .uart_protocol import (
     BAUDRATE,
     COMMANDS,
@@ -109,11 +110,12 @@ class StepfocUart:
         self._lines: deque[Line] = deque()
         self._lock = threading.RLock()
         self._closed = False
+        self._cal_seen = False  # #Mode showed calibration mode since the last Gripcal
         try:
             self._ser = serial.serial_for_url(
                 self.port, baudrate=baudrate, timeout=min(_POLL_S, self.timeout), write_timeout=self.timeout
             )
-        except (*_PORT_ERRORS, ValueError) as exc:
+        except (*_PORT_ERRORS, ValueError) as exc:  # type: ignore[misc]  # a tuple of exception classes
             raise ConnectionLost(f"cannot open serial port: {exc}", device=self.device) from exc
 
     # -- lifecycle ------------------------------------------------------------------------------------------
@@ -154,9 +156,11 @@ class StepfocUart:
         behaviour a client must survive"), so the end is read from ``#Mode`` (:meth:`calibration_ended`).
         ``timeout`` bounds the whole wait (default 30 s) when waiting, else the answer line.
         """
-        self._exchange("Gripcal", None, self._single("Gripcal"), None if wait else timeout)
         if not wait:
+            self._cal_seen = False
+            self._exchange("Gripcal", None, self._single("Gripcal"), timeout)
             return
+        self.start_calibration()
         deadline = time.monotonic() + (30.0 if timeout is None else timeout)
         while not self.calibration_ended():
             if time.monotonic() >= deadline:
@@ -173,16 +177,57 @@ class StepfocUart:
         except GripperTimeout:
             return None
 
-    def calibration_ended(self, *, command: str = "Gripcal") -> bool:
-        """False while the driver is in calibration mode; True once it idles at the closed stop with the
-        calibrated bit set; CommandFailed when the calibration ended any other way (aborted by a motion
-        command, an error, an idle, or the firmware's calibration time-out)."""
+    def errors(self, *, timeout: float | None = None) -> list[str]:
+        """``#Error`` (communication.cpp): the driver's active error causes as printed (``Temp error``,
+        ``Received ESTOP command``, ``Watchdog error``...; ``In error state!`` alone when it names none), or
+        [] for ``No errors!``. Its length varies, so ``#Gripper`` is sent behind it to mark the end."""
+        lines: list[str] = []
+        end = COMMANDS["Gripper"]
+
+        def handle(line: str) -> list[str] | _Pending:
+            text = line.strip()
+            if end.parse(line) is not None and lines:
+                state, causes = lines[0], lines[1:]
+                if state == "No errors!":
+                    return []
+                return causes or [state]
+            if text in ("In error state!", "No errors!") or lines:
+                lines.append(text)
+            return _PENDING
+
+        return self._exchange("Error", None, handle, timeout, extra=format_command("Gripper"))
+
+    def start_calibration(self, *, command: str = "Gripcal") -> None:
+        """``#Gripcal`` after ``#Error``: with any driver error the firmware forces mode 0 at its next tick,
+        so the calibration would not run while ``#Gripinfo`` showed nothing wrong (docs/protocols.md §2).
+        CommandFailed naming the error instead. Resets what :meth:`calibration_verdict` has seen."""
+        try:
+            causes = self.errors()
+        except (NotSupported, GripperTimeout):
+            causes = []  # a firmware without #Error: the mode check below still catches a calibration that
+            # never ran
+        if causes:
+            raise CommandFailed(
+                f"cannot calibrate: driver error active ({', '.join(causes)}); acknowledge it first",
+                status_name="error",
+                device=self.device,
+                command=command,
+            )
+        self._cal_seen = False
+        self._exchange("Gripcal", None, self._single("Gripcal"), None)
+
+    def calibration_verdict(self, *, command: str = "Gripcal") -> Verdict:
+        """RUNNING while ``#Mode`` says calibrating; ENDED once it idles after it was SEEN calibrating, with
+        the calibrated bit set and the jaws at the closed stop; RETRY when it idles without having been seen
+        running (it never started, or ended between two polls). CommandFailed when it ended any other way
+        (aborted by a motion command, an error - named from ``#Error`` - or the calibration time-out)."""
         try:
             mode = self.mode()
         except NotSupported:  # a firmware without #Mode: only a first calibration can be told
-            return bool(self.gripinfo().calibrated)
+            return Verdict.ENDED if self.gripinfo().calibrated else Verdict.RUNNING
         if mode == MODE_CALIBRATE:
-            return False
+            self._cal_seen = True
+            return Verdict.RUNNING
         if mode != MODE_IDLE:
             raise CommandFailed(
                 "calibration aborted: the driver left calibration mode (a motion command?)",
@@ -190,6 +235,19 @@ class StepfocUart:
                 device=self.device,
                 command=command,
             )
+        try:
+            causes = self.errors()
+        except (NotSupported, GripperTimeout):
+            causes = []
+        if causes:
+            raise CommandFailed(
+                f"calibration stopped by a driver error: {', '.join(causes)}",
+                status_name="error",
+                device=self.device,
+                command=command,
+            )
+        if not self._cal_seen:
+            return Verdict.RETRY
         info = self.gripinfo()
         position = self.position()
         if info.estop:
@@ -199,14 +257,28 @@ class StepfocUart:
                 device=self.device,
                 command=command,
             )
-        if not info.calibrated or position < CAL_AT_CLOSED:
+        if not info.calibrated:
+            return Verdict.RETRY  # the firmware's calibration time-out: a new 62 starts from the beginning
+        if position < CAL_AT_CLOSED:
             raise CommandFailed(
-                f"calibration aborted or failed: calibrated {int(info.calibrated)}, position {position}",
+                f"calibration aborted or failed: the driver idles at position {position}",
                 status_name="aborted",
                 device=self.device,
                 command=command,
             )
-        return True
+        return Verdict.ENDED
+
+    def calibration_ended(self, *, command: str = "Gripcal") -> bool:
+        """True once the calibration ended (see :meth:`calibration_verdict`); CommandFailed for a RETRY."""
+        verdict = self.calibration_verdict(command=command)
+        if verdict is Verdict.RETRY:
+            raise CommandFailed(
+                "calibration did not run to its end (not seen running, or calibrated bit 0)",
+                status_name="aborted",
+                device=self.device,
+                command=command,
+            )
+        return verdict is Verdict.ENDED
 
     def position(self, setpoint: int | None = None, *, timeout: float | None = None) -> int:
         """The ACTUAL position byte; with ``setpoint`` also activates and starts the motion (firmware)."""

@@ -15,6 +15,8 @@ from dataclasses import dataclass
 from typing import Any
 
 from grippers.drivers.stepfoc.can_protocol import Detection, GripperStatus
+from grippers.drivers.stepfoc.motion import CalibrationTracker, MotionTracker, Reading, Verdict
+from grippers.drivers.stepfoc.speed import speed_byte_for, variant
 
 from ..errors import CommandFailed, ConnectionLost, GripperTimeout, ProtocolError, URLError
 from ..gripper import Capability, DeviceInfo, GraspResult, GraspState, Gripper, GripperState, MotionResult
@@ -36,6 +38,14 @@ STALL_BYTES_TIME = 4
 STILL_S = 0.3
 
 
+class _Retry(Exception):
+    """The calibration ended without success; the caller may start it once more."""
+
+    def __init__(self, status: _Status) -> None:
+        super().__init__("calibration ended without success")
+        self.status = status
+
+
 @dataclass(frozen=True, slots=True)
 class _Status:
     """What both links report, in device units."""
@@ -48,10 +58,6 @@ class _Status:
     action: bool
     estop: bool
     faults: tuple[str, ...]
-
-
-def _arrived(st: _Status) -> bool:
-    return st.detection != Detection.MOVING
 
 
 class _Link:
@@ -74,11 +80,11 @@ class _Link:
         raise NotImplementedError
 
     def calibrate(self) -> None:
-        """Start a calibration; :meth:`calibration_done` then tells its end."""
+        """Start a calibration (after checking that no driver error would keep it from running)."""
         raise NotImplementedError
 
-    def calibration_done(self, st: _Status) -> bool:
-        """True once the calibration started by :meth:`calibrate` has ended; CommandFailed if it failed."""
+    def calibration_verdict(self, st: _Status, now: float) -> Verdict:
+        """RUNNING, ENDED or RETRY (ended without success: send 62 once more); CommandFailed if it failed."""
         raise NotImplementedError
 
     def estop(self) -> None:
@@ -165,30 +171,12 @@ class _CanLink(_Link):
         return float(self.driver.temperature())
 
     def calibrate(self) -> None:
-        self._watch = self.driver.start_calibration()
+        # start_calibration polls first: an active error (frame 26 names it) would idle the 62 at once
+        self._tracker = self.driver.start_calibration(command="home")
 
-    def calibration_done(self, st: _Status) -> bool:
-        from grippers.drivers.stepfoc.can_client import CalibrationWatch
-
-        watch: CalibrationWatch = self._watch
-        done = watch.update(
-            GripperStatus(
-                st.position,
-                st.current_ma or 0,
-                st.activated,
-                st.action,
-                st.detection,
-                False,
-                False,
-                False,
-                st.calibrated,
-            )
-        )
-        if isinstance(done, str):
-            raise CommandFailed(
-                f"calibration failed: {done}", status_name="failed", device=self.driver.device, command="home"
-            )
-        return done
+    def calibration_verdict(self, st: _Status, now: float) -> Verdict:
+        tracker: CalibrationTracker = self._tracker
+        return tracker.update(Reading(st.position, int(st.detection), st.calibrated, st.current_ma), now)
 
     def estop(self) -> None:
         self.driver.estop()
@@ -266,10 +254,10 @@ class _UartLink(_Link):
                 d.activate(0)  # the UART has no action bit: deactivating is its only way to stop
 
     def calibrate(self) -> None:
-        self.driver.calibrate()
+        self.driver.start_calibration(command="home")  # #Error first: an error would idle it unseen
 
-    def calibration_done(self, st: _Status) -> bool:
-        return self.driver.calibration_ended(command="home")
+    def calibration_verdict(self, st: _Status, now: float) -> Verdict:
+        return self.driver.calibration_verdict(command="home")
 
     def estop(self) -> None:
         self.driver.estop(1)
@@ -343,14 +331,9 @@ class MsgGripper(Gripper):
         return (m.open_width_mm - position / 255 * (m.open_width_mm - m.closed_width_mm)) / 1000
 
     def _speed_byte(self, speed: float) -> int:
+        # the one speed model (drivers/stepfoc/speed.py): the fastest byte not faster than asked
         m = self._maps
-        return max(
-            0,
-            min(
-                255,
-                round((speed * 1000 - m.speed_at_0_mm_s) / (m.speed_at_255_mm_s - m.speed_at_0_mm_s) * 255),
-            ),
-        )
+        return speed_byte_for(speed * 1000, m.ticks_per_mm, variant(m.driver))
 
     def _current_ma(self, force: float | None) -> int:
         m = self._maps
@@ -409,9 +392,9 @@ class MsgGripper(Gripper):
     def _poll_until(
         self, command: str, motion: int, timeout: float, done: Any, stall_s: float | None
     ) -> _Status:
+        """``done(status, now)`` returns a :class:`Verdict` (or a bool): ARRIVED / OBJECT / ENDED end the
+        wait, STALLED ends it as aborted, RETRY is the caller's (raised as _Retry)."""
         deadline = time.monotonic() + timeout
-        still_since: float | None = None
-        last_position: int | None = None
         while True:
             if self._closed:  # close() from another thread: do not poll a closed link until the deadline
                 raise ConnectionLost(
@@ -421,28 +404,28 @@ class MsgGripper(Gripper):
             st = self._link.status()
             self._check_current(motion, command)  # a stop sent while this poll ran
             self._check_device(st, command)
-            if done(st):
-                return st
             now = time.monotonic()
-            if stall_s is not None:
-                if not (st.activated and st.action):
-                    raise CommandFailed(
-                        f"{command} aborted: the gripper's action bit was cleared (a stop from another "
-                        f"program?) at {self._width_of(st.position) * 1000:.1f} mm",
-                        status_name="aborted",
-                        device=self.name,
-                        command=command,
-                    )
-                if st.position != last_position or (st.current_ma is not None and abs(st.current_ma) > 20):
-                    last_position, still_since = st.position, now
-                elif still_since is not None and now - still_since >= stall_s:
-                    raise CommandFailed(
-                        f"{command} aborted: the jaws stopped at {self._width_of(st.position) * 1000:.1f} mm "
-                        "without reaching the target (the driver was idled or the motion stalled)",
-                        status_name="aborted",
-                        device=self.name,
-                        command=command,
-                    )
+            if stall_s is not None and not (st.activated and st.action):
+                raise CommandFailed(
+                    f"{command} aborted: the gripper's action bit was cleared (a stop from another "
+                    f"program?) at {self._width_of(st.position) * 1000:.1f} mm",
+                    status_name="aborted",
+                    device=self.name,
+                    command=command,
+                )
+            verdict = done(st, now)
+            if verdict in (Verdict.ARRIVED, Verdict.OBJECT, Verdict.ENDED):
+                return st
+            if verdict is Verdict.RETRY:
+                raise _Retry(st)
+            if verdict is Verdict.STALLED:
+                raise CommandFailed(
+                    f"{command} aborted: the jaws stopped at {self._width_of(st.position) * 1000:.1f} mm "
+                    "without reaching the target (the driver was idled or the motion stalled)",
+                    status_name="aborted",
+                    device=self.name,
+                    command=command,
+                )
             if now >= deadline:
                 raise GripperTimeout(f"not done after {timeout:g} s", device=self.name, command=command)
             time.sleep(POLL_PERIOD)
@@ -459,10 +442,16 @@ class MsgGripper(Gripper):
             motion = self._begin(f"superseded by a newer motion before it ended ({command})")
             self._link.go(position, self._speed_byte(speed), current_ma)
         # The immediate reply to a new command still carries the previous detection value (docs/protocols.md
-        # §2), so a fresh poll decides; detection 0 means moving. The client never repeats a 61 byte for byte,
-        # so the firmware's at-position latch cannot report 3 for a motion that has not arrived.
+        # §2), so fresh polls decide, read by the sans-IO MotionTracker: 3 only at the target (the latch can
+        # say 3 early), 1/2 only once the jaws moved or it lasted (the start-up current can say it early), and
+        # a slow motion's late contact flag is waited for while the current shows the jaws pushing.
         stall = self._stall_s(speed)
-        return self._wait(command, motion, timeout, _arrived, stall_s=stall)
+        tracker = MotionTracker(None, position, time.monotonic(), stall_s=stall, limit_ma=current_ma)
+
+        def done(st: _Status, now: float) -> Verdict:
+            return tracker.update(Reading(st.position, int(st.detection), st.calibrated, st.current_ma), now)
+
+        return self._wait(command, motion, timeout, done, stall_s=stall)
 
     def _home(self, timeout: float) -> None:
         with self._send_lock:
@@ -470,12 +459,35 @@ class MsgGripper(Gripper):
             self._mode, self._held = "home", False
             self._link.calibrate()
         # Polls only (empty 61 / UART gets): a 5-byte 61 would abort the calibration (docs/protocols.md §2).
-        self._wait("home", motion, timeout, self._link.calibration_done)
+        # A calibration that ended without success (the firmware's 150,000-tick time-out, reached by the
+        # ticks an aborted calibration left behind, or one that never ran) is started once more: the time-out
+        # resets the calibration's step state, so the second one runs from the start.
+        deadline = time.monotonic() + timeout
+        for attempt in range(2):
+            try:
+                self._wait(
+                    "home", motion, max(0.1, deadline - time.monotonic()), self._link.calibration_verdict
+                )
+                break
+            except _Retry as retry:
+                if attempt:
+                    raise CommandFailed(
+                        "calibration did not complete twice (the jaws rest at "
+                        f"{self._width_of(retry.status.position) * 1000:.1f} mm, calibrated "
+                        f"{int(retry.status.calibrated)})",
+                        status_name="failed",
+                        device=self.name,
+                        command="home",
+                    ) from None
+                with self._send_lock:
+                    self._check_current(motion, "home")
+                    self._link.calibrate()
         self._mode = "idle"
 
     def _motion_timeout(self, distance: float, speed: float) -> float:
-        # Calibration drives both ways at low current and pauses; give it room.
-        return max(super()._motion_timeout(distance, speed), 30.0)
+        # Calibration drives both ways at low current and pauses, and may run twice (a time-out of up to
+        # 30 s of control ticks, then a full run): give it room, bounded.
+        return max(super()._motion_timeout(distance, speed), 65.0)
 
     def _move(self, width: float, speed: float, timeout: float) -> MotionResult:
         self._mode, self._held = "move", False
@@ -715,6 +727,8 @@ class StepfocBackend:
             node=node,
             travel_mm=profile.maps.open_width_mm - profile.maps.closed_width_mm,
             part_width_mm=part_width_mm,
+            driver=profile.maps.driver,  # the one speed model: the profile's map is the simulator's
+            ticks_per_mm=profile.maps.ticks_per_mm,
             hardware_version=sim.hardware_version,
             software_version=sim.software_version,
             serial=sim.serial,

@@ -93,7 +93,7 @@ def test_bad_status_reply_then_service_continues(node, fault: str) -> None:
 def test_api_estop_from_another_host_during_a_move(can_channel) -> None:
     with grippers.open("sim://msg-150?time_scale=50") as g:
         g.home()
-        handle = g.move(0.01, 0.002, wait=False)
+        handle = g.move(0.01, 0.0025, wait=False)
         other = can.Bus(interface="virtual", channel=g.simulator.channel)  # e.g. a safety controller
         try:
             other.send(can.Message(arbitration_id=pack_id(0, Cmd.ESTOP), data=b"", is_extended_id=False))

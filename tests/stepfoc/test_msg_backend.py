@@ -16,6 +16,7 @@ from grippers.drivers.errors import CommandFailed, ProtocolError
 from grippers.drivers.stepfoc.can_client import StepfocBus
 from grippers.drivers.stepfoc.can_protocol import Cmd, GripperCommand, encode_command, pack_id
 from grippers.drivers.stepfoc.sim import MsgModel, serve_can
+from grippers.drivers.stepfoc.sim.model import Phase
 from grippers.gripper import FastStopActive
 
 TRANSPORTS = ["can", "pty"]
@@ -121,7 +122,7 @@ def test_the_client_never_repeats_a_motion_61_byte_for_byte() -> None:
 def test_command_0_from_another_host_is_a_fast_stop_and_acknowledge_recovers() -> None:
     with sim("can") as g:
         g.home()
-        handle = g.move(0.09, 0.002, wait=False)
+        handle = g.move(0.09, 0.0025, wait=False)
         time.sleep(0.1)
         send_raw(g, Cmd.ESTOP)
         with pytest.raises(FastStopActive, match="e-stop"):
@@ -135,7 +136,7 @@ def test_command_0_from_another_host_is_a_fast_stop_and_acknowledge_recovers() -
 def test_a_61_with_the_estop_bit_from_another_host_is_a_fast_stop() -> None:
     with sim("can") as g:
         g.home()
-        handle = g.move(0.09, 0.002, wait=False)
+        handle = g.move(0.09, 0.0025, wait=False)
         time.sleep(0.1)
         send_raw(g, Cmd.GRIPPER_COMMAND, encode_command(GripperCommand(0, 0, 100, True, False, True)))
         with pytest.raises(FastStopActive):
@@ -152,7 +153,7 @@ def test_clear_error_resume_resends_the_motion() -> None:
     ):
         node = bus.node(0)
         node.calibrate(timeout=5.0)
-        node.command(0, 40)
+        node.command(0, 5)  # about 12 s of device time (0.25 s here): still running at the e-stop
         time.sleep(0.05)
         node.estop()
         stopped = server.model.ticks
@@ -184,7 +185,7 @@ def test_two_devices_with_one_node_id_are_an_error_naming_the_node() -> None:
 def test_a_newer_motion_supersedes_the_waiting_one(transport: str) -> None:
     with sim(transport) as g:
         g.home()
-        handle = g.move(0.09, 0.002, wait=False)
+        handle = g.move(0.09, 0.0025, wait=False)
         time.sleep(0.1)
         second = g.move(0.01)
         assert second.width == pytest.approx(0.01, abs=0.001)
@@ -196,16 +197,42 @@ def test_a_newer_motion_supersedes_the_waiting_one(transport: str) -> None:
 def test_stop_from_another_thread_aborts_the_blocking_motion(transport: str) -> None:
     with sim(transport) as g:
         g.home()
-        threading.Timer(0.15, g.stop).start()
+        model = g.simulator.model
+
+        def stop_once_moving() -> None:
+            # not a fixed delay: on a loaded machine the move may start late, and a stop sent before it would
+            # only stop nothing (issue 23 §1: the test must hold under load)
+            deadline = time.monotonic() + 30.0
+            while time.monotonic() < deadline and model.phase not in (Phase.STARTING, Phase.MOVING):
+                time.sleep(0.002)
+            g.stop()
+
+        stopper = threading.Thread(target=stop_once_moving, daemon=True)
+        stopper.start()
         with pytest.raises(CommandFailed, match="aborted"):
-            g.move(0.09, 0.002)
+            g.move(0.09, 0.0025)
+        stopper.join(5.0)
         assert not g.state().moving
+
+
+def test_a_motion_superseded_by_another_program_never_reports_success_elsewhere() -> None:
+    """Issue 23 §1 (MSG): a move(100 mm) returned success at 30.5 mm when another program sent the jaws
+    there: detection 3 counts only at this motion's own target."""
+    with sim("can") as g:
+        g.home()
+        handle = g.move(0.1, 0.0025, wait=False)
+        time.sleep(0.1)
+        other = GripperCommand(180, 255, 500, activate=True, action=True, estop=False)  # about 31 mm
+        send_raw(g, Cmd.GRIPPER_COMMAND, encode_command(other))
+        with pytest.raises(CommandFailed, match="aborted"):
+            handle.wait(10.0)
+        assert g.simulator.model.opening_mm == pytest.approx(31.0, abs=1.0)
 
 
 def test_stop_from_another_program_is_not_reported_as_done() -> None:
     with sim("can") as g:
         g.home()
-        handle = g.move(0.09, 0.002, wait=False)
+        handle = g.move(0.09, 0.0025, wait=False)
         time.sleep(0.1)
         # what `grippers stop URL` from another shell sends: a 61 with the action bit cleared
         last = g.driver.last_command
@@ -219,7 +246,7 @@ def test_stop_from_another_program_is_not_reported_as_done() -> None:
 def test_driver_idled_by_another_host_ends_the_wait_as_aborted(command: int) -> None:
     with sim("can") as g:
         g.home()
-        handle = g.move(0.09, 0.002, wait=False)
+        handle = g.move(0.09, 0.0025, wait=False)
         time.sleep(0.1)
         send_raw(g, command)  # the 60 frame cannot show the driver mode: the jaws stand still
         with pytest.raises(CommandFailed, match="aborted: the jaws stopped"):
@@ -258,7 +285,7 @@ def test_stop_from_a_keyboard_interrupt_handler_stops_the_gripper(transport: str
         for delay in (0.05, 0.11, 0.17):  # Ctrl-C at different moments of the wait loop
             threading.Timer(delay, _thread.interrupt_main).start()
             try:
-                g.move(0.09 if model.opening_mm < 45 else 0.0, 0.002)
+                g.move(0.09 if model.opening_mm < 45 else 0.0, 0.0025)
             except KeyboardInterrupt:
                 g.stop()  # what the base class does before the exception leaves the call
             else:

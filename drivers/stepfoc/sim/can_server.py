@@ -14,32 +14,18 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Iterable
-from urllib.parse import parse_qs
+from typing import Any
 
 import can
 
 from ...errors import ConnectionLost
-from ...simkit import FaultHooks, FaultKind, SimClock
-from ..can_protocol import DEFAULT_BITRATE, MAX_NODE, CanFrame
+from ...simkit import FaultHooks, SimClock, apply_fault, first_half, flip_last_byte
+from ..can_protocol import DEFAULT_BITRATE, MAX_NODE, CanFrame, parse_can_url
 from .model import MsgModel
 
 __all__ = ["CanSimServer", "parse_can_url", "serve_can"]
 
 _POLL_S = 0.02  # longest wall time the reader blocks, so heartbeats and close() stay prompt
-
-
-def parse_can_url(listen: str) -> tuple[str, str, dict[str, str]]:
-    """``can://INTERFACE/CHANNEL?k=v`` -> (interface, channel, query). Parsed by hand because a multicast
-    channel may be an IPv6 address full of colons."""
-    scheme, sep, rest = listen.partition("://")
-    if not sep or scheme not in ("can", "stepfoc+can"):
-        raise ValueError(f"not a CAN URL: {listen!r} (expected can://INTERFACE/CHANNEL)")
-    rest, _, query = rest.partition("?")
-    interface, _, channel = rest.partition("/")
-    if not interface or not channel:
-        raise ValueError(f"CAN URL needs an interface and a channel: {listen!r}")
-    params = {k: v[-1] for k, v in parse_qs(query).items()}
-    return interface, channel, params
 
 
 class CanSimServer:
@@ -54,13 +40,14 @@ class CanSimServer:
         channel: str,
         own_bus: bool,
         time_scale: float = 1.0,
+        clock: SimClock | None = None,
     ) -> None:
         self.models = models
         self.bus = bus
         self.interface = interface
         self.channel = channel
         self.faults = FaultHooks()
-        self.clock = SimClock(time_scale)
+        self.clock = clock or SimClock(time_scale)
         self.error: BaseException | None = None  # what stopped the thread, if anything did
         self._own_bus = own_bus
         self._lock = threading.Lock()  # guards the models against a test poking them from another thread
@@ -72,6 +59,11 @@ class CanSimServer:
             m.advance(now)
         self._thread = threading.Thread(target=self._run, name=f"stepfoc-can-sim {channel}", daemon=True)
         self._thread.start()
+
+    @property
+    def lock(self) -> threading.Lock:
+        """Hold it to read or change the models while the server runs (as the UART server's ``lock``)."""
+        return self._lock
 
     @property
     def model(self) -> MsgModel:
@@ -122,24 +114,21 @@ class CanSimServer:
     def _reply(self, frame: CanFrame) -> None:
         if self.faults.silent:
             return
-        fault = self.faults.take()
-        arbitration_id, data = frame.arbitration_id, frame.data
-        if fault is not None:
-            if fault.kind is FaultKind.DROP:
-                return
-            if fault.kind is FaultKind.ERROR_BIT:
-                arbitration_id |= 1
-            elif fault.kind is FaultKind.CORRUPT and data:
-                data = data[:-1] + bytes([data[-1] ^ 0xFF])
-            elif fault.kind is FaultKind.TRUNCATE:
-                data = data[: len(data) // 2]
-            elif fault.kind is FaultKind.DELAY:
-                timer = threading.Timer(fault.seconds, self._send, (CanFrame(arbitration_id, data, False),))
+        out, delay = apply_fault(
+            frame,
+            self.faults.take(),
+            corrupt=lambda f: CanFrame(f.arbitration_id, flip_last_byte(f.data), False),
+            truncate=lambda f: CanFrame(f.arbitration_id, first_half(f.data), False),
+            error_bit=lambda f: CanFrame(f.arbitration_id | 1, f.data, False),
+        )
+        for reply in out:
+            if delay:
+                timer = threading.Timer(delay, self._send, (reply,))
                 timer.daemon = True
                 self._timers.append(timer)
                 timer.start()
-                return
-        self._send(CanFrame(arbitration_id, data, False))
+            else:
+                self._send(reply)
 
     def _send(self, frame: CanFrame) -> None:
         if self._closed:
@@ -185,10 +174,12 @@ def serve_can(
     *,
     bus: can.BusABC | None = None,
     time_scale: float = 1.0,
+    clock: SimClock | None = None,
 ) -> CanSimServer:
     """Start a CAN simulator. ``listen``: ``can://INTERFACE/CHANNEL[?node=N&bitrate=B]``; ``node`` renumbers a
     single model (or creates one when ``models`` is None). ``bus`` (optional) is used instead of opening one
-    and is left open on close."""
+    and is left open on close. ``clock`` (optional) replaces the
+    scaled clock (a test that prepared a model in simulated time starts the clock where the model is)."""
     interface, channel, params = parse_can_url(listen)
     if models is None:
         model_list = [MsgModel(node=int(params.get("node", 0)))]
@@ -208,7 +199,7 @@ def serve_can(
         raise ValueError(f"two simulated nodes share a node id: {nodes}")
     own = bus is None
     if bus is None:
-        kwargs: dict[str, object] = {}
+        kwargs: dict[str, Any] = {}
         if interface != "virtual":
             kwargs["bitrate"] = int(params.get("bitrate", DEFAULT_BITRATE))
         if interface == "udp_multicast":
@@ -221,7 +212,13 @@ def serve_can(
             raise ConnectionLost(f"cannot open the CAN bus: {exc}", device=listen, command="serve") from exc
     try:
         return CanSimServer(
-            model_list, bus, interface=interface, channel=channel, own_bus=own, time_scale=time_scale
+            model_list,
+            bus,
+            interface=interface,
+            channel=channel,
+            own_bus=own,
+            time_scale=time_scale,
+            clock=clock,
         )
     except BaseException:  # whatever the server refused, a bus it opened must not leak
         if own:

@@ -17,8 +17,9 @@ import time
 import tty
 from collections import deque
 from collections.abc import Sequence
+from typing import Any
 
-from ...simkit import FaultHooks, FaultKind, SimClock
+from ...simkit import FaultHooks, SimClock, apply_fault, first_half
 from ..uart_protocol import (
     COMMANDS,
     MODE_LINES,
@@ -41,7 +42,7 @@ KEPT_REQUESTS = 256  # the most recent requests kept for tests; a long run must 
 
 # Motor constants the firmware prints in #Info (public firmware, communication.cpp). The notes give no values;
 # these are plausible numbers for a small BLDC so the lines are present and parse, nothing depends on them.
-SIM_MOTOR_INFO = {
+SIM_MOTOR_INFO: dict[str, Any] = {
     "phase_direction": 0,
     "phase_order": 0,
     "pole_pairs": 7,
@@ -50,6 +51,13 @@ SIM_MOTOR_INFO = {
     "kt": 0.05,
     "kv": 190.0,
 }
+
+
+def _corrupt_text(data: bytes) -> bytes:
+    bad = bytearray(data)
+    if len(bad) > 1:
+        bad[1] ^= 0x01
+    return bytes(bad)
 
 
 class UartSimServer:
@@ -205,21 +213,16 @@ class UartSimServer:
         if self.faults.silent:
             return
         garbage = self.faults.take_garbage()
-        fault = self.faults.take()
         if garbage:
             self._queue(garbage)
-        if fault is None or fault.kind is FaultKind.ERROR_BIT:  # no error bit on a text line
-            self._queue(data)
-        elif fault.kind is FaultKind.DROP:
-            return
-        elif fault.kind is FaultKind.DELAY:
-            self._delayed.append((time.monotonic() + fault.seconds, data))
-        elif fault.kind is FaultKind.CORRUPT:
-            bad = bytearray(data)
-            bad[1] ^= 0x01  # the answer's fixed text no longer matches: the client must not accept it
-            self._queue(bytes(bad))
-        elif fault.kind is FaultKind.TRUNCATE:
-            self._queue(data[: len(data) // 2])
+        # simkit.apply_fault: the one meaning of each fault; CORRUPT changes the answer's fixed text so the
+        # client must not accept it; a text line has no error bit
+        out, delay = apply_fault(data, self.faults.take(), corrupt=_corrupt_text, truncate=first_half)
+        for answer in out:
+            if delay:
+                self._delayed.append((time.monotonic() + delay, answer))
+            else:
+                self._queue(answer)
 
     # -- the firmware's command dispatch (docs/protocols.md §2 UART; public firmware communication.cpp) ------
 
@@ -269,6 +272,8 @@ class UartSimServer:
         if name == "Idle" and not has_arg:
             m.idle(now)
             return [COMMANDS[name].render()]
+        if name == "Error":
+            return m.error_lines()  # communication.cpp: the driver's error state, one line per cause
         if name == "Mode":
             line = MODE_LINES.get(m.mode.value if isinstance(m.mode, Mode) else int(m.mode))
             return None if line is None else [line]  # gripper mode (11) prints nothing (communication.cpp)
@@ -286,8 +291,8 @@ class UartSimServer:
             estop=bool(m.estop),  # the firmware prints the estop bit, not the estop error
             action=m.action,
             detection=m.detection,
-            max_open_position=m.min_position,  # calibrated end stops in encoder ticks
-            max_closed_position=m.max_position,
+            max_open_position=m.open_position,  # the stored end stops in encoder ticks
+            max_closed_position=m.closed_position,
         )
 
     def info(self) -> UartInfo:

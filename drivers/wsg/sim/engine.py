@@ -15,7 +15,7 @@ import threading
 import time
 from collections.abc import Callable
 
-from ...simkit import FaultHooks, FaultKind, SimClock
+from ...simkit import FaultHooks, SimClock, apply_fault, first_half, flip_last_byte
 from ..protocol import ChecksumError, Packet, PacketParser
 from .model import WsgModel
 
@@ -208,22 +208,13 @@ class SimServer:
             if self.faults.silent:
                 continue
             data = self.faults.take_garbage() + data
-            fault = self.faults.take()
-            if fault is not None:
-                if fault.kind is FaultKind.DROP:
-                    continue
-                if fault.kind is FaultKind.CORRUPT:
-                    data = data[:-1] + bytes([data[-1] ^ 0xFF])  # the checksum's high byte
-                elif fault.kind is FaultKind.TRUNCATE:
-                    data = data[: len(data) // 2]
-                elif fault.kind is FaultKind.DELAY:
-                    due = time.monotonic() + fault.seconds
-                    heapq.heappush(self._delayed, (due, next(self._seq), link, data))
-                    continue
-                elif fault.kind is FaultKind.DUPLICATE:
-                    self._send(link, data)
-                # ERROR_BIT is a STEPFOC fault; a WSG packet goes out unchanged.
-            self._send(link, data)
+            # simkit.apply_fault: the one meaning of each fault (CORRUPT flips the checksum's high byte)
+            out, delay = apply_fault(data, self.faults.take(), corrupt=flip_last_byte, truncate=first_half)
+            for packet in out:
+                if delay:
+                    heapq.heappush(self._delayed, (time.monotonic() + delay, next(self._seq), link, packet))
+                else:
+                    self._send(link, packet)
 
     def _send(self, link: Link, data: bytes) -> None:
         try:

@@ -82,7 +82,8 @@ def test_recalibration_keeps_the_calibrated_bit_and_freezes_detection() -> None:
     assert min(seen_positions) == 0 and seen_positions[-1] == 255
     # the end only idles the driver: activate, action and detection keep what the last 61 set
     _, current, flags, detection, _ = r.poll()
-    assert flags & ACTIVATE and flags & ACTION and detection == 3 and current == 0
+    # idle: no drive current, only the offset and noise of the reading (Get_current_mA)
+    assert flags & ACTIVATE and flags & ACTION and detection == 3 and abs(current) < 80
     r.run(5.0)
     assert r.poll()[0] == 255  # idle: nothing moves although the stored 61 says "go to 128"
 

@@ -35,7 +35,7 @@ def run_until_still(m: MsgModel, t: float, step: float = 0.05, limit: float = 12
     while t < limit:
         t += step
         m.advance(t)
-        if m.phase is not Phase.MOVING:
+        if m.phase not in (Phase.MOVING, Phase.STARTING):
             return t
     raise AssertionError("never stopped")
 
@@ -43,7 +43,10 @@ def run_until_still(m: MsgModel, t: float, step: float = 0.05, limit: float = 12
 def test_starts_uncalibrated_and_does_not_move() -> None:
     m = MsgModel()
     m.advance(0.0)
-    assert not m.calibrated and m.status(0.0).position == 0
+    # STEPFOC common.h: power-up detection 3; the stored stops are 10329 (open) and -229 (closed) until a
+    # calibration, so the encoder's 0 reads as map(0, 10329, -229, 0, 255) = 249
+    st = m.status(0.0)
+    assert not m.calibrated and st.position == 249 and st.detection is Detection.AT_POSITION
     ticks = m.ticks
     assert m.on_command(go(200), 1.0)
     m.advance(5.0)
@@ -55,9 +58,9 @@ def test_calibration_opens_pauses_closes_and_ends_idle_at_255() -> None:
     m.start_calibration(0.0)
     m.advance(0.5)
     assert m.phase is Phase.CAL_OPEN and m.current_ma > 0  # opening: positive current
-    assert m.status(0.5).detection is Detection.MOVING
+    assert m.status(0.5).detection is Detection.AT_POSITION  # frozen at its power-up value
     opened_at = (105.0 - 50.0) * m.ticks_per_mm / m.calibration_speed
-    m.advance(opened_at + 0.1)
+    m.advance(opened_at + 0.065)  # ~56 ms of current ramp at the stop, then the 16 ms pause
     assert m.phase is Phase.CAL_PAUSE and m.opening_mm == pytest.approx(105.0)
     m.advance(opened_at + m.calibration_pause_s + 0.5)
     assert m.phase is Phase.CAL_CLOSE and m.current_ma < 0  # closing: negative current
@@ -66,11 +69,11 @@ def test_calibration_opens_pauses_closes_and_ends_idle_at_255() -> None:
     st = m.status(60.0)
     assert st.calibrated and st.position == 255 and not st.action and m.phase is Phase.IDLE
     assert m.opening_mm == pytest.approx(0.0)
-    assert m.max_position - m.min_position == round(105.0 * m.ticks_per_mm)
+    assert m.open_position - m.closed_position == round(105.0 * m.ticks_per_mm)  # ticks grow towards open
 
 
 def test_calibration_current_is_limited() -> None:
-    m = MsgModel(calibration_current_ma=600, moving_current_ma=900)
+    m = MsgModel(moving_current_ma=900, current_noise=False)
     m.start_calibration(0.0)
     m.advance(0.2)
     assert abs(m.current_ma) <= 600
@@ -139,9 +142,9 @@ def test_same_command_leaves_idle_without_a_new_motion() -> None:
     assert m.phase is Phase.IDLE
     # firmware: every 5-byte 61 sets gripper mode; "same command" only keeps the at-position latch
     assert not m.on_command(go(100), 60.03)
-    assert m.phase is Phase.MOVING
+    assert m.phase in (Phase.STARTING, Phase.MOVING)
     assert m.on_command(go(100, speed=254), 60.04)
-    assert m.phase is Phase.MOVING
+    assert m.phase in (Phase.STARTING, Phase.MOVING)
 
 
 def test_part_closing_gives_detection_1_and_negative_current() -> None:
@@ -234,7 +237,7 @@ def test_frames_for_other_nodes_and_replies_are_ignored() -> None:
     [(Cmd.PING, None), (Cmd.TEMPERATURE, 31), (Cmd.BUS_VOLTAGE, 24000), (Cmd.IQ, 0)],
 )
 def test_remote_requests_answered(command: Cmd, value: object) -> None:
-    m = MsgModel(node=2)
+    m = MsgModel(node=2, current_noise=False)
     (reply,) = m.handle_frame(pack_id(2, command), b"", True, 0.0)
     assert not reply.remote
     assert decode_frame(reply.arbitration_id, reply.data).value == value
@@ -259,7 +262,7 @@ def test_heartbeat_when_configured() -> None:
     assert m.due_frames(10.0) == []
     m.handle_frame(*encode_frame(1, Cmd.HEARTBEAT_SETUP, 100)[:2], False, 10.0)
     assert m.due_frames(10.05) == []
-    assert m.due_frames(10.1) == [CanFrame(pack_id(1, Cmd.HEARTBEAT), b"", False)]
+    assert m.due_frames(10.11) == [CanFrame(pack_id(1, Cmd.HEARTBEAT), b"", False)]
     m.set_heartbeat(0, 11.0)
     assert m.due_frames(20.0) == []
 
@@ -279,6 +282,7 @@ def test_set_can_id_save_and_reset() -> None:
 
 def test_watchdog_raises_timeout_error() -> None:
     m = calibrated()
+    m.handle_frame(pack_id(0, Cmd.GRIPPER_COMMAND), b"", False, 60.0)  # a poll feeds it
     m.set_watchdog(encode_and_decode_watchdog(200, WatchdogAction.IDLE), 60.0)
     m.advance(60.1)
     assert not m.status(60.1).timeout_error

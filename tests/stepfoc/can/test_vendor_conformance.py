@@ -227,6 +227,7 @@ def test_vendor_remote_requests(
             serial=77777,
             temperature_c=-4,
             bus_voltage_mv=23_500,
+            current_noise=False,  # the vendor's value is compared with the model's true current
         )
     )
     model = server.model

@@ -110,3 +110,21 @@ def test_requests_are_not_kept_forever(port) -> None:
         assert time.monotonic() < deadline
         raw.ask(b"", wait=0.05, quiet=0.02)
     assert len(server.requests) == KEPT_REQUESTS and server.request_count == KEPT_REQUESTS + 50
+
+
+def test_a_driver_error_forces_idle_and_error_prints_it(port) -> None:
+    """Issue 19 §1: any driver error forces mode 0, so ``#Gripcal`` does not run: ``#Mode`` prints "Idle
+    mode", ``#Gripinfo`` shows only the estop bit (0 for command 0's e-stop), ``#Error`` names the cause
+    (STEPFOC firmware communication.cpp "Error")."""
+    server, raw = port
+    assert raw.ask(b"#Error\n", quiet=0.2) == ["No errors!"]
+    with server.lock:
+        server.model.emergency_stop(server.clock.now())  # command 0 from another host on CAN
+    assert raw.ask(b"#Gripcal\n") == ["Gripper calibration! "]
+    assert raw.ask(b"#Mode\n") == ["Idle mode "]
+    info = raw.ask(b"#Gripinfo\n", quiet=0.2)
+    assert "Gripper estop status: 0" in info and "Gripper calibrated is: 0" in info
+    assert raw.ask(b"#Error\n", quiet=0.2) == ["In error state!", "Received ESTOP command"]
+    raw.ask(b"#Clear\n")
+    assert raw.ask(b"#Gripcal\n") == ["Gripper calibration! "]
+    assert raw.ask(b"#Mode\n") == ["Gripper calib mode"]

@@ -46,7 +46,9 @@ def test_calibrate_move_and_read(msg_sim) -> None:
         assert not client.gripinfo().calibrated
         client.calibrate(wait=True, timeout=10)
         info = client.gripinfo()
-        assert info.calibrated and info.max_open_position < info.max_closed_position
+        assert (
+            info.calibrated and info.max_open_position > info.max_closed_position
+        )  # ticks grow towards open
         # calibration leaves the jaws at the closed stop (docs/protocols.md §2)
         assert client.position() == 255
         assert client.velocity(255) == 255
