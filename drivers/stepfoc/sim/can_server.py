@@ -14,10 +14,12 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Iterable
+from typing import Any
 from urllib.parse import parse_qs
 
 import can
 
+from ...canlink import is_link_failure
 from ...errors import ConnectionLost
 from ...simkit import FaultHooks, FaultKind, SimClock
 from ..can_protocol import DEFAULT_BITRATE, MAX_NODE, CanFrame
@@ -92,7 +94,14 @@ class CanSimServer:
     def _run(self) -> None:
         try:
             while not self._stop.is_set():
-                msg = self.bus.recv(timeout=self._wait())
+                try:
+                    msg = self.bus.recv(timeout=self._wait())
+                except can.CanError as exc:
+                    # The host's interface went down (ip link set vcan0 down): a device on the wire would
+                    # not notice, so the simulated one keeps running and hears nothing until it is up.
+                    if not is_link_failure(exc):
+                        raise
+                    msg = None
                 with self._lock:
                     now = self.clock.now()
                     out: list[CanFrame] = []
@@ -154,9 +163,9 @@ class CanSimServer:
         )
         try:
             self.bus.send(msg, timeout=0.5)
-        except can.CanError:
-            if not self._stop.is_set():
-                raise
+        except can.CanError as exc:
+            if not self._stop.is_set() and not is_link_failure(exc):
+                raise  # a frame lost on a down interface is lost on the wire too
 
     # ------------------------------------------------------------------------------------------ control
 
@@ -208,7 +217,7 @@ def serve_can(
         raise ValueError(f"two simulated nodes share a node id: {nodes}")
     own = bus is None
     if bus is None:
-        kwargs: dict[str, object] = {}
+        kwargs: dict[str, Any] = {}
         if interface != "virtual":
             kwargs["bitrate"] = int(params.get("bitrate", DEFAULT_BITRATE))
         if interface == "udp_multicast":
