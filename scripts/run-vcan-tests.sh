@@ -17,7 +17,8 @@ trap 'rm -f "$report"' EXIT
 cd "$root" || exit 2
 
 start=$SECONDS
-"$here/with-vcan" "$python" -m pytest -q -p no:cacheprovider -m vcan -rs --junitxml="$report" tests/vcan "$@"
+# No .pyc writes from the guest: hostfs caches what the host writes at the same time (a concurrent run).
+PYTHONDONTWRITEBYTECODE=1 "$here/with-vcan" "$python" -m pytest -q -p no:cacheprovider -m vcan -rs --junitxml="$report" tests/vcan "$@"
 status=$?
 echo "run-vcan-tests: $((SECONDS - start)) s (guest boot and tests)"
 [[ $status -eq 3 || $status -ge 124 ]] && exit "$status"   # with-vcan could not provide vcan / timed out
