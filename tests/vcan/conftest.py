@@ -12,13 +12,16 @@ answer another's requests even when a previous test left a simulator behind by f
 from __future__ import annotations
 
 import os
-import select
+import queue
 import shutil
+import signal
 import subprocess
 import sys
+import threading
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import IO
 
 import pytest
 
@@ -90,7 +93,9 @@ def wait_until(predicate: Callable[[], bool], timeout: float, what: str) -> None
 
 
 class Proc:
-    """A ``python -m grippers`` subprocess whose first stdout line has been read (sims print a URL)."""
+    """A ``python -m grippers`` subprocess; its stdout lines arrive in :attr:`lines` (a queue filled by a
+    thread, so no line can hide in a read buffer between a ``readline`` and a later read of the pipe).
+    With ``first_line`` the first line (a simulator's URL) is awaited and kept in :attr:`first`."""
 
     def __init__(self, args: list[str], first_line: bool) -> None:
         self.proc = subprocess.Popen(
@@ -101,25 +106,43 @@ class Proc:
             text=True,
             env={**os.environ, "PYTHONUNBUFFERED": "1"},
         )
+        self.lines: queue.Queue[str] = queue.Queue()
+        self._err: list[str] = []
+        self._readers = [
+            threading.Thread(target=self._pump, args=(self.proc.stdout, self.lines.put), daemon=True),
+            threading.Thread(target=self._pump, args=(self.proc.stderr, self._err.append), daemon=True),
+        ]
+        for t in self._readers:
+            t.start()
         self.first = ""
         if first_line:
-            assert self.proc.stdout is not None
-            ready, _, _ = select.select([self.proc.stdout], [], [], 60)
-            self.first = self.proc.stdout.readline().strip() if ready else ""
-            if not self.first:
-                self.stop()
-                raise AssertionError(
-                    f"{args}: printed nothing ({self.proc.stderr and self.proc.stderr.read()})"
-                )
+            try:
+                self.first = self.lines.get(timeout=60).strip()
+            except queue.Empty:
+                _, err = self.stop()
+                raise AssertionError(f"{args}: printed nothing within 60 s ({err})") from None
+
+    @staticmethod
+    def _pump(stream: IO[str] | None, put: Callable[[str], None]) -> None:
+        assert stream is not None
+        for line in stream:
+            put(line)
 
     def stop(self) -> tuple[str, str]:
+        """SIGINT (the CLI's Ctrl-C path, which ends cleanly); returns the stdout lines not taken, stderr."""
         if self.proc.poll() is None:
-            self.proc.send_signal(2)  # SIGINT: the CLI's Ctrl-C path, which ends cleanly
+            self.proc.send_signal(signal.SIGINT)
         try:
-            return self.proc.communicate(timeout=20)
+            self.proc.wait(timeout=20)
         except subprocess.TimeoutExpired:
             self.proc.kill()
-            return self.proc.communicate(timeout=10)
+            self.proc.wait(timeout=10)
+        for t in self._readers:
+            t.join(10)
+        out = []
+        while not self.lines.empty():
+            out.append(self.lines.get_nowait())
+        return "".join(out), "".join(self._err)
 
 
 @pytest.fixture

@@ -7,7 +7,7 @@ MSG nodes 14 and 15; WSG ids 0x310/0x311. Skipped without vcan0 (run ``scripts/r
 from __future__ import annotations
 
 import json
-import select
+import queue
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -25,13 +25,13 @@ pytestmark = pytest.mark.vcan
 def _wait_for_line(proc: Proc, poke: Callable[[], None], timeout: float) -> str:
     """Poke the bus until the monitor prints a line: then it is surely listening (no guessing how long a
     subprocess takes to start on a slow machine)."""
-    assert proc.proc.stdout is not None
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
         poke()
-        ready, _, _ = select.select([proc.proc.stdout], [], [], 0.2)
-        if ready:
-            return proc.proc.stdout.readline()
+        try:
+            return proc.lines.get(timeout=0.2)
+        except queue.Empty:
+            pass
     raise AssertionError(f"the monitor printed nothing within {timeout:g} s")
 
 
