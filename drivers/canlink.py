@@ -44,6 +44,6 @@ def describe_failure(exc: BaseException, channel: object, what: str) -> str:
         cause = f"CAN interface {channel} is down (ip link set {channel} up)"
     elif code in (errno.ENODEV, errno.ENXIO):
         cause = f"CAN interface {channel} is gone (deleted or unplugged)"
-    else:
-        return f"{what} on CAN interface {channel} failed: {exc}"
+    else:  # one frame failed (a full queue, a bus-off controller): the device named in the error says where
+        return f"{what} failed: {exc}"
     return f"{what} failed: {cause}: {exc}"
