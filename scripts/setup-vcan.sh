@@ -9,7 +9,8 @@
 # the kernel module and create the link. Afterwards:
 #   grippers sim msg --listen can://socketcan/vcan0?node=0
 # The vcan module is not built into every kernel (containers, WSL and some cloud kernels lack it); the script
-# says so instead of failing obscurely. Tests that need vcan skip themselves when it is absent.
+# says so instead of failing obscurely. Tests that need vcan skip themselves when it is absent;
+# scripts/run-vcan-tests.sh runs them anyway (scripts/with-vcan boots a User-Mode Linux kernel that has vcan).
 set -euo pipefail
 
 down=0
@@ -18,7 +19,7 @@ if [[ "${1:-}" == "--down" ]]; then
     shift
 fi
 if [[ "${1:-}" == "-h" || "${1:-}" == "--help" ]]; then
-    sed -n '2,12p' "$0" | sed 's/^# \{0,1\}//'
+    sed -n '2,13p' "$0" | sed 's/^# \{0,1\}//'
     exit 0
 fi
 iface="${1:-vcan0}"

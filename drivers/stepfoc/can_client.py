@@ -29,6 +29,7 @@ from typing import Any
 
 import can
 
+from ..canlink import describe_failure
 from ..errors import (
     CommandFailed,
     ConnectionLost,
@@ -171,17 +172,16 @@ class StepfocBus:
             f"stepfoc+can://{interface}/{channel}" if bus is None else f"can {bus.channel_info}"
         )
         self._own_bus = bus is None
+        self.channel = channel if bus is None else bus.channel_info
+        self._open_args: dict[str, Any] = {}
         if bus is None:
             kwargs = dict(bus_kwargs)
             if bitrate is not None and interface not in ("virtual", "udp_multicast"):
                 kwargs["bitrate"] = bitrate
-            try:
-                bus = can.Bus(interface=interface, channel=channel, **kwargs)
-            except (can.CanError, OSError, ValueError, ImportError) as exc:
-                raise ConnectionLost(
-                    f"cannot open the CAN bus: {exc}", device=self.device, command="open"
-                ) from exc
+            self._open_args = {"interface": interface, "channel": channel, **kwargs}
+            bus = self._open_bus()
         self.bus = bus
+        self._reopen_lock = threading.Lock()
         self._lock = threading.Lock()
         self._waiters: dict[tuple[int, int], _Waiter] = {}
         self._expected: dict[tuple[int, int], int] = {}  # requests seen minus replies seen, per key
@@ -190,10 +190,53 @@ class StepfocBus:
         self._states: dict[int, _NodeState] = {}
         self._listeners: list[Callable[[can.Message], None]] = []
         self._stop = threading.Event()
-        self._error: BaseException | None = None
+        self._error: ConnectionLost | None = None  # why the bus failed (reader or close); reopen() clears it
         self._closed = False
         self._thread = threading.Thread(target=self._run, name=f"stepfoc-can {self.device}", daemon=True)
         self._thread.start()
+
+    def _open_bus(self) -> can.BusABC:
+        try:
+            return can.Bus(**self._open_args)
+        except (can.CanError, OSError, ValueError, ImportError) as exc:
+            raise ConnectionLost(
+                f"cannot open the CAN bus: {exc}", device=self.device, command="open"
+            ) from exc
+
+    def reopen(self) -> bool:
+        """After the bus failed (its interface went down or away), open a fresh one and restart the reader.
+
+        Why a fresh bus: a SocketCAN socket survives its interface going down and up, but not the interface
+        being deleted and created again (drivers/canlink.py); a new socket covers both. Only a bus this
+        object opened is reopened (a bus passed in belongs to the caller). Requests in flight already failed
+        with ConnectionLost. Returns True if it reopened, False when there was nothing to do; raises
+        ConnectionLost while the interface cannot be opened. Used by ``reconnect=true``.
+        """
+        with self._reopen_lock:
+            if self._closed:
+                raise ConnectionLost("the bus is closed", device=self.device, command="reconnect")
+            if self._error is None:
+                return False
+            if not self._own_bus:
+                raise ConnectionLost(
+                    f"CAN bus failed and was passed in by the caller: {self._error}",
+                    device=self.device,
+                    command="reconnect",
+                )
+            self._thread.join(timeout=2.0)  # it ended at the failure; wait for it to be gone
+            try:
+                self.bus.shutdown()
+            except (can.CanError, OSError):
+                pass  # the old socket may be unusable already; the new one is what matters
+            self.bus = self._open_bus()
+            with self._lock:
+                self._expected.clear()  # requests counted before the outage will never be answered
+                self._answered.clear()
+            self._error = None
+            self._thread = threading.Thread(target=self._run, name=f"stepfoc-can {self.device}", daemon=True)
+            self._thread.start()
+            log.info("%s: CAN bus reopened", self.device)
+            return True
 
     @classmethod
     def from_url(cls, url: str, **kw: Any) -> tuple[StepfocBus, int]:
@@ -223,11 +266,14 @@ class StepfocBus:
                     log.exception("%s: reader ignored a frame it could not handle: %r", self.device, msg)
 
     def _fail(self, exc: BaseException) -> None:
-        self._error = exc
+        if isinstance(exc, ConnectionLost):
+            self._error = exc
+        else:
+            self._error = ConnectionLost(describe_failure(exc, self.channel, "receive"), device=self.device)
         with self._lock:
             waiters = list(self._waiters.values())
         for w in waiters:
-            w.error = ConnectionLost(f"CAN bus failed: {exc}", device=self.device)
+            w.error = ConnectionLost(f"CAN bus failed: {self._error.message}", device=self.device)
             w.set()
 
     def _dispatch(self, msg: can.Message) -> None:
@@ -300,7 +346,7 @@ class StepfocBus:
         if self._closed:
             raise ConnectionLost("the bus is closed", device=device, command=command)
         if self._error is not None:
-            raise ConnectionLost(f"CAN bus failed: {self._error}", device=device, command=command)
+            raise ConnectionLost(f"CAN bus failed: {self._error.message}", device=device, command=command)
 
     def send_frame(
         self,
@@ -322,7 +368,9 @@ class StepfocBus:
         try:
             self.bus.send(msg, timeout=timeout)
         except can.CanError as exc:
-            raise ConnectionLost(f"send failed: {exc}", device=device, command=command) from exc
+            raise ConnectionLost(
+                describe_failure(exc, self.channel, "send"), device=device, command=command
+            ) from exc
         log_can_frame(device, frame.arbitration_id, frame.data, frame.remote, time.time())
 
     def request(
@@ -390,13 +438,14 @@ class StepfocBus:
         """Stop the reader; shut the bus down only if this object opened it. Idempotent."""
         if self._closed:
             return
-        self._closed = True
-        self._stop.set()
-        if threading.current_thread() is not self._thread:
-            self._thread.join(timeout=2.0)
-        self._fail(ConnectionLost("the bus was closed", device=self.device))
-        if self._own_bus:
-            self.bus.shutdown()
+        with self._reopen_lock:  # a reconnection in progress finishes first, so its bus is the one shut down
+            self._closed = True
+            self._stop.set()
+            if threading.current_thread() is not self._thread:
+                self._thread.join(timeout=2.0)
+            self._fail(ConnectionLost("the bus was closed", device=self.device))
+            if self._own_bus:
+                self.bus.shutdown()
 
     def __enter__(self) -> StepfocBus:
         return self

@@ -14,11 +14,12 @@ import socket
 import struct
 import threading
 from collections.abc import Callable
-from typing import Protocol
+from typing import Any, Protocol
 
 import can
 import serial
 
+from ..canlink import describe_failure
 from ..errors import ConnectionLost, GripperTimeout
 from .protocol import can_frames
 
@@ -345,7 +346,7 @@ class CanTransport:
         self._send_timeout = send_timeout
         self._own_bus = bus is None
         if bus is None:
-            kwargs: dict[str, object] = {}
+            kwargs: dict[str, Any] = {}
             if bitrate is not None:
                 kwargs["bitrate"] = bitrate
             try:
@@ -355,6 +356,7 @@ class CanTransport:
                     f"cannot open CAN bus: {exc}", device=f"can://{interface}/{channel}"
                 ) from None
         self._bus = bus
+        self._channel = channel if channel is not None else bus.channel_info  # named in a link failure
         where = f"{interface or ''}/{channel if channel is not None else ''}"
         self.name = f"can://{where}#{send_id:X}/{recv_id:X}"
         mask = 0x1FFFFFFF if self._extended else 0x7FF
@@ -369,13 +371,13 @@ class CanTransport:
                 msg = can.Message(arbitration_id=self.send_id, data=chunk, is_extended_id=self._extended)
                 self._bus.send(msg, timeout=self._send_timeout)
         except (can.CanError, OSError) as exc:
-            raise ConnectionLost(f"send failed: {exc}", device=self.name) from None
+            raise ConnectionLost(describe_failure(exc, self._channel, "send"), device=self.name) from None
 
     def recv(self, timeout: float) -> bytes:
         try:
             msg = self._bus.recv(timeout)
         except (can.CanError, OSError) as exc:
-            raise ConnectionLost(f"receive failed: {exc}", device=self.name) from None
+            raise ConnectionLost(describe_failure(exc, self._channel, "receive"), device=self.name) from None
         return self._data(msg)
 
     def recv_nowait(self) -> bytes:
@@ -384,7 +386,9 @@ class CanTransport:
             try:
                 msg = self._bus.recv(0.0)
             except (can.CanError, OSError) as exc:
-                raise ConnectionLost(f"receive failed: {exc}", device=self.name) from None
+                raise ConnectionLost(
+                    describe_failure(exc, self._channel, "receive"), device=self.name
+                ) from None
             if msg is None:
                 break
             chunks.append(self._data(msg))

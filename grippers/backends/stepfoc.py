@@ -674,7 +674,10 @@ class MsgGripper(Gripper):
             self._link, old = fresh, link
             old.close()
         else:
-            link.status()  # the bus stays open: the node answering again is the reconnection
+            # A bus whose interface went down or away is opened afresh (drivers/canlink.py); one that never
+            # failed stays: the node answering again is the reconnection.
+            link.driver.bus.reopen()
+            link.status()
             self._check_same_device(self._identity())  # another MSG put on this node is refused
         # A gripper that was power-cycled has lost its calibration (docs/protocols.md §2) and anything
         # it held.

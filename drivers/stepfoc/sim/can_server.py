@@ -18,6 +18,7 @@ from typing import Any
 
 import can
 
+from ...canlink import is_link_failure
 from ...errors import ConnectionLost
 from ...simkit import FaultHooks, SimClock, apply_fault, first_half, flip_last_byte
 from ..can_protocol import DEFAULT_BITRATE, MAX_NODE, CanFrame, parse_can_url
@@ -84,7 +85,14 @@ class CanSimServer:
     def _run(self) -> None:
         try:
             while not self._stop.is_set():
-                msg = self.bus.recv(timeout=self._wait())
+                try:
+                    msg = self.bus.recv(timeout=self._wait())
+                except can.CanError as exc:
+                    # The host's interface went down (ip link set vcan0 down): a device on the wire would
+                    # not notice, so the simulated one keeps running and hears nothing until it is up.
+                    if not is_link_failure(exc):
+                        raise
+                    msg = None
                 with self._lock:
                     now = self.clock.now()
                     out: list[CanFrame] = []
@@ -143,9 +151,9 @@ class CanSimServer:
         )
         try:
             self.bus.send(msg, timeout=0.5)
-        except can.CanError:
-            if not self._stop.is_set():
-                raise
+        except can.CanError as exc:
+            if not self._stop.is_set() and not is_link_failure(exc):
+                raise  # a frame lost on a down interface is lost on the wire too
 
     # ------------------------------------------------------------------------------------------ control
 

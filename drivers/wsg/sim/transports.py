@@ -11,9 +11,11 @@ import selectors
 import socket
 import tty
 from collections import OrderedDict
+from typing import Any
 
 import can
 
+from ...canlink import is_link_failure
 from ..protocol import PacketParser, can_frames
 from .engine import Link, SimServer
 from .model import WsgModel
@@ -252,7 +254,7 @@ class CanSimServer(SimServer):
         self._extended = extended_id
         super().__init__(model, time_scale=time_scale)
         self._own_bus = bus is None
-        kwargs = {} if bitrate is None else {"bitrate": bitrate}
+        kwargs: dict[str, Any] = {} if bitrate is None else {"bitrate": bitrate}
         self._bus = bus if bus is not None else can.Bus(interface=interface, channel=channel, **kwargs)
         self._rx_id, self._tx_id = send_id, recv_id
         query = []
@@ -277,7 +279,14 @@ class CanSimServer(SimServer):
         self._start(f"wsg-sim-can-{channel}")
 
     def _wait_and_read(self, timeout: float) -> None:
-        msg = self._bus.recv(timeout=timeout)
+        try:
+            msg = self._bus.recv(timeout=timeout)
+        except can.CanError as exc:
+            # The host's interface went down (ip link set vcan0 down): a gripper on the wire would not
+            # notice, so the simulated one keeps running and hears nothing until it is up again.
+            if not is_link_failure(exc):
+                raise
+            return
         while msg is not None:
             if (
                 msg.arbitration_id == self._rx_id

@@ -1,0 +1,49 @@
+"""What a failing CAN interface means to a user, in one place for both families' CAN transports.
+
+python-can's socketcan bus raises ``CanOperationError`` with the socket's errno when the Linux interface
+changes under it (measured on a 6.1 kernel with ``vcan``, ``ip link set vcan0 down/up``; python-can 4.6,
+``can/interfaces/socketcan/socketcan.py`` keeps the errno in ``error_code``):
+
+* interface set down: a ``recv`` blocked at that moment raises ENETDOWN once (the kernel queues the error on
+  every socket bound to the interface, ``net/can/raw.c`` ``raw_notify`` NETDEV_DOWN), later ``recv`` calls
+  just time out, and every ``send`` raises ENETDOWN. Once the interface is up again the SAME socket works.
+* interface deleted (``ip link delete``, a USB adapter unplugged): ``recv`` raises ENODEV, ``send`` ENXIO,
+  and a socket bound to it never works again, even when an interface of that name comes back (it is a new
+  interface index): only a fresh bus does.
+
+So a lost link is reported naming the interface and the cause, and a reconnection opens a fresh bus (which
+covers both cases).
+"""
+
+from __future__ import annotations
+
+import errno
+
+__all__ = ["LINK_ERRNOS", "describe_failure", "is_link_failure"]
+
+# errno values that mean "the interface itself is gone or down", not "this one frame failed"
+LINK_ERRNOS = frozenset({errno.ENETDOWN, errno.ENODEV, errno.ENXIO, errno.ENETUNREACH})
+
+
+def _errno(exc: BaseException) -> int | None:
+    code = getattr(exc, "error_code", None)  # python-can's CanError
+    if not isinstance(code, int):
+        code = getattr(exc, "errno", None)  # a plain OSError
+    return code if isinstance(code, int) else None
+
+
+def is_link_failure(exc: BaseException) -> bool:
+    """True when ``exc`` says the interface is down or gone (a reconnection can help), not a full queue."""
+    return _errno(exc) in LINK_ERRNOS
+
+
+def describe_failure(exc: BaseException, channel: object, what: str) -> str:
+    """One line for a failed ``what`` ("send", "receive") on ``channel``, naming the interface and cause."""
+    code = _errno(exc)
+    if code == errno.ENETDOWN:
+        cause = f"CAN interface {channel} is down (ip link set {channel} up)"
+    elif code in (errno.ENODEV, errno.ENXIO):
+        cause = f"CAN interface {channel} is gone (deleted or unplugged)"
+    else:  # one frame failed (a full queue, a bus-off controller): the device named in the error says where
+        return f"{what} failed: {exc}"
+    return f"{what} failed: {cause}: {exc}"
