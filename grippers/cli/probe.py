@@ -239,10 +239,25 @@ def _reason(exc: BaseException) -> str:
     return f"{type(exc).__name__}: {text}"
 
 
+def _load_backends() -> None:
+    """Import the backends and read the profiles before any candidate's deadline starts.
+
+    A candidate's bound is the protocol's (``DEADLINE_FACTOR`` timeouts); the first ``open()`` in a process
+    also imports the backends and parses every profile, which takes a second on a loaded machine and would
+    otherwise count against the first candidates as silence.
+    """
+    import grippers.backends.stepfoc  # noqa: F401
+    import grippers.backends.wsg  # noqa: F401
+    from grippers.profiles import list_profiles
+
+    list_profiles()
+
+
 class _Runner:
     """Runs candidate groups in parallel daemon threads, each candidate under a hard deadline."""
 
     def __init__(self, timeout: float, progress: Progress, profile: Any = None) -> None:
+        _load_backends()
         self.profile = profile
         self.timeout = timeout
         self.progress = progress
