@@ -100,6 +100,7 @@ class RemoteGripper(Gripper):
             self.limits = Limits.model_validate(doc["limits"])  # the served, possibly device-narrowed, limits
             self.capabilities = frozenset(Capability(c) for c in doc["capabilities"] if c in _CAPS)
             self._info_doc = doc
+            self._profile_assumed = bool(doc.get("profile_assumed", False))  # warned by grippers.open
             zenoh = import_zenoh()
             live = self._session.liveliness()
             self._entities.append(live.declare_token(protocol.client_key(name, self.client_id)))

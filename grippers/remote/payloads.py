@@ -98,8 +98,12 @@ def info_doc(
     capabilities: list[str],
     profile_data: dict[str, Any],
     lease_timeout: float | None = None,
+    profile_assumed: bool = False,
 ) -> dict[str, Any]:
-    """Everything a client needs to check limits locally and to rebuild the profile it was served with."""
+    """Everything a client needs to check limits locally and to rebuild the profile it was served with.
+
+    ``profile_assumed``: the served gripper's model was guessed (an MSG opened without a profile), so a
+    ``zenoh://`` client warns at open as a local one does (issue 22 §1)."""
     return {
         "v": PROTOCOL_VERSION,
         "name": name,
@@ -116,6 +120,7 @@ def info_doc(
         "extra": {str(k): _plain(v) for k, v in info.extra.items()},
         "profile_data": profile_data,
         "lease_timeout": lease_timeout,
+        "profile_assumed": profile_assumed,
     }
 
 

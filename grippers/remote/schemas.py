@@ -67,6 +67,10 @@ class Info(_Strict):
         description="s: the server's --lease-timeout; a holder publishes on grippers/<name>/alive/<id> at "
         "least this often (a quarter of it is what zenoh:// clients do)",
     )
+    profile_assumed: bool = Field(
+        default=False,
+        description="the served gripper's model was assumed (an MSG opened without a profile): clients warn",
+    )
 
 
 class Request(_Strict):

@@ -93,7 +93,14 @@ class ServedGripper:
         info = self.gripper.info()
         caps = sorted(c.value for c in self.gripper.capabilities)
         profile_data = self.gripper.profile.model_dump(mode="json")
-        doc = payloads.info_doc(self.name, info, caps, profile_data, self.server.lease_timeout)
+        doc = payloads.info_doc(
+            self.name,
+            info,
+            caps,
+            profile_data,
+            self.server.lease_timeout,
+            profile_assumed=bool(getattr(self.gripper, "_profile_assumed", False)),
+        )
         self._info_doc = protocol.dumps(doc)
 
     def _refuse_duplicate(self, declared: bool = False) -> None:
