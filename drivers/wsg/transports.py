@@ -14,7 +14,7 @@ import socket
 import struct
 import threading
 from collections.abc import Callable
-from typing import Protocol
+from typing import Any, Protocol
 
 import can
 import serial
@@ -175,7 +175,8 @@ class UdpTransport:
     ) -> None:
         try:
             # The gripper's address decides the family, so wsg+udp://[::1] works as well as IPv4.
-            family, _, _, _, self._peer = socket.getaddrinfo(host, port, 0, socket.SOCK_DGRAM)[0]
+            family, _, _, _, peer = socket.getaddrinfo(host, port, 0, socket.SOCK_DGRAM)[0]
+            self._peer: tuple[Any, ...] = peer
             if local_host is None:
                 local: tuple = _route_source(family, self._peer)
                 local = (local[0], local_port, *local[2:])  # IPv6 keeps its flow info and scope id
@@ -345,7 +346,7 @@ class CanTransport:
         self._send_timeout = send_timeout
         self._own_bus = bus is None
         if bus is None:
-            kwargs: dict[str, object] = {}
+            kwargs: dict[str, Any] = {}
             if bitrate is not None:
                 kwargs["bitrate"] = bitrate
             try:

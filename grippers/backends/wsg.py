@@ -15,7 +15,14 @@ from typing import Any
 
 from grippers.drivers.errors import CommandFailed
 from grippers.drivers.wsg.client import WsgClient
-from grippers.drivers.wsg.commands import GraspingState, SystemFlags, SystemInfo, SystemLimits
+from grippers.drivers.wsg.commands import (
+    Cmd,
+    GraspingState,
+    SystemFlags,
+    SystemInfo,
+    SystemLimits,
+    available,
+)
 from grippers.drivers.wsg.protocol import Status
 
 from ..gripper import Capability, DeviceInfo, GraspResult, GraspState, Gripper, GripperState, MotionResult
@@ -89,8 +96,12 @@ class WsgGripper(Gripper):
             Capability.DEVICE_TAG,
             Capability.PUSH_UPDATES,
         }
-        if self._system_info.firmware.major >= 4:  # 46h and the finger commands are 4.x only
-            caps |= {Capability.TEMPERATURE, Capability.FINGER_DATA}
+        # The command table decides which firmware has 46h and the finger commands (2.x has neither).
+        firmware = self._system_info.firmware
+        if available(Cmd.GET_TEMPERATURE, firmware):
+            caps.add(Capability.TEMPERATURE)
+        if available(Cmd.GET_FINGER1_DATA, firmware):
+            caps.add(Capability.FINGER_DATA)
         self.capabilities = frozenset(caps)
 
     @property

@@ -6,11 +6,13 @@ Each class only moves bytes; parsing, the model, faults and timing live in :clas
 from __future__ import annotations
 
 import contextlib
+import functools
 import os
 import selectors
 import socket
 import tty
 from collections import OrderedDict
+from typing import Any
 
 import can
 
@@ -153,7 +155,9 @@ class UdpSimServer(_SelectorServer):
                         self._links.pop(old.conn, None)
                         self.model.disconnect(old.conn)
                     conn = self.model.connect(connection_oriented=False)
-                    link = Link(conn, self._parser(), lambda d, p=peer: self._sendto(d, p), f"udp {peer}")
+                    link = Link(
+                        conn, self._parser(), functools.partial(self._sendto, peer=peer), f"udp {peer}"
+                    )
                     self._add_link(link)
                     self._peers[peer] = link
             else:
@@ -252,7 +256,7 @@ class CanSimServer(SimServer):
         self._extended = extended_id
         super().__init__(model, time_scale=time_scale)
         self._own_bus = bus is None
-        kwargs = {} if bitrate is None else {"bitrate": bitrate}
+        kwargs: dict[str, Any] = {} if bitrate is None else {"bitrate": bitrate}
         self._bus = bus if bus is not None else can.Bus(interface=interface, channel=channel, **kwargs)
         self._rx_id, self._tx_id = send_id, recv_id
         query = []
