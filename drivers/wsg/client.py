@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from ..errors import LimitError, ProtocolError
+from ..errors import GripperError, LimitError, ProtocolError
 from ..numbers import finite
 from .commands import (
     AUTO_UPDATE_COMMANDS,
@@ -62,13 +62,20 @@ class WsgClient(WsgConnection):
     def _motion(self, cmd: int, wait: bool, timeout: float | None, **fields: Any) -> Pending | None:
         self._check_supported(cmd)
         payload = self._encode(cmd, **fields)
-        exchange, first, deadline, total = self._start(cmd, payload, timeout)
-        if first.status != Status.E_CMD_PENDING:  # answered at once (an immediate error, or done)
-            self._check(cmd, first)
-            return None if wait else Pending(self, exchange)
-        if not wait:
-            return Pending(self, exchange)
-        self._finish(exchange, deadline, total)
+        try:
+            exchange, first, deadline, total = self._start(cmd, payload, timeout)
+            if first.status != Status.E_CMD_PENDING or not wait:
+                self._done()
+                if first.status != Status.E_CMD_PENDING:  # answered at once (an immediate error, or done)
+                    self._check(cmd, first)
+                    return None if wait else Pending(self, exchange)
+                return Pending(self, exchange)
+            self._finish(exchange, deadline, total)
+        except GripperError:
+            raise
+        except BaseException:  # Ctrl-C between the steps: abandoned as a timeout is (see exchanges.py)
+            self._rescue()
+            raise
         return None
 
     def _to_width(

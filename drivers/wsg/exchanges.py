@@ -263,15 +263,24 @@ class ExchangeEngine(LineReader):
         final: bool,
         abandon: bool = True,
         waited: float | None = None,
+        keep: bool = False,
     ) -> Packet:
         """Wait for ``exchange``'s reply (``final``: past E_CMD_PENDING), reading the line when nobody else
-        does."""
+        does. ``keep``: the caller stays registered with its exchange on success (a motion between its
+        E_CMD_PENDING and the wait for its end: an interrupt there is still rescued)."""
         with self._lock:
             self._callers[get_ident()] = exchange
+            leave = False  # an interrupt leaves the caller registered: _rescue abandons its exchange
             try:
-                return self._await(exchange, deadline, final, abandon, waited)
+                packet = self._await(exchange, deadline, final, abandon, waited)
+                leave = not keep
+                return packet
+            except GripperError:
+                leave = True
+                raise
             finally:
-                self._leave()
+                if leave:
+                    self._leave()
 
     def _await(
         self, exchange: Exchange, deadline: float, final: bool, abandon: bool, waited: float | None
@@ -388,7 +397,10 @@ class ExchangeEngine(LineReader):
     def _start(
         self, cmd: int, payload: bytes, timeout: float | None
     ) -> tuple[Exchange, Packet, float, float]:
-        """Send a motion command and wait for its first reply: (exchange, first reply, deadline, total)."""
+        """Send a motion command and wait for its first reply: (exchange, first reply, deadline, total).
+
+        The caller stays registered with the exchange (an interrupt before :meth:`_finish` or :meth:`_done`
+        is rescued like one inside them)."""
         start = time.monotonic()
         total = self.motion_timeout if timeout is None else timeout
         ack_wait = min(total, self.timeout)
@@ -398,13 +410,21 @@ class ExchangeEngine(LineReader):
             if self._reading == get_ident():
                 first = self._read_own_reply(exchange, ack_wait)
             if first is None:
-                first = self._wait(exchange, start + ack_wait, final=False, waited=ack_wait)
+                first = self._wait(exchange, start + ack_wait, final=False, waited=ack_wait, keep=True)
+            else:
+                with self._lock:
+                    self._callers[get_ident()] = exchange  # kept until the motion's caller is done
         except GripperError:
             raise
         except BaseException:
             self._rescue()
             raise
         return exchange, first, start + total, total
+
+    def _done(self) -> None:
+        """The motion's caller returns without waiting for its end (or ends on its first reply)."""
+        with self._lock:
+            self._leave()
 
     def _finish(self, exchange: Exchange, deadline: float, waited: float, abandon: bool = True) -> None:
         """Wait for a motion's final reply; CommandFailed unless it is E_SUCCESS."""
