@@ -79,3 +79,14 @@ def test_one_firmware_gate_for_client_backend_and_simulator(firmware: str) -> No
                     read()
                 # The simulator agrees: sent raw, past the client's refusal, the command is unknown there.
                 assert c._exchange(cmd, b"", 2.0).status == Status.E_CMD_UNKNOWN
+
+
+def test_a_move_blocked_by_a_part_raises_axis_blocked() -> None:
+    """Issue 19 §2: a final E_AXIS_BLOCKED is no success: the fingers stopped short of the width asked for."""
+    with grippers.open("sim://wsg50?part_width_mm=40") as g:
+        g.home()
+        g.move(0.08)
+        with pytest.raises(CommandFailed) as info:
+            g.move(0.01)
+        assert info.value.status_name == "E_AXIS_BLOCKED"
+        assert g.state().width == pytest.approx(0.040, abs=0.002)  # at the part, not at 10 mm
