@@ -421,6 +421,10 @@ class ExchangeEngine(LineReader):
             raise
         return exchange, first, start + total, total
 
+    def motion_outstanding(self) -> bool:
+        """Whether a motion command (20h, 21h, 25h, 26h) on this connection still waits for its end."""
+        return any(exchange.command in MOTIONS for exchange in self._session.outstanding())
+
     def _done(self) -> None:
         """The motion's caller returns without waiting for its end (or ends on its first reply)."""
         with self._lock:

@@ -230,6 +230,11 @@ class WsgGripper(Gripper):
                 return None  # heading close by already; offered again once this motion has ended
         elif not running and self._servo_aim == (target.width, target.speed):
             return False  # already there
+        if not running and c.motion_outstanding():
+            # A motion of another call (move(), grasp()) holds the motion slot: put the target off (offered
+            # again shortly) instead of blocking this thread behind it, since stop() ends servoing by
+            # waiting for this thread before its STOP goes out (issue 23 §1: the jaws travelled 15 mm more).
+            return None
         if running:
             # WSG manual 4.0.x and 2.2.0 §3.2.2: a motion command while another runs is refused with
             # E_ALREADY_RUNNING ("Issue a STOP command, first"). STOP (22h, §3.2.3) ends the running one at

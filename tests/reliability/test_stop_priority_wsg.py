@@ -14,10 +14,22 @@ import time
 
 import pytest
 
+import grippers
 from grippers.drivers.errors import CommandFailed, GripperError
+from grippers.drivers.wsg.client import WsgClient
 from grippers.drivers.wsg.commands import SystemFlags
 
 SPEED = 20.0  # mm/s: the running move's speed, and the queued targets'
+
+
+def _one_exchange(c: WsgClient) -> float:
+    """The longest of a few LOOP round trips now: what one exchange costs on this machine at this moment."""
+    longest = 0.0
+    for _ in range(5):
+        t0 = time.monotonic()
+        c.loop(b"t")
+        longest = max(longest, time.monotonic() - t0)
+    return longest
 
 
 def test_stop_is_not_followed_by_motions_queued_before_it(wsg_sim, wsg_connect) -> None:
@@ -44,11 +56,10 @@ def test_stop_is_not_followed_by_motions_queued_before_it(wsg_sim, wsg_connect) 
     streamer.start()
     time.sleep(0.3)  # the move runs, the stream's request waits for the 21h slot
 
-    t0 = time.monotonic()
+    exchange = _one_exchange(c)
     before = c.width()
     halt.set()
     c.stop()
-    took = time.monotonic() - t0  # one state query and one STOP exchange
     streamer.join(5.0)
     assert not streamer.is_alive()
 
@@ -60,11 +71,45 @@ def test_stop_is_not_followed_by_motions_queued_before_it(wsg_sim, wsg_connect) 
     rest = c.width()
     time.sleep(0.3)
     assert c.width() == pytest.approx(rest, abs=0.05)
-    # Travel after the width was read: the device's speed over the two exchanges, plus a millimetre for the
-    # deceleration and the position's resolution; not a bound from how fast this machine is.
-    assert abs(rest - before) <= SPEED * took + 1.0
+    # Travel after the width was read: the device's speed over a few exchanges (the width's reply, the STOP),
+    # plus a millimetre for the deceleration and the position's resolution.
+    assert abs(rest - before) <= SPEED * 4 * exchange + 1.0
     with pytest.raises(CommandFailed) as info:
         move.result(timeout=2.0)
     assert info.value.status_name == "E_CMD_ABORTED"
     last = outcomes[-1]
     assert isinstance(last, CommandFailed) and last.status_name == "E_CMD_ABORTED", outcomes[-3:]
+
+
+def test_gripper_stop_during_a_move_and_a_servo_stream_goes_out_at_once() -> None:
+    """The reported case through the Gripper API: stop() while a move() runs and servo() targets stream."""
+    speed = SPEED / 1000
+    with grippers.open("sim://wsg50") as g:  # real time
+        g.home()
+        g.move(0.09)
+        errors: list[BaseException] = []
+
+        def move() -> None:
+            try:
+                g.move(0.01, speed=speed)
+            except GripperError as exc:
+                errors.append(exc)
+
+        mover = threading.Thread(target=move, daemon=True)
+        mover.start()
+        time.sleep(0.3)
+        for i in range(20):
+            g.servo(0.05 + 0.001 * i, speed=speed)
+            time.sleep(0.01)
+        exchange = _one_exchange(g.driver)
+        before = g.state().width  # five exchanges
+        g.stop()
+        mover.join(5.0)
+        deadline = time.monotonic() + 2.0
+        while g.state().moving:
+            assert time.monotonic() < deadline
+            time.sleep(0.01)
+        rest = g.state().width
+        # Was 15 mm: stop() waited for the servo thread, itself waiting behind the move for the 21h slot.
+        assert abs(rest - before) * 1000 <= SPEED * 8 * exchange + 1.0
+        assert errors and "aborted by stop()" in str(errors[0])
