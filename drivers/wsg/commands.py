@@ -7,7 +7,6 @@ table, so a layout cannot drift between the two sides. Errata of docs/protocols.
 
 from __future__ import annotations
 
-import math
 import struct
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -15,6 +14,7 @@ from enum import IntEnum, IntFlag
 from typing import Any
 
 from ..errors import LimitError, ProtocolError
+from ..numbers import finite
 from .protocol import Packet, Status, status_name, to_status
 
 __all__ = [
@@ -377,8 +377,8 @@ class Layout:
         size = self.size
         names = self._plain_names
         if names is not None and len(data) == size:
-            values = self.struct.unpack(data)
-            return {names[0]: values[0]} if len(names) == 1 else dict(zip(names, values, strict=True))
+            plain = self.struct.unpack(data)
+            return {names[0]: plain[0]} if len(names) == 1 else dict(zip(names, plain, strict=True))
         if self.tail is None:
             if len(data) != size:
                 raise ProtocolError(f"expected {size} data bytes, got {len(data)}", command=command)
@@ -427,15 +427,8 @@ def _f32(name: str, unit: str = "") -> Field:
     return Field(name, "f", unit)
 
 
-def _finite(value: Any) -> float:
-    value = float(value)
-    if not math.isfinite(value):
-        raise LimitError(f"{value!r} is not a finite number")
-    return value
-
-
 def _temperature_to_wire(celsius: float) -> int:
-    return round(_finite(celsius) * 10)
+    return round(finite(celsius, "temperature", command="GET_TEMPERATURE") * 10)
 
 
 # docs/protocols.md §1: auto-update parameters: byte 0 flags (D0 on, D1 only on change), bytes 1..2
@@ -771,6 +764,16 @@ def spec(cmd: int) -> CommandSpec:
         raise ProtocolError(f"unknown command id {cmd:#04x}") from None
 
 
+def available(cmd: int, firmware: FirmwareVersion | None) -> bool:
+    """Whether ``firmware`` has ``cmd``: the one rule behind the client's local refusal (NotSupported), the
+    backend's capabilities and the simulator's E_CMD_UNKNOWN, so they cannot disagree.
+
+    An unknown firmware (not read yet) or an id outside the table is given the benefit of the doubt: the
+    device itself answers E_CMD_UNKNOWN for what it lacks."""
+    s = COMMANDS.get(cmd)
+    return firmware is None or s is None or firmware.major >= s.min_firmware_major
+
+
 _NAMES: dict[int, str] = {cmd: f"{s.name} ({cmd:02X}h)" for cmd, s in COMMANDS.items()}
 
 
@@ -847,9 +850,9 @@ class Reply:
         return self.fields or None
 
 
-_set_reply_command = Reply.command.__set__  # type: ignore[attr-defined]
-_set_reply_status = Reply.status.__set__  # type: ignore[attr-defined]
-_set_reply_fields = Reply.fields.__set__  # type: ignore[attr-defined]
+_set_reply_command = Reply.command.__set__  # type: ignore[attr-defined,misc]
+_set_reply_status = Reply.status.__set__  # type: ignore[attr-defined,misc]
+_set_reply_fields = Reply.fields.__set__  # type: ignore[attr-defined,misc]
 
 
 def encode_reply(cmd: int, status: int = Status.E_SUCCESS, **fields: Any) -> bytes:

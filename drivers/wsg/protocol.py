@@ -120,8 +120,8 @@ class Packet:
         return encode_packet(self.command, self.payload)
 
 
-_set_command = Packet.command.__set__  # type: ignore[attr-defined]
-_set_payload = Packet.payload.__set__  # type: ignore[attr-defined]
+_set_command = Packet.command.__set__  # type: ignore[attr-defined,misc]
+_set_payload = Packet.payload.__set__  # type: ignore[attr-defined,misc]
 
 
 def whole_packet(

@@ -339,9 +339,10 @@ class Session:
                 return None  # receive() reports the checksum error
             packet = Packet(cmd, data[HEADER_SIZE:-TRAILER_SIZE])
         else:
-            packet = whole_packet(data, self.parser.verify_checksum, self.parser.max_payload)
-            if packet is None:
+            whole = whole_packet(data, self.parser.verify_checksum, self.parser.max_payload)
+            if whole is None:
                 return None
+            packet = whole
             payload = packet.payload
             # An E_CMD_PENDING (or a reply without a status) is not final: receive() handles it.
             if packet.command != cmd or len(payload) < 2 or payload[0] | (payload[1] << 8) == _PENDING:

@@ -176,7 +176,8 @@ class UdpTransport:
     ) -> None:
         try:
             # The gripper's address decides the family, so wsg+udp://[::1] works as well as IPv4.
-            family, _, _, _, self._peer = socket.getaddrinfo(host, port, 0, socket.SOCK_DGRAM)[0]
+            family, _, _, _, peer = socket.getaddrinfo(host, port, 0, socket.SOCK_DGRAM)[0]
+            self._peer: tuple[Any, ...] = peer
             if local_host is None:
                 local: tuple = _route_source(family, self._peer)
                 local = (local[0], local_port, *local[2:])  # IPv6 keeps its flow info and scope id

@@ -16,7 +16,14 @@ from typing import Any
 
 from grippers.drivers.errors import CommandFailed
 from grippers.drivers.wsg.client import WsgClient
-from grippers.drivers.wsg.commands import GraspingState, SystemFlags, SystemInfo, SystemLimits
+from grippers.drivers.wsg.commands import (
+    Cmd,
+    GraspingState,
+    SystemFlags,
+    SystemInfo,
+    SystemLimits,
+    available,
+)
 from grippers.drivers.wsg.protocol import Status
 
 from ..gripper import Capability, DeviceInfo, GraspResult, GraspState, Gripper, GripperState, MotionResult
@@ -90,8 +97,12 @@ class WsgGripper(Gripper):
             Capability.DEVICE_TAG,
             Capability.PUSH_UPDATES,
         }
-        if self._system_info.firmware.major >= 4:  # 46h and the finger commands are 4.x only
-            caps |= {Capability.TEMPERATURE, Capability.FINGER_DATA}
+        # The command table decides which firmware has 46h and the finger commands (2.x has neither).
+        firmware = self._system_info.firmware
+        if available(Cmd.GET_TEMPERATURE, firmware):
+            caps.add(Capability.TEMPERATURE)
+        if available(Cmd.GET_FINGER1_DATA, firmware):
+            caps.add(Capability.FINGER_DATA)
         self.capabilities = frozenset(caps)
 
     @property
@@ -220,6 +231,11 @@ class WsgGripper(Gripper):
                 return None  # heading close by already; offered again once this motion has ended
         elif not running and self._servo_aim == (target.width, target.speed):
             return False  # already there
+        if not running and c.motion_outstanding():
+            # A motion of another call (move(), grasp()) holds the motion slot: put the target off (offered
+            # again shortly) instead of blocking this thread behind it, since stop() ends servoing by
+            # waiting for this thread before its STOP goes out (issue 23 §1: the jaws travelled 15 mm more).
+            return None
         if running:
             # WSG manual 4.0.x and 2.2.0 §3.2.2: a motion command while another runs is refused with
             # E_ALREADY_RUNNING ("Issue a STOP command, first"). STOP (22h, §3.2.3) ends the running one at

@@ -194,9 +194,9 @@ class SimServer:
                     link.last_rx = wall
                     self._received(link, b"")
             for conn, data in self.model.advance_by_connection(self.clock.now()):
-                link = self._links.get(conn)
-                if link is not None:
-                    self._emit(link, [data])
+                target = self._links.get(conn)
+                if target is not None:
+                    self._emit(target, [data])
             while self._delayed and self._delayed[0][0] <= wall:
                 _, _, link, data = heapq.heappop(self._delayed)
                 if link.conn in self._links:

@@ -31,6 +31,7 @@ from ..commands import (
     FirmwareVersion,
     GraspingState,
     SystemFlags,
+    available,
     decode_request,
     encode_reply,
 )
@@ -73,7 +74,7 @@ SIM_CHOICES = (
 )
 
 # Change thresholds for "update on changes only": WSG manual 4.0.x §3.4.4–3.4.6.
-_CHANGE_THRESHOLD = {Cmd.GET_WIDTH: 0.01, Cmd.GET_SPEED: 0.05, Cmd.GET_FORCE: 0.05}
+_CHANGE_THRESHOLD: dict[int, float] = {Cmd.GET_WIDTH: 0.01, Cmd.GET_SPEED: 0.05, Cmd.GET_FORCE: 0.05}
 _MIN_PERIOD_MS = 10  # WSG manual 4.0.x §3.4.1: "Minimum value is 10 ms"
 _FINGER_POWER_UP_S = 0.5  # WSG manual 4.0.x §3.6.3: "E_SUCCESS after approx. 500 ms"
 _EPS = 1e-6
@@ -417,8 +418,7 @@ class WsgModel:
             return
         spec = COMMANDS.get(command)
         handler = self._handlers.get(command)
-        too_new = spec is not None and (spec.min_firmware_major or 0) > self.firmware_version.major
-        if spec is None or handler is None or too_new:
+        if spec is None or handler is None or not available(command, self.firmware_version):
             # docs/protocols.md §1: firmware 2.2.0 has no 46h and no 60h–73h -> E_CMD_UNKNOWN.
             self._reply(conn, command, Status.E_CMD_UNKNOWN)
             return
@@ -609,7 +609,7 @@ class WsgModel:
         target = self.stroke if direction == 1 else 0.0
         self._start_motion("home", target, self.homing_speed, conn=conn, command=cmd)
 
-    def _motion_check(self, width: float, speed: float, target: float) -> Status | None:
+    def _motion_check(self, width: float, speed: float, target: float) -> int | None:
         """Why a motion to ``target`` must be refused, checked in the order the firmware reports it."""
         refusal = self._motion_refusal()
         if refusal is None and not self._finite(width, speed):

@@ -6,6 +6,7 @@ Each class only moves bytes; parsing, the model, faults and timing live in :clas
 from __future__ import annotations
 
 import contextlib
+import functools
 import os
 import selectors
 import socket
@@ -155,7 +156,9 @@ class UdpSimServer(_SelectorServer):
                         self._links.pop(old.conn, None)
                         self.model.disconnect(old.conn)
                     conn = self.model.connect(connection_oriented=False)
-                    link = Link(conn, self._parser(), lambda d, p=peer: self._sendto(d, p), f"udp {peer}")
+                    link = Link(
+                        conn, self._parser(), functools.partial(self._sendto, peer=peer), f"udp {peer}"
+                    )
                     self._add_link(link)
                     self._peers[peer] = link
             else:

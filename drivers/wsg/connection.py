@@ -1,0 +1,315 @@
+"""A WSG connection: the exchange engine over one transport, its reader thread, its lifetime, subscriptions.
+
+The background reader reads only when nobody waits but bytes may still come: subscriptions (their callbacks
+always run on it), a pending motion's final reply, a half-received packet, or a late reply to swallow (see
+:mod:`.exchanges` for who reads when). The command methods sit on top (:class:`~.client.WsgClient`).
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from collections.abc import Callable
+from threading import get_ident
+from typing import Any, Self
+from urllib.parse import parse_qs, urlsplit
+
+from can import BusABC
+
+from ..errors import ConnectionLost, GripperError, LimitError, NotSupported
+from .commands import AUTO_UPDATE_COMMANDS, Cmd, command_name, encode_request
+from .exchanges import POLL, SILENT_GAP, ExchangeEngine
+from .handles import Subscription
+from .transports import (
+    DEFAULT_BAUDRATE,
+    DEFAULT_CAN_RECV_ID,
+    DEFAULT_CAN_SEND_ID,
+    DEFAULT_TCP_PORT,
+    DEFAULT_UDP_LOCAL_PORT,
+    DEFAULT_UDP_PORT,
+    CanTransport,
+    SerialTransport,
+    TcpTransport,
+    Transport,
+    UdpTransport,
+)
+
+__all__ = ["WsgConnection"]
+
+log = logging.getLogger(__name__)
+
+_MIN_PERIOD_MS = 10  # docs/protocols.md §1: auto-update period minimum
+
+
+class WsgConnection(ExchangeEngine):
+    """One connection to a WSG: requests from any thread, a reader thread for what nobody waits for."""
+
+    def __init__(
+        self,
+        transport: Transport,
+        *,
+        device: str | None = None,
+        timeout: float = 1.0,
+        motion_timeout: float = 60.0,
+        verify_checksum: bool = True,
+        stale_ttl: float = 2.0,
+        stale_final_ttl: float = 60.0,
+        silent_gap: float = SILENT_GAP,
+    ) -> None:
+        super().__init__(
+            transport,
+            device=device,
+            timeout=timeout,
+            motion_timeout=motion_timeout,
+            verify_checksum=verify_checksum,
+            stale_ttl=stale_ttl,
+            stale_final_ttl=stale_final_ttl,
+            silent_gap=silent_gap,
+        )
+        self._sub_params: dict[int, tuple[int, bool]] = {}
+        self._reader = threading.Thread(target=self._read_loop, name=f"{self.device} reader", daemon=True)
+        self._reader.start()
+        self._reader_ident = self._reader.ident
+
+    # ------------------------------------------------------------------------------------------ factories
+
+    @classmethod
+    def tcp(
+        cls, host: str, port: int = DEFAULT_TCP_PORT, *, connect_timeout: float | None = None, **kw: Any
+    ) -> Self:
+        wait = connect_timeout if connect_timeout is not None else kw.get("timeout", 5.0)
+        return cls(TcpTransport(host, port, connect_timeout=wait), **kw)
+
+    @classmethod
+    def udp(
+        cls, host: str, port: int = DEFAULT_UDP_PORT, *, local_port: int = DEFAULT_UDP_LOCAL_PORT, **kw: Any
+    ) -> Self:
+        return cls(UdpTransport(host, port, local_port=local_port), **kw)
+
+    @classmethod
+    def serial(
+        cls,
+        port: str,
+        *,
+        baudrate: int = DEFAULT_BAUDRATE,
+        bytesize: int = 8,
+        parity: str = "N",
+        stopbits: float = 1,
+        **kw: Any,
+    ) -> Self:
+        return cls(
+            SerialTransport(port, baudrate=baudrate, bytesize=bytesize, parity=parity, stopbits=stopbits),
+            **kw,
+        )
+
+    @classmethod
+    def can(
+        cls,
+        *,
+        bus: BusABC | None = None,
+        interface: str | None = None,
+        channel: str | int | None = None,
+        bitrate: int | None = None,
+        send_id: int = DEFAULT_CAN_SEND_ID,
+        recv_id: int = DEFAULT_CAN_RECV_ID,
+        extended_id: bool | None = None,
+        **kw: Any,
+    ) -> Self:
+        transport = CanTransport(
+            bus,
+            interface=interface,
+            channel=channel,
+            bitrate=bitrate,
+            send_id=send_id,
+            recv_id=recv_id,
+            extended_id=extended_id,
+        )
+        return cls(transport, **kw)
+
+    @classmethod
+    def from_url(cls, url: str, **kw: Any) -> Self:
+        """``[wsg+]tcp://H:P``, ``[wsg+]udp://H:P?local_port=N``, ``[wsg+]serial://PATH-OR-PYSERIAL-URL?baudrate=..``,
+        ``[wsg+]can://INTERFACE/CHANNEL?send_id=..&recv_id=..&bitrate=..`` (the simulator's ``.url``)."""
+        parts = urlsplit(url)
+        scheme = parts.scheme.lower().removeprefix("wsg+")
+        query = {k: v[-1] for k, v in parse_qs(parts.query).items()}
+
+        def num(key: str, default: int | None) -> int | None:
+            return int(query[key], 0) if key in query else default
+
+        if scheme == "tcp":
+            return cls.tcp(parts.hostname or "127.0.0.1", parts.port or DEFAULT_TCP_PORT, **kw)
+        if scheme == "udp":
+            return cls.udp(
+                parts.hostname or "127.0.0.1",
+                parts.port or DEFAULT_UDP_PORT,
+                local_port=num("local_port", DEFAULT_UDP_LOCAL_PORT) or 0,
+                **kw,
+            )
+        if scheme == "serial":
+            rest = url.split("://", 1)[1].split("?", 1)[0]
+            framing: dict[str, Any] = {"baudrate": num("baudrate", DEFAULT_BAUDRATE)}
+            if "parity" in query:
+                framing["parity"] = query["parity"]
+            if "stopbits" in query:
+                framing["stopbits"] = float(query["stopbits"])
+            if "bytesize" in query:
+                framing["bytesize"] = int(query["bytesize"])
+            return cls.serial(rest, **framing, **kw)
+        if scheme == "can":
+            return cls.can(
+                interface=parts.netloc or None,
+                channel=parts.path.lstrip("/") or None,
+                bitrate=num("bitrate", None),
+                send_id=num("send_id", DEFAULT_CAN_SEND_ID) or 0,
+                recv_id=num("recv_id", DEFAULT_CAN_RECV_ID) or 0,
+                extended_id=(
+                    query["extended"].lower() in ("1", "true", "yes") if "extended" in query else None
+                ),
+                **kw,
+            )
+        raise LimitError(f"unsupported WSG URL {url!r} (tcp, udp, serial or can)")
+
+    # -------------------------------------------------------------------------------------------- lifetime
+
+    def close(self, timeout: float | None = None) -> None:
+        """Switch auto updates off, announce the disconnect (TCP: 07h, so no FAST STOP), stop the reader.
+
+        Idempotent; never raises for a line that is already gone.
+        """
+        with self._lock:
+            if self._closing or self._closed:
+                return
+            self._closing = True
+            healthy = self._lost is None
+        goodbye = min(self.timeout, 0.5) if timeout is None else timeout
+        if healthy and threading.current_thread() is not self._reader:
+            for cmd in list(self._sub_params):
+                try:
+                    self._call(cmd, payload=encode_request(cmd), timeout=goodbye, internal=True)
+                except GripperError:
+                    pass
+            if self._transport.connection_oriented:
+                try:
+                    self._call(Cmd.DISCONNECT, timeout=goodbye, internal=True)
+                except GripperError:
+                    pass
+        self._stop.set()
+        with self._lock:
+            self._bg.notify()
+        if threading.current_thread() is not self._reader:
+            self._reader.join(timeout=2.0)
+        try:
+            self._transport.close()
+        except Exception:  # noqa: BLE001 - closing must not fail
+            log.debug("closing %s failed", self.device, exc_info=True)
+        error = ConnectionLost("client closed", device=self.device)
+        with self._lock:
+            self._closed = True
+            self._session.fail_all(error)
+            subs = [s for lst in self._subs.values() for s in lst]
+            self._subs.clear()
+            self._sub_params.clear()
+            self._cond.notify_all()
+        for sub in subs:
+            sub._end()
+
+    @property
+    def closed(self) -> bool:
+        return self._closed
+
+    @property
+    def connection_lost(self) -> ConnectionLost | None:
+        return self._lost
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def __repr__(self) -> str:
+        return f"<{type(self).__name__} {self.device}{' closed' if self._closed else ''}>"
+
+    # ------------------------------------------------------------------------------------------- reader
+
+    def _read_loop(self) -> None:
+        lock = self._lock
+        while True:
+            with lock:
+                while not self._stop.is_set() and (self._reading or not self._background_needed()):
+                    self._bg.wait(POLL)
+                if self._stop.is_set() or self._lost is not None:
+                    return
+                self._reading = get_ident()
+                deliveries, self._deferred = self._deferred, []
+            for sub, value in deliveries:
+                sub._deliver(value)
+            with lock:
+                self._read_line(POLL)
+                self._settle_read()  # updates read here go to _deferred: delivered at the top of the loop
+
+    # ------------------------------------------------------------------------------------ subscriptions
+
+    def subscribe(
+        self,
+        cmd: int,
+        period_ms: int = 100,
+        changes_only: bool = False,
+        callback: Callable[[Any], None] | None = None,
+        *,
+        maxsize: int = 256,
+        timeout: float | None = None,
+        iter_timeout: float | None = None,
+    ) -> Subscription:
+        """Auto updates of 40h, 41h, 43h, 44h or 45h every ``period_ms`` (>= 10), or on changes only.
+
+        The first value is the immediate reply. ``iter_timeout`` bounds each wait of the iterator (default:
+        wait until a value arrives or the subscription ends).
+        """
+        cmd = int(cmd)
+        name = command_name(cmd)
+        if cmd not in AUTO_UPDATE_COMMANDS:
+            raise NotSupported(
+                "has no auto update (40h, 41h, 43h, 44h, 45h have)", device=self.device, command=name
+            )
+        if not _MIN_PERIOD_MS <= int(period_ms) <= 0xFFFF:
+            raise LimitError(
+                f"period must be {_MIN_PERIOD_MS}..65535 ms, not {period_ms!r}",
+                device=self.device,
+                command=name,
+            )
+        sub = Subscription(self, cmd, int(period_ms), bool(changes_only), callback, maxsize, iter_timeout)
+        with self._lock:
+            self._usable(name, False)
+            self._subs.setdefault(cmd, []).append(sub)
+            self._sub_params[cmd] = (int(period_ms), bool(changes_only))
+            self._session.subscribe(cmd)
+        try:
+            payload = encode_request(
+                cmd, auto_update=True, changes_only=changes_only, period_ms=int(period_ms)
+            )
+            reply = self._call(cmd, timeout=timeout, payload=payload)
+        except BaseException:
+            self._forget(sub)
+            sub._end()
+            raise
+        sub._deliver(reply.value)
+        return sub
+
+    def _forget(self, sub: Subscription) -> bool:
+        """Remove ``sub``; True when it was the last one of its command."""
+        with self._lock:
+            subs = self._subs.get(sub.command, [])
+            if sub in subs:
+                subs.remove(sub)
+            if subs:
+                return False
+            self._subs.pop(sub.command, None)
+            self._sub_params.pop(sub.command, None)
+            self._session.unsubscribe(sub.command)
+            return True
+
+    def _unsubscribe(self, sub: Subscription, timeout: float | None) -> None:
+        if self._forget(sub) and not (self._closing or self._closed or self._lost):
+            self._call(sub.command, timeout=timeout, payload=encode_request(sub.command))

@@ -1,0 +1,456 @@
+"""The exchange engine of a WSG connection: send a request, read or wait for its reply, survive Ctrl-C.
+
+The matching rules live in :mod:`grippers.drivers.wsg.session` (sans-IO); this module adds the reading, the
+waiting with timeouts and the recovery from interrupts. Any number of threads may run exchanges at once:
+requests with different command ids run concurrently (state queries while a motion is pending), requests with
+the same id take turns (see the session's docstring for why).
+
+Who reads (leader/follower): at most one thread is inside ``transport.recv`` at a time. A caller waiting for
+its reply reads the line itself when nobody else does, so a plain request costs no thread hand-over (the
+round-trip benchmark, docs/performance.md); other waiters are woken when their reply goes by. The connection's
+background thread (:mod:`.connection`) reads only when nobody waits but bytes may still come.
+
+Ctrl-C (issue 13 item 1, issue 23 §3): a KeyboardInterrupt can arrive at any line of an exchange, also inside
+the wait for the lock or for a reply. Every step therefore leaves a trace the handler can finish from: the
+reading role records its owner, bytes read wait in ``_held_read`` until matched, the callers are a set (adding
+or removing twice changes nothing) and the waits come back with the lock held (:mod:`.interrupts`). The
+handler (:meth:`ExchangeEngine._rescue`) matches what was read, hands the role back and abandons the exchange
+as a timeout does (its late reply is swallowed, its id freed). A STOP can then go out at once.
+
+Stops first (issue 23 §1): STOP and FAST STOP never wait for a stale marker of their id (the session), and
+each one fences the motion requests still waiting for their slot: those end with E_CMD_ABORTED instead of
+going out after the stop (a servo target queued behind a running move would otherwise start a new motion the
+moment the stop ended the old one).
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from threading import get_ident
+from typing import Any, NoReturn
+
+from ..errors import (
+    CommandFailed,
+    ConnectionLost,
+    GripperError,
+    GripperTimeout,
+    LimitError,
+    NotSupported,
+    ProtocolError,
+)
+from .commands import Cmd, Reply, available, command_name, decode_reply, encode_request
+from .interrupts import hold
+from .protocol import Packet, Status
+from .reading import POLL, SILENT_GAP, LineReader
+from .session import Exchange, ExchangeState
+from .transports import Transport
+
+__all__ = ["POLL", "SILENT_GAP", "ExchangeEngine"]
+
+log = logging.getLogger(__name__)
+
+
+# The commands a STOP (22h, WSG manual 4.0.x §3.2.3) ends: a request of these still waiting for its slot
+# when a stop is sent is aborted instead of sent.
+MOTIONS = frozenset({int(Cmd.HOMING), int(Cmd.PREPOSITION), int(Cmd.GRIP), int(Cmd.RELEASE)})
+STOPS = frozenset({int(Cmd.STOP), int(Cmd.FAST_STOP)})
+
+
+class ExchangeEngine(LineReader):
+    """Requests and replies over one transport (see the module docstring). The connection adds the reader
+    thread, the lifetime and the subscriptions; the commands sit on top (:class:`~.client.WsgClient`)."""
+
+    def __init__(
+        self,
+        transport: Transport,
+        *,
+        device: str | None,
+        timeout: float,
+        motion_timeout: float,
+        verify_checksum: bool,
+        stale_ttl: float,
+        stale_final_ttl: float,
+        silent_gap: float,
+    ) -> None:
+        super().__init__(
+            transport,
+            device=device,
+            verify_checksum=verify_checksum,
+            stale_ttl=stale_ttl,
+            stale_final_ttl=stale_final_ttl,
+            silent_gap=silent_gap,
+        )
+        self.timeout = timeout
+        self.motion_timeout = motion_timeout
+        self.firmware: Any = None  # FirmwareVersion once 50h was read: decides what is refused locally
+        self._stops_sent = 0  # the fence of queued motion requests (module docstring, "Stops first")
+
+    # ------------------------------------------------------------------------------------------ requests
+
+    def _usable(self, name: str, internal: bool) -> None:
+        if self._lost is not None:
+            raise ConnectionLost(self._lost.message, device=self.device, command=name)
+        if self._closed or (self._closing and not internal):
+            raise ConnectionLost("client is closed", device=self.device, command=name)
+
+    def _check_supported(self, cmd: int) -> None:
+        if not available(cmd, self.firmware):
+            raise NotSupported(
+                f"not available in firmware {self.firmware} (2.x has no 46h and no finger commands)",
+                device=self.device,
+                command=command_name(cmd),
+            )
+
+    def _encode(self, cmd: int, **fields: Any) -> bytes:
+        try:
+            return encode_request(cmd, **fields)
+        except (LimitError, ProtocolError) as exc:
+            raise type(exc)(exc.message, device=self.device, command=command_name(cmd)) from None
+
+    def _begin(self, cmd: int, payload: bytes, deadline: float, *, internal: bool = False) -> Exchange:
+        """Register and send a request; the caller is among ``_callers`` until its :meth:`_wait` ends.
+
+        When nobody else reads and no subscription needs the reader thread, the caller also takes the reading
+        role here (``_reading`` is its id): in the same critical section as the send, that saves the lock
+        round trip before the read, a good part of a round trip's cost (docs/performance.md).
+        """
+        me = get_ident()
+        if me == self._reader_ident:
+            raise GripperError(
+                "commands cannot be issued from a subscription callback (reader thread)",
+                device=self.device,
+                command=command_name(cmd),
+            )
+        session = self._session
+        exchange: Exchange | None = None
+        fence = self._stops_sent
+        try:
+            with self._lock:
+                if cmd in STOPS:
+                    self._stops_sent += 1  # before the slot: motion requests queued from now on give way
+                    self._cond.notify_all()
+                while True:
+                    if self._lost is not None or self._closing or self._closed:
+                        self._usable(command_name(cmd), internal)
+                    if fence != self._stops_sent and cmd in MOTIONS:
+                        raise CommandFailed(
+                            "aborted by a stop sent while it waited for its turn (not sent)",
+                            status=int(Status.E_CMD_ABORTED),
+                            status_name="E_CMD_ABORTED",
+                            device=self.device,
+                            command=command_name(cmd),
+                        )
+                    if not self._reading and not self._subs and self._ready(0):
+                        self._drain_line()
+                    now = time.monotonic()
+                    before = session.seq
+                    try:
+                        opened = session.open(cmd, payload, now)
+                    except BaseException:  # Ctrl-C right after open(): its result is lost, not the slot
+                        session.withdraw(cmd, before)
+                        raise
+                    if opened is not None:
+                        exchange, raw = opened
+                        self._callers[me] = exchange  # removed by the _wait that follows
+                        if not (self._reading or self._subs or self._closing):
+                            self._reading = me  # the role's owner: a rescue after Ctrl-C hands it back
+                        break
+                    self._wait_for_slot(cmd, now, deadline, internal)
+            self._transport.send(raw)
+        except BaseException as exc:
+            if exchange is None:
+                raise
+            with self._lock:
+                self._callers.pop(me, None)
+                if self._reading == me:  # never leave the reading role taken by a caller that is gone
+                    self._reading = 0
+                    self._cond.notify_all()
+                if not isinstance(exc, ConnectionLost):
+                    # Interrupted (KeyboardInterrupt) or refused: whether the bytes left is unknown, so the
+                    # slot is held like a timed-out request's, long enough to swallow a late reply.
+                    session.abandon(exchange, time.monotonic())
+            if not isinstance(exc, ConnectionLost):
+                raise
+            self._connection_lost(exc)  # fails the exchange and wakes everybody
+            raise ConnectionLost(exc.message, device=self.device, command=command_name(cmd)) from None
+        return exchange
+
+    def _sleep(self, timeout: float) -> None:
+        """Wait on ``_cond`` (lock held once); an interrupt is raised with the lock held again."""
+        interrupt = self._cond.wait(timeout)
+        if interrupt is not None:
+            raise interrupt
+
+    def _wait_for_slot(self, cmd: int, now: float, deadline: float, internal: bool) -> None:
+        """The slot of ``cmd`` is held (lock held): wait a little, or run the barrier that proves a stale
+        reply lost (with the lock released); GripperTimeout at the deadline."""
+        if deadline - now <= 0:
+            raise GripperTimeout(
+                "a previous exchange of this command is still outstanding (one per command id)",
+                device=self.device,
+                command=command_name(cmd),
+            )
+        session = self._session
+        if not session.needs_barrier(cmd, now):
+            self._sleep(min(deadline - now, POLL))
+            return
+        lock = self._lock
+        error: BaseException | None = None
+        try:
+            lock.release()  # _begin holds it once (its own ``with``)
+            self._barrier(cmd, deadline, internal)
+        except BaseException as exc:  # noqa: BLE001 - raised below, once the lock is held again
+            error = exc
+        try:
+            late = hold(lock)
+        except BaseException as exc:  # noqa: BLE001 - landed on the way into hold(): take it again
+            late = hold(lock) or exc
+        session.is_busy(cmd, time.monotonic())  # drops the marker the barrier proved lost
+        self.stats["lost_replies"] = session.lost_replies
+        if error is not None:
+            raise error
+        if late is not None:
+            raise late
+
+    def _barrier(self, cmd: int, deadline: float, internal: bool) -> None:
+        """Prove a stale reply of ``cmd`` lost: a LOOP with a fresh nonce, answered after anything sent
+        before it (the device answers in order). GripperTimeout when even that gets no reply."""
+        self.stats["barriers"] += 1
+        nonce = self._session.barrier_payload()
+        wait = max(deadline - time.monotonic(), 0.001)
+        try:
+            packet = self._exchange(Cmd.LOOP, nonce, wait, internal)
+        except GripperTimeout:
+            raise GripperTimeout(
+                "a previous exchange of this command is still outstanding (one per command id) and the "
+                "device did not answer the LOOP that would prove its reply lost",
+                device=self.device,
+                command=command_name(cmd),
+            ) from None
+        if packet.status:
+            log.debug("%s: barrier LOOP answered %s", self.device, Status.describe(packet.status))
+
+    # ------------------------------------------------------------------------------------------- replies
+
+    def _read_own_reply(self, exchange: Exchange, wait: float) -> Packet | None:
+        """The first read of a caller that took the reading role in :meth:`_begin` (nothing can have arrived
+        before): when the bytes are exactly its final reply, which they nearly always are on TCP and UDP, the
+        exchange is done here without the general matching. Otherwise they are matched as usual and None sends
+        the caller on to :meth:`_wait`, still among the callers.
+        """
+        with self._lock:
+            interrupt = self._read_line(wait if wait < POLL else POLL)
+            held = self._held_read
+            if interrupt is None and held is not None and held[1]:
+                packet = self._session.take_reply(exchange, held[1])
+                if packet is not None:
+                    self._held_read = None
+                    self._reading = 0  # (no _last_rx: it matters only while the parser holds bytes)
+                    self._cond.notify_all()  # the reading role is free
+                    self._callers.pop(get_ident(), None)
+                    return packet
+            self._settle_read()
+            if interrupt is not None:
+                raise interrupt
+        return None
+
+    def _wait(
+        self,
+        exchange: Exchange,
+        deadline: float,
+        *,
+        final: bool,
+        abandon: bool = True,
+        waited: float | None = None,
+        keep: bool = False,
+    ) -> Packet:
+        """Wait for ``exchange``'s reply (``final``: past E_CMD_PENDING), reading the line when nobody else
+        does. ``keep``: the caller stays registered with its exchange on success (a motion between its
+        E_CMD_PENDING and the wait for its end: an interrupt there is still rescued)."""
+        with self._lock:
+            self._callers[get_ident()] = exchange
+            leave = False  # an interrupt leaves the caller registered: _rescue abandons its exchange
+            try:
+                packet = self._await(exchange, deadline, final, abandon, waited)
+                leave = not keep
+                return packet
+            except GripperError:
+                leave = True
+                raise
+            finally:
+                if leave:
+                    self._leave()
+
+    def _await(
+        self, exchange: Exchange, deadline: float, final: bool, abandon: bool, waited: float | None
+    ) -> Packet:
+        """The wait loop (lock held once)."""
+        while True:
+            state = exchange.state
+            if state is ExchangeState.DONE:
+                assert exchange.reply is not None
+                return exchange.reply
+            if state is ExchangeState.PENDING and not final:
+                assert exchange.ack is not None
+                return exchange.ack
+            if state is ExchangeState.FAILED or state is ExchangeState.ABANDONED:
+                self._raise_failed(exchange)
+            now = time.monotonic()
+            if now >= deadline:
+                self._timed_out(exchange, now, abandon, waited)
+            if self._reading or self._subs or self._stop.is_set() or self._lost is not None:
+                if not self._reading:
+                    self._bg.notify()  # subscriptions: the reader thread reads (and runs the callbacks)
+                self._sleep(deadline - now)
+                continue
+            # Nobody is reading and no subscription needs the reader thread: read for ourselves.
+            self._reading = get_ident()
+            interrupt = self._read_line(min(deadline - now, POLL))
+            self._settle_read()
+            if interrupt is not None:
+                raise interrupt
+
+    def _leave(self) -> None:
+        """A caller is done with its exchange (lock held)."""
+        self._callers.pop(get_ident(), None)
+        if not self._callers and self._background_needed():
+            self._bg.notify()  # e.g. a pending motion's final reply: nobody waits to read it
+
+    def _rescue(self, abandon: bool = True) -> None:
+        """Ctrl-C (any BaseException but a GripperError) reached a caller between its steps: whatever step it
+        hit, match what it read, give the reading role back and, unless told not to, abandon its exchange as
+        a timeout does, so no command id and no reader stays taken (issue 13 item 1)."""
+        with self._lock:
+            self._settle_read()
+            exchange = self._callers.pop(get_ident(), None)
+            if exchange is not None and abandon and not exchange.finished:
+                self._session.abandon(exchange, time.monotonic())
+                self._cond.notify_all()
+                self._bg.notify()  # the late reply: the reader thread reads it when nobody else does
+
+    def _raise_failed(self, exchange: Exchange) -> NoReturn:
+        name = command_name(exchange.command)
+        if exchange.state is ExchangeState.ABANDONED:
+            raise GripperTimeout("abandoned after a timeout", device=self.device, command=name)
+        err = exchange.error
+        cls = type(err) if isinstance(err, ConnectionLost | ProtocolError) else GripperError
+        raise cls(err.message if err else "failed", device=self.device, command=name)
+
+    def _timed_out(self, exchange: Exchange, now: float, abandon: bool, waited: float | None) -> NoReturn:
+        state = exchange.state
+        if abandon:
+            self._session.abandon(exchange, now)
+            self._cond.notify_all()
+        what = "final reply" if state is ExchangeState.PENDING else "reply"
+        after = f" within {waited:g} s" if waited is not None else ""
+        raise GripperTimeout(f"no {what}{after}", device=self.device, command=command_name(exchange.command))
+
+    def _check(self, cmd: int, packet: Packet) -> Reply:
+        try:
+            reply = decode_reply(cmd, packet.payload)
+        except ProtocolError as exc:
+            raise ProtocolError(exc.message, device=self.device, command=command_name(cmd)) from None
+        if not reply.ok:
+            code = int(reply.status)
+            raise CommandFailed(
+                Status.describe(code),
+                status=code,
+                status_name=reply.status_name,
+                device=self.device,
+                command=command_name(cmd),
+            )
+        return reply
+
+    # ---------------------------------------------------------------------------------------- exchanges
+
+    def _call(
+        self,
+        cmd: int,
+        *,
+        timeout: float | None = None,
+        payload: bytes | None = None,
+        internal: bool = False,
+        **fields: Any,
+    ) -> Reply:
+        self._check_supported(cmd)
+        if payload is None:
+            payload = self._encode(cmd, **fields)
+        return self._check(
+            cmd, self._exchange(cmd, payload, self.timeout if timeout is None else timeout, internal)
+        )
+
+    def _exchange(self, cmd: int, payload: bytes, wait: float, internal: bool = False) -> Packet:
+        """Send a request and return its final reply (past E_CMD_PENDING) within ``wait`` seconds."""
+        deadline = time.monotonic() + wait
+        try:
+            exchange = self._begin(cmd, payload, deadline, internal=internal)
+            if self._reading == get_ident() and (packet := self._read_own_reply(exchange, wait)) is not None:
+                return packet
+            return self._wait(exchange, deadline, final=True, waited=wait)
+        except GripperError:
+            raise
+        except BaseException:
+            self._rescue()
+            raise
+
+    def _start(
+        self, cmd: int, payload: bytes, timeout: float | None
+    ) -> tuple[Exchange, Packet, float, float]:
+        """Send a motion command and wait for its first reply: (exchange, first reply, deadline, total).
+
+        The caller stays registered with the exchange (an interrupt before :meth:`_finish` or :meth:`_done`
+        is rescued like one inside them)."""
+        start = time.monotonic()
+        total = self.motion_timeout if timeout is None else timeout
+        ack_wait = min(total, self.timeout)
+        try:
+            exchange = self._begin(cmd, payload, start + ack_wait)
+            first = None
+            if self._reading == get_ident():
+                first = self._read_own_reply(exchange, ack_wait)
+            if first is None:
+                first = self._wait(exchange, start + ack_wait, final=False, waited=ack_wait, keep=True)
+            else:
+                with self._lock:
+                    self._callers[get_ident()] = exchange  # kept until the motion's caller is done
+        except GripperError:
+            raise
+        except BaseException:
+            self._rescue()
+            raise
+        return exchange, first, start + total, total
+
+    def motion_outstanding(self) -> bool:
+        """Whether a motion command (20h, 21h, 25h, 26h) on this connection still waits for its end."""
+        return any(exchange.command in MOTIONS for exchange in self._session.outstanding())
+
+    def _done(self) -> None:
+        """The motion's caller returns without waiting for its end (or ends on its first reply)."""
+        with self._lock:
+            self._leave()
+
+    def _finish(self, exchange: Exchange, deadline: float, waited: float, abandon: bool = True) -> None:
+        """Wait for a motion's final reply; CommandFailed unless it is E_SUCCESS."""
+        try:
+            final = self._wait(exchange, deadline, final=True, abandon=abandon, waited=waited)
+        except GripperError:
+            raise
+        except BaseException:
+            self._rescue(abandon)
+            raise
+        self._check(exchange.command, final)
+
+    def request(
+        self, cmd: int, payload: bytes = b"", *, timeout: float | None = None, check: bool = False
+    ) -> Packet:
+        """Send any command with a raw payload; the final reply packet (after E_CMD_PENDING, if any).
+
+        With ``check`` a status other than E_SUCCESS raises CommandFailed; without, the caller reads
+        ``packet.status``.
+        """
+        self._check_supported(cmd)
+        packet = self._exchange(cmd, bytes(payload), self.timeout if timeout is None else timeout)
+        if check:
+            self._check(cmd, packet)
+        return packet

@@ -1,0 +1,183 @@
+"""What a WSG call hands back when it does not wait: a pending motion, a subscription's stream of values."""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections import deque
+from collections.abc import Callable, Iterator
+from typing import TYPE_CHECKING, Any
+
+from ..errors import ConnectionLost, GripperError, GripperTimeout
+from .commands import command_name
+from .exchanges import POLL
+from .interrupts import Waiters
+from .session import Exchange
+
+if TYPE_CHECKING:
+    from .client import WsgClient
+    from .connection import WsgConnection
+
+__all__ = ["Pending", "Subscription"]
+
+log = logging.getLogger(__name__)
+
+
+class Pending:
+    """A motion command that was accepted (E_CMD_PENDING) and whose final reply is still to come."""
+
+    def __init__(self, client: WsgClient, exchange: Exchange) -> None:
+        self._client = client
+        self._exchange = exchange
+        self.command = exchange.command
+
+    def done(self) -> bool:
+        return self._exchange.finished  # one attribute read: no lock needed
+
+    def result(self, timeout: float | None = None) -> None:
+        """Wait for the final reply; CommandFailed if it is not E_SUCCESS.
+
+        ``timeout`` defaults to the client's ``motion_timeout``. A timeout here does not abandon the motion:
+        ``result`` may be called again; the command id stays busy until the final reply arrives.
+        """
+        client = self._client
+        wait = client.motion_timeout if timeout is None else timeout
+        client._finish(self._exchange, time.monotonic() + wait, wait, abandon=False)
+
+    def cancel(self, timeout: float | None = None) -> None:
+        """Send STOP (22h); the final reply then reports E_CMD_ABORTED through :meth:`result`.
+
+        If no final reply comes within ``timeout`` (the client's by default) it was lost, e.g. the motion had
+        ended and its reply was dropped: the exchange is then abandoned like a timed-out blocking motion, so
+        its command id is free again after ``stale_final_ttl`` instead of staying busy for good.
+        """
+        client = self._client
+        client.stop(timeout=timeout)
+        wait = client.timeout if timeout is None else timeout
+        try:
+            client._finish(self._exchange, time.monotonic() + wait, wait)
+        except GripperError:
+            pass  # the outcome (aborted, failed, timed out) is what result() reports
+
+    def __repr__(self) -> str:
+        return f"<Pending {command_name(self.command)} {self._exchange.state.value}>"
+
+
+class Subscription:
+    """Auto updates of one state command, as callbacks and as an iterator of decoded values.
+
+    Values go to a bounded queue (``maxsize``); when it is full the OLDEST value is dropped (a consumer that
+    falls behind wants the newest state) and ``dropped`` counts the losses (with a callback too: values are
+    queued for the iterator either way, so a callback-only user can ignore it). Callbacks run on the client's
+    reader thread: keep them short, and do not call the client from them (that would wait for the very
+    thread that delivers the reply; the client refuses it with GripperError).
+    """
+
+    def __init__(
+        self,
+        client: WsgConnection,
+        command: int,
+        period_ms: int,
+        changes_only: bool,
+        callback: Callable[[Any], None] | None,
+        maxsize: int,
+        timeout: float | None,
+    ) -> None:
+        self._client = client
+        self.command = command
+        self.period_ms = period_ms
+        self.changes_only = changes_only
+        self.timeout = timeout
+        self._callback = callback
+        self._queue: deque[Any] = deque(maxlen=maxsize)
+        self._lock = threading.RLock()
+        self._cv = Waiters(self._lock)  # get() may be interrupted by Ctrl-C (issue 23 §3)
+        self._closed = False
+        self._error: GripperError | None = None
+        self.dropped = 0
+        self.received = 0
+
+    @property
+    def closed(self) -> bool:
+        return self._closed
+
+    def _deliver(self, value: Any) -> None:
+        with self._lock:
+            if self._closed:
+                return
+            if len(self._queue) == self._queue.maxlen:
+                self.dropped += 1
+            self._queue.append(value)
+            self.received += 1
+            self._cv.notify_all()
+        if self._callback is not None:
+            try:
+                self._callback(value)
+            except Exception:
+                log.exception("subscription callback for %s raised", command_name(self.command))
+
+    def _end(self, error: GripperError | None = None) -> None:
+        with self._lock:
+            self._closed = True
+            if error is not None and self._error is None:
+                self._error = error
+            self._cv.notify_all()
+
+    def get(self, timeout: float | None = None) -> Any:
+        """The next value; GripperTimeout after ``timeout`` (default: the subscription's).
+
+        ConnectionLost when the line is gone.
+
+        Raises GripperError once the subscription is closed and its queue is empty.
+        """
+        wait = self.timeout if timeout is None else timeout
+        deadline = None if wait is None else time.monotonic() + wait
+        with self._lock:
+            while not self._queue:
+                if self._error is not None:
+                    raise ConnectionLost(
+                        self._error.message, device=self._error.device, command=command_name(self.command)
+                    )
+                if self._closed:
+                    raise GripperError("subscription closed", command=command_name(self.command))
+                remaining = None if deadline is None else deadline - time.monotonic()
+                if remaining is not None and remaining <= 0:
+                    raise GripperTimeout(
+                        f"no update within {wait:g} s",
+                        device=self._client.device,
+                        command=command_name(self.command),
+                    )
+                interrupt = self._cv.wait(POLL if remaining is None else min(remaining, POLL))
+                if interrupt is not None:
+                    raise interrupt
+            return self._queue.popleft()
+
+    def __iter__(self) -> Iterator[Any]:
+        return self
+
+    def __next__(self) -> Any:
+        with self._lock:
+            if self._closed and not self._queue and self._error is None:
+                raise StopIteration
+        try:
+            return self.get()
+        except ConnectionLost:
+            raise
+        except GripperTimeout:
+            raise
+        except GripperError:
+            raise StopIteration from None
+
+    def close(self, timeout: float | None = None) -> None:
+        """Stop receiving; the last subscription of a command switches the device's auto update off."""
+        if self._closed:
+            return
+        self._end()
+        self._client._unsubscribe(self, timeout)
+
+    def __enter__(self) -> Subscription:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

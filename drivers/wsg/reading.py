@@ -1,0 +1,254 @@
+"""The input side of a WSG connection: one reader at a time, bytes matched under the lock (sans-IO session).
+
+Who reads (leader/follower): at most one thread is inside ``transport.recv`` at a time, the holder of the
+reading role (``_reading``: the thread id of a caller or of the connection's reader thread). What it
+read is parked in ``_held_read`` before anything else happens, so whoever handles an interrupt (Ctrl-C) can
+still match it and hand the role back (:mod:`.exchanges`).
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections.abc import Callable
+from threading import get_ident
+from typing import Any
+
+from ..errors import ConnectionLost, ProtocolError
+from .commands import decode_reply
+from .dissect import wire_tap
+from .interrupts import Waiters, hold
+from .protocol import BadLength, ChecksumError, Discarded
+from .session import AutoUpdate, Completed, Exchange, Session, StaleReply, Unsolicited
+from .transports import Transport
+
+__all__ = ["POLL", "SILENT_GAP", "LineReader"]
+
+log = logging.getLogger(__name__)
+
+POLL = 0.05  # one receive's longest wait: bounds how long close() waits for a reader to notice
+# docs/protocols.md §1: a half-received packet is dropped after a silent gap of tens of milliseconds.
+SILENT_GAP = 0.05
+
+
+def _never(_timeout: float) -> bool:
+    return False
+
+
+def _always(_timeout: float) -> bool:
+    return True
+
+
+class LineReader:
+    """The input side of a connection: who reads, and what the bytes read mean (lock, session, role)."""
+
+    def __init__(
+        self,
+        transport: Transport,
+        *,
+        device: str | None,
+        verify_checksum: bool,
+        stale_ttl: float,
+        stale_final_ttl: float,
+        silent_gap: float,
+    ) -> None:
+        self.device = device or f"wsg {transport.name}"
+        self._transport = wire_tap(transport, self.device)  # DEBUG on grippers.wire: every packet, decoded
+        self.stats: dict[str, int] = dict.fromkeys(
+            (
+                "checksum_errors",
+                "bad_lengths",
+                "discarded_bytes",
+                "stale_replies",
+                "unsolicited",
+                "updates",
+                "lost_replies",
+                "barriers",
+            ),
+            0,
+        )
+        self._session = Session(
+            verify_checksum=verify_checksum, stale_ttl=stale_ttl, stale_final_ttl=stale_final_ttl
+        )
+        self._silent_gap = silent_gap
+        # docs/protocols.md §1: only a serial line ends a packet by a pause. A TCP stream may pause 40 ms
+        # inside a reply (delayed ACK) and CAN frames may be spaced: there the size field and the parser's
+        # per-id bound end a packet, never a gap.
+        self._gap_rule = bool(getattr(transport, "silent_gap", False))
+        self._drain = getattr(transport, "recv_nowait", None)
+        # Whether anything may have arrived: a poll() bound method where the transport has one, so the drain
+        # before each request costs one call into C when nothing did, which is nearly always
+        # (docs/performance.md, target 2); without recv_nowait there is nothing to drain with.
+        ready = getattr(transport, "ready", None)
+        if self._drain is None:
+            ready = _never
+        self._ready: Callable[[int], Any] = ready if ready is not None else _always
+        self._lock = threading.RLock()
+        self._cond = Waiters(self._lock)  # callers wait here for their replies or their slot
+        # The background reader waits apart (same lock), so the notifications that wake callers on every reply
+        # do not also wake it: a thread wake-up per exchange is what the leader/follower reading avoids.
+        self._bg = Waiters(self._lock)
+        self._subs: dict[int, list[Any]] = {}  # command -> Subscription (the connection manages them)
+        self._lost: ConnectionLost | None = None
+        self._closing = False
+        self._closed = False
+        self._stop = threading.Event()
+        # One thread at a time is inside transport.recv: 0 for nobody, else the holder's thread id.
+        self._reading = 0
+        # (reader, bytes, failure) a role holder read but has not matched yet: matched by whoever handles it.
+        self._held_read: tuple[int, bytes | None, BaseException | None] | None = None
+        # The exchange of each caller thread between _begin and the end of its _wait (callers read for
+        # themselves): keyed by thread, so an interrupted step that adds or removes twice cannot skew a count,
+        # and a handler finds the exchange even when Ctrl-C landed before the caller saw it returned.
+        self._callers: dict[int, Exchange] = {}
+        self._last_rx = time.monotonic()
+        # Updates a caller happened to read, handed to the reader thread that runs subscription callbacks.
+        self._deferred: list[tuple[Any, Any]] = []
+        self._reader_ident: int | None = None
+
+    # ----------------------------------------------------------------------------------- matching input
+
+    def _background_needed(self) -> bool:
+        """Whether bytes may arrive that no waiting caller will read (lock held)."""
+        if self._subs or self._deferred or self._session.parser.buffered:
+            return True
+        # (a caller interrupted right after its request went out may be left in the set: a finished
+        # exchange there waits for nobody)
+        if any(not exchange.finished for exchange in self._callers.values()):
+            return False
+        return self._session.expecting(time.monotonic())
+
+    def _process(self, data: bytes) -> list[tuple[Any, Any]]:
+        """Match received bytes and hand the reading role back (lock held); returns subscription values."""
+        self._reading = 0
+        now = time.monotonic()
+        try:
+            session = self._session
+            if data:
+                self._last_rx = now
+                events = session.receive(data, now)
+            elif self._gap_rule and session.parser.buffered and now - self._last_rx >= self._silent_gap:
+                events = session.reset_parser(now)
+            else:
+                events = []
+            return self._dispatch(events) if events else []
+        except Exception:  # noqa: BLE001 - garbage on the line never kills the reading
+            log.exception("%s: reader ignored an unexpected error", self.device)
+            return []
+        finally:
+            self._cond.notify_all()  # replies may have arrived, and the reading role is free
+
+    def _dispatch(self, events: list[Any]) -> list[tuple[Any, Any]]:
+        deliveries: list[tuple[Any, Any]] = []
+        stats = self.stats
+        for ev in events:
+            if type(ev) is Completed:  # the common case: the waiter picks its reply from the exchange
+                continue
+            if isinstance(ev, AutoUpdate):
+                stats["updates"] += 1
+                subs = self._subs.get(ev.packet.command)
+                if not subs:
+                    continue
+                try:
+                    reply = decode_reply(ev.packet.command, ev.packet.payload)
+                except ProtocolError:
+                    log.debug("%s: undecodable update %r", self.device, ev.packet)
+                    continue
+                if reply.ok:
+                    deliveries.extend((sub, reply.value) for sub in subs)
+            elif isinstance(ev, StaleReply):
+                stats["stale_replies"] += 1
+                log.debug("%s: late reply swallowed: %r", self.device, ev.packet)
+            elif isinstance(ev, Unsolicited):
+                stats["unsolicited"] += 1
+                log.debug("%s: unsolicited packet: %r", self.device, ev.packet)
+            elif isinstance(ev, ChecksumError):
+                stats["checksum_errors"] += 1
+            elif isinstance(ev, BadLength):
+                stats["bad_lengths"] += 1
+            elif isinstance(ev, Discarded):
+                stats["discarded_bytes"] += len(ev.raw)
+        return deliveries
+
+    def _absorb(self, data: bytes | None) -> None:
+        """Match bytes a caller read (lock held); updates among them go to the reader thread's callbacks."""
+        if data is not None and (found := self._process(data)):
+            self._deferred.extend(found)
+            self._bg.notify()
+
+    def _read_line(self, wait: float) -> BaseException | None:
+        """One ``transport.recv`` by the reading role's holder, called with the lock held once: the lock is
+        released for the read and held again on return, whatever interrupts land; what was read waits in
+        ``_held_read`` (matched by :meth:`_settle_read`). Returns the interrupt that landed, if any."""
+        lock = self._lock
+        me = self._reading
+        interrupt: BaseException | None = None
+        try:
+            lock.release()
+            self._held_read = (me, self._transport.recv(wait), None)  # one line: no interrupt in between
+        except Exception as exc:  # noqa: BLE001 - the line failed: _settle_read reports it
+            self._held_read = (me, None, exc)
+        except BaseException as exc:  # noqa: BLE001 - KeyboardInterrupt: the caller re-raises it
+            interrupt = exc
+        try:
+            late = hold(lock)
+        except BaseException as exc:  # noqa: BLE001 - landed on the way into hold(): take it again
+            late = hold(lock) or exc
+        return interrupt or late
+
+    def _settle_read(self) -> None:
+        """Match what this thread read (``_held_read``) and hand its reading role back (lock held)."""
+        mine = get_ident()
+        held = self._held_read
+        if held is not None and held[0] == mine:
+            self._held_read = None
+            _, data, lost = held
+            if lost is not None:
+                self._reading = 0
+                self._cond.notify_all()
+                self._line_failed(lost)
+            elif data is not None:
+                self._absorb(data)  # _process hands the role back
+                return
+        if self._reading == mine:
+            self._reading = 0
+            self._cond.notify_all()
+
+    def _line_failed(self, exc: BaseException) -> None:
+        """The transport failed under a reader: every waiter fails with ConnectionLost (unless closing)."""
+        if self._stop.is_set():
+            return
+        lost = (
+            exc
+            if isinstance(exc, ConnectionLost)
+            else ConnectionLost(f"reader failed: {exc!r}", device=self.device)
+        )
+        self._connection_lost(lost)
+
+    def _connection_lost(self, error: ConnectionLost) -> None:
+        with self._lock:
+            if self._lost is None:
+                self._lost = error
+            self._session.fail_all(error)
+            subs = [s for lst in self._subs.values() for s in lst]
+            self._cond.notify_all()
+        for sub in subs:
+            sub._end(error)
+
+    def _drain_line(self) -> None:
+        """Match what already arrived before a new request is registered (lock held, nobody reading).
+
+        Why: a packet nobody waits for (a duplicated reply, a reply whose marker a proof removed) must be
+        consumed and counted now; read after the new request went out it would look like that request's
+        reply. One non-blocking read: the line is idle, so it nearly always returns nothing.
+        """
+        drain = self._drain
+        if drain is None:
+            return
+        try:
+            data = drain()
+        except ConnectionLost:
+            return  # the next read reports it to everybody
+        if data:
+            self._absorb(data)
