@@ -558,6 +558,8 @@ _scan_index: contextvars.ContextVar[list[_Indexed] | None] = contextvars.Context
 
 def _index_files() -> Iterator[_Indexed]:
     for path in _candidate_files():
+        every: set[str] | None
+        names: set[str] | None
         try:
             every, names = _declared(path), _declared(path, names_only=True)
         except ProfileError:

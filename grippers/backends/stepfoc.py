@@ -136,7 +136,7 @@ class _CanLink(_Link):
         from grippers.drivers.stepfoc.can_client import StepfocBus
 
         # udp_multicast's port= (python-can): a private port isolates a bus where groups do not (Linux)
-        extra = {} if port is None else {"port": port}
+        extra: dict[str, Any] = {} if port is None else {"port": port}
         self._key = (interface, channel if port is None else f"{channel}:{port}")
         with self._buses_lock:
             bus, count = self._buses.get(self._key, (None, 0))

@@ -26,6 +26,7 @@ from grippers.drivers.wsg.commands import (
 )
 from grippers.drivers.wsg.protocol import Status
 
+from ..errors import URLError
 from ..gripper import Capability, DeviceInfo, GraspResult, GraspState, Gripper, GripperState, MotionResult
 from ..profiles import (
     Limits,
@@ -39,7 +40,7 @@ from ..settings import Settings
 from ..urls import ConnectionURL
 
 # WSG grasping states (manual 4.0.x §3.4.2) onto the common enum: the names match one to one.
-_GRASP = {
+_GRASP: dict[int, GraspState] = {
     GraspingState.IDLE: GraspState.IDLE,
     GraspingState.GRIPPING: GraspState.GRASPING,
     GraspingState.NO_PART: GraspState.NO_PART,
@@ -375,12 +376,17 @@ class WsgBackend:
         # Every setting is taken once, here; reconnection reuses this connector, so it dials exactly what was
         # opened (a profile's tcp_port, the URL's local_port), never a re-parse of the URL (issue 20 §1).
         connect: Callable[[], WsgClient]
+        if url.transport in ("tcp", "udp") and not url.host:
+            raise URLError(f"{url.url}: a {url.transport} URL needs a host")
+        if url.transport == "serial" and not url.serial_port:
+            raise URLError(f"{url.url}: a serial URL needs a port")
+        host, serial_port = url.host or "", url.serial_port or ""
         if url.transport == "tcp":
-            host, port = url.host, url.port or t.tcp_port
+            port = url.port or t.tcp_port
             connect = lambda: WsgClient.tcp(host, port, **common)  # noqa: E731
         elif url.transport == "udp":
             local_port = settings.int("local_port", t.udp_local_port)
-            host, port = url.host, url.port or t.udp_port
+            port = url.port or t.udp_port
             connect = lambda: WsgClient.udp(host, port, local_port=local_port, **common)  # noqa: E731
         elif url.transport == "serial":
             framing = {
@@ -389,7 +395,7 @@ class WsgBackend:
                 "parity": settings.str("parity", t.parity),
                 "stopbits": settings.float("stopbits", t.stopbits),
             }
-            connect = lambda: WsgClient.serial(url.serial_port, **framing, **common)  # noqa: E731
+            connect = lambda: WsgClient.serial(serial_port, **framing, **common)  # noqa: E731
         else:
             can = {
                 "interface": settings.str("interface", url.interface),
@@ -446,8 +452,6 @@ class WsgBackend:
                 "can": f"can://virtual/grippers-sim-{uuid.uuid4().hex[:12]}",
             }.get(transport)
             if listen is None:
-                from ..errors import URLError
-
                 raise URLError(f"{settings.url}: transport must be tcp, udp, pty or can, not {transport!r}")
         return serve(model, listen, time_scale=settings.positive("time_scale", sim.time_scale))
 
