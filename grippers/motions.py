@@ -31,7 +31,7 @@ import math
 import threading
 import time
 from collections.abc import Callable
-from typing import Any, Generic, TypeVar
+from typing import Any, Generic, TypeVar, cast
 
 from .errors import CommandFailed, GripperError, GripperTimeout, LimitError
 
@@ -188,7 +188,7 @@ class MotionHandle(Generic[T]):
             raise GripperTimeout(f"still running after {timeout:g} s", device=self.device, command=self.name)
         if self._error is not None:
             raise self._error
-        return self._result  # type: ignore[return-value]
+        return cast(T, self._result)  # set with _done, before any wait returns
 
     def cancel(self) -> None:
         """Stop the motion on the device; ``wait()`` then raises CommandFailed "aborted by cancel()"."""

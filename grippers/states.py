@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import enum
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Literal
 
 from .profiles import Limits
 
@@ -26,6 +26,13 @@ class GraspState(enum.Enum):
     PART_LOST = "part_lost"
     RELEASING = "releasing"
     ERROR = "error"
+
+
+# The names of GraspState as JSON documents carry them (CLI --json, the remote key space); a test keeps the
+# two in step (tests/api/test_states.py), so the schemas need no computed Literal.
+GraspName = Literal[
+    "idle", "positioning", "grasping", "holding", "no_part", "part_lost", "releasing", "error"
+]
 
 
 class Capability(enum.Enum):

@@ -120,7 +120,7 @@ class Packet:
         return encode_packet(self.command, self.payload)
 
 
-_set_command = Packet.command.__set__  # type: ignore[attr-defined,misc]
+_set_command = Packet.command.__set__  # type: ignore[attr-defined,misc]  # slot setters of a frozen class: the parser fills packets without __init__ (fast path)
 _set_payload = Packet.payload.__set__  # type: ignore[attr-defined,misc]
 
 

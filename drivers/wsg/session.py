@@ -452,7 +452,7 @@ def _echoes(exchange: Exchange, payload: bytes) -> bool:
 
 
 def _reply_max(s: object) -> int | None:
-    layout = s.reply  # type: ignore[attr-defined]
+    layout = s.reply  # type: ignore[attr-defined]  # a command table entry (commands.py)
     if layout.tail is None:
         return 2 + layout.size
     if layout.tail.max_len is not None:

@@ -69,7 +69,7 @@ def setup(args: argparse.Namespace, stream: TextIO | None = None) -> logging.Han
     for old in list(logger.handlers):
         if getattr(old, "_grippers_cli", False):  # main() run twice in one process (tests)
             logger.removeHandler(old)
-    handler._grippers_cli = True  # type: ignore[attr-defined]
+    handler._grippers_cli = True  # type: ignore[attr-defined]  # a marker; logging stays a lazy import here
     logger.addHandler(handler)
     logger.setLevel(level)
     logger.propagate = False

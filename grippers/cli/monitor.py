@@ -273,7 +273,7 @@ def _proxy_records(args: argparse.Namespace, writer: Writer | None) -> Iterator[
                 yield from stream.feed(direction, data, stamp)
     finally:
         for key in list(sel.get_map().values()):
-            key.fileobj.close()  # type: ignore[union-attr]
+            key.fileobj.close()  # type: ignore[union-attr]  # only file objects were registered
         sel.close()
 
 

@@ -13,6 +13,8 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from grippers.states import GraspName
+
 # The firmware exactly as the API's DeviceInfo.firmware says it (issue 22 §1: one value everywhere): the WSG's
 # major.minor1.minor2 with a release candidate's -rcN, the MSG's single software-version number.
 FIRMWARE_TEXT = "as grippers' DeviceInfo.firmware: WSG 4.0.1 (or 4.0.1-rc2), MSG 12 (one number)"
@@ -36,15 +38,12 @@ class Location(_Strict):
     profile: str | None = Field(description="sim:// profile name")
 
 
-GRASP_STATES = ("idle", "positioning", "grasping", "holding", "no_part", "part_lost", "releasing", "error")
-
-
 class State(_Strict):
     width_mm: float = Field(description="opening width in mm")
     speed_mm_s: float | None = Field(description="finger speed in mm/s; null where the device does not say")
     force_n: float | None = Field(description="grip force in N; null where only a current is reported")
     current_a: float | None = Field(description="motor current in A (MSG over CAN); null elsewhere")
-    grasp_state: Literal[GRASP_STATES] = Field(description="grippers.GraspState, lower case")  # type: ignore[valid-type]
+    grasp_state: GraspName = Field(description="grippers.GraspState, lower case")
     moving: bool
     referenced: bool = Field(description="the jaws know their position: WSG homed, MSG calibrated")
     faults: list[str] = Field(description="active faults by name, e.g. fast_stop; empty when none")
@@ -143,14 +142,14 @@ class InfoDocument(_Strict):
 
 class MotionOutcome(_Strict):
     width_mm: float
-    grasp_state: Literal[GRASP_STATES]  # type: ignore[valid-type]
+    grasp_state: GraspName
 
 
 class GraspOutcome(_Strict):
     grasped: bool
     width_mm: float
     force_n: float | None = Field(description="grip force reached (estimated from the current on the MSG)")
-    grasp_state: Literal[GRASP_STATES]  # type: ignore[valid-type]
+    grasp_state: GraspName
     reason: str | None = Field(description="why no part is held, when none is")
 
 

@@ -414,7 +414,7 @@ class RemoteGripper(Gripper):
             if s in self._remote_streams:
                 self._remote_streams.remove(s)
             if s in self._streams:
-                self._streams.remove(s)  # type: ignore[arg-type]
+                self._streams.remove(s)  # type: ignore[arg-type]  # added as a StateStream (above)
 
     def _close(self) -> None:
         self._beating.set()

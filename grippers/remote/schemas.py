@@ -10,8 +10,7 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field
 
-GRASP_STATES = ("idle", "positioning", "grasping", "holding", "no_part", "part_lost", "releasing", "error")
-GraspName = Literal[GRASP_STATES]  # type: ignore[valid-type]
+from grippers.states import GraspName
 
 
 class _Strict(BaseModel):

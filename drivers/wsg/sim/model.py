@@ -21,6 +21,7 @@ import math
 import struct
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import cast
 
 from ...errors import ProtocolError
 from ..commands import (
@@ -784,7 +785,7 @@ class WsgModel:
         threshold = _CHANGE_THRESHOLD.get(command)
         if threshold is None:
             return last != value
-        return abs(float(value) - float(last)) >= threshold - 1e-9  # type: ignore[arg-type]
+        return abs(float(cast(float, value)) - float(cast(float, last))) >= threshold - 1e-9
 
     @staticmethod
     def _state_fields(command: int, value: object) -> dict[str, object]:
