@@ -95,6 +95,8 @@ def start_logging(path: str | None) -> logging.Handler:
         handler = logging.StreamHandler(sys.stderr)
     handler.setFormatter(logging.Formatter(LOG_FORMAT))
     root = logging.getLogger("grippers")
+    for cli_handler in [h for h in root.handlers if getattr(h, "_grippers_cli", False)]:
+        root.removeHandler(cli_handler)  # serve's handler takes over: with --log-file nothing goes to stderr
     root.addHandler(handler)
     if root.level == logging.NOTSET or root.level > logging.INFO:
         root.setLevel(logging.INFO)
