@@ -222,6 +222,12 @@ class RemoteGripper(Gripper):
                 reply = replies.get(timeout=max(0.0, deadline - time.monotonic()))
             except queue.Empty:
                 reply = _END
+            if (
+                reply is not _END
+                and reply.err is not None
+                and protocol.is_query_timeout(reply.err.payload.to_bytes())
+            ):
+                reply = _END  # Zenoh's own "no reply within the timeout"
             if reply is _END:
                 if self._lost is not None:
                     raise ConnectionLost(self._lost.message, device=dev, command=command)
@@ -315,6 +321,8 @@ class RemoteGripper(Gripper):
             self._entities.append(querier)
         for reply in querier.get():
             if reply.err is not None:
+                if protocol.is_query_timeout(reply.err.payload.to_bytes()):
+                    break  # Zenoh's own "no reply within the timeout": no answer (below)
                 raise protocol.decode_error(reply.err.payload.to_bytes(), command, self.name)
             return protocol.decode_json(reply.ok.payload.to_bytes(), command)
         if self._lost is not None:

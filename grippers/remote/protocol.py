@@ -269,6 +269,12 @@ def error_classes() -> dict[str, type[GripperError]]:
     return table
 
 
+def is_query_timeout(data: bytes) -> bool:
+    """Zenoh's own error reply when a query's timeout passes with no reply from a queryable (a server killed
+    mid-query): no answer, not an answer we cannot read. Our servers' errors are JSON documents."""
+    return data == b"Timeout"
+
+
 def decode_error(data: bytes, command: str, device: str) -> GripperError:
     try:
         doc = decode_json(data, command)
