@@ -131,18 +131,22 @@ def test_speeds(
     return [min(max(min_speed, round(f * top, 1)), max_speed) for f in fractions]
 
 
+def speed_factor(requested: Sequence[float], measured: Sequence[float]) -> float:
+    """How much faster the jaws move than asked, one factor for every speed: measured = factor x requested.
+
+    The firmware's speed map (drivers/stepfoc/speed.py: ticks per second per speed byte) is fixed; what a
+    unit can get wrong is the profile's ``maps.ticks_per_mm``, which scales every speed alike. So one factor,
+    fitted by least squares through the origin; a line with its own intercept, fitted on three noisy points,
+    put the slow end anywhere (tried: 68 mm/s of a 0..300 mm/s map).
+    """
+    return sum(r * m for r, m in zip(requested, measured, strict=True)) / sum(r * r for r in requested)
+
+
 def fitted_speed_map(
     requested: Sequence[float], measured: Sequence[float], at_0: float, at_255: float
 ) -> tuple[float, float]:
-    """The MSG's ``maps.speed_at_0_mm_s`` and ``speed_at_255_mm_s`` that make a request the jaws' speed.
-
-    The backend turns a speed into a byte linearly between the two map ends, and the firmware turns the byte
-    into encoder ticks per second as ``500 + 59500 * byte / 255`` (STEPFOC firmware, src/motor_control.cpp;
-    docs/protocols.md §2): nearly proportional, the slow end being under 1 % of the fast one. So one factor
-    scales both ends, fitted by least squares through the origin; a line with its own intercept, fitted on
-    three noisy points, put the slow end anywhere (tried: 68 mm/s of a 0..300 mm/s map).
-    """
-    factor = sum(r * m for r, m in zip(requested, measured, strict=True)) / sum(r * r for r in requested)
+    """The speed map's two ends (mm/s at speed byte 0 and 255) that make a request the jaws' speed."""
+    factor = speed_factor(requested, measured)
     return at_0 * factor, at_255 * factor
 
 
@@ -155,9 +159,9 @@ def measured_profile(
 ) -> dict[str, Any]:
     """A profile document that ``extends`` ``profile`` with what was measured (only what differs).
 
-    MSG: the speed map refitted, and the mechanics' speed range kept inside what the new map can do (a
-    request above the map's fast end would be clamped to byte 255 and run slower than asked). WSG: the stroke
-    the device reports, when it differs from the profile's.
+    MSG: ``maps.ticks_per_mm`` refitted (the speed map follows from it), and the mechanics' speed range kept
+    inside what the new map can do (a request above the map's fast end would be clamped to byte 255 and run
+    slower than asked). WSG: the stroke the device reports, when it differs from the profile's.
     """
     doc: dict[str, Any] = {
         "extends": profile.name,
@@ -177,7 +181,9 @@ def measured_profile(
             maps.speed_at_0_mm_s,
             maps.speed_at_255_mm_s,
         )
-        doc["maps"] = {"speed_at_0_mm_s": round(low, 3), "speed_at_255_mm_s": round(high, 3)}
+        # Jaws factor x faster than asked: each mm takes factor x fewer encoder ticks than the profile says.
+        factor = speed_factor([s.requested for s in usable], [s.measured for s in usable])
+        doc["maps"] = {"ticks_per_mm": round(maps.ticks_per_mm / factor, 3)}
         top = min(mech.max_speed_mm_s, high)
         bottom = min(max(mech.min_speed_mm_s, low), top)
         mechanics["max_speed_mm_s"] = round(top, 3)

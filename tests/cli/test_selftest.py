@@ -153,8 +153,8 @@ def test_msg_measured_profile_passes_and_an_off_map_warns(fresh_msg, capsys, tmp
     off = tmp_path / "msg-150-off.toml"
     off.write_text(
         f'extends = "msg-150"\nname = "msg-150-off"\n[maps]\n'
-        f"speed_at_0_mm_s = {data['maps']['speed_at_0_mm_s'] * 3}\n"
-        f"speed_at_255_mm_s = {data['maps']['speed_at_255_mm_s'] * 3}\n"
+        f"ticks_per_mm = {data['maps']['ticks_per_mm'] / 3}\n"
+        "[mechanics]\nmin_speed_mm_s = 9.0\n"  # the slowest speed byte runs 3x faster too
     )
     code, third = _run(capsys, fresh_msg(), "--profile", str(off))
     assert code == 3 and not third["ok"]

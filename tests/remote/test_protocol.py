@@ -117,7 +117,7 @@ def test_remote_benchmarks_are_registered() -> None:
 
 
 def test_zenohs_own_timeout_reply_is_no_answer_not_an_undecodable_one() -> None:
-    # A server killed mid-query: Zenoh itself replies with the error payload "Timeout" (seen in CI); the client
-    # reports ConnectionLost ("no answer"), never ProtocolError "undecodable error reply".
+    # A server killed mid-query: Zenoh itself replies with the error payload "Timeout" (seen in CI); the
+    # client reports ConnectionLost ("no answer"), never ProtocolError "undecodable error reply".
     assert protocol.is_query_timeout(b"Timeout")
     assert not protocol.is_query_timeout(b'{"error": "GripperTimeout", "message": "Timeout"}')
