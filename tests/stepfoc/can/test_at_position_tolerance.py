@@ -1,4 +1,4 @@
-""" "At position" is ``|target - ticks| < 5`` encoder ticks, not ``<= 5`` (issue 19 §1; docs/protocols.md §2,
+"""The firmware's "at position" is ``|target - ticks| < 5`` encoder ticks, not ``<= 5`` (issue 19 §1; docs/protocols.md §2,
 STEPFOC firmware src/motor_control.cpp ``Gripper_mode``, ``POSITION_TOLERANCE``).
 
 Raw frames on a python-can ``virtual`` bus, built with the codec (no client classes). The simulator's clock
@@ -125,7 +125,7 @@ def test_detection_3_within_4_ticks_and_not_at_5(raw: tuple[Raw, CanSimServer]) 
     assert r.ticks() == targets[x]
     assert r.poll(after=0.001)[1] is Detection.AT_POSITION
 
-    r.command(x + 1)  # 4 ticks from where the jaws are: at position at once, nothing moves
+    r.command(x + 1)  # 4 ticks from where the jaws are: at position at once
     assert r.poll(after=0.001)[1] is Detection.AT_POSITION  # after the control tick that reset the latch
     assert r.poll(after=1.0)[1] is Detection.AT_POSITION
 
