@@ -1,5 +1,5 @@
-"""The firmware's "at position" is ``|target - ticks| < 5`` encoder ticks, not ``<= 5`` (issue 19 §1; docs/protocols.md §2,
-STEPFOC firmware src/motor_control.cpp ``Gripper_mode``, ``POSITION_TOLERANCE``).
+"""The firmware's "at position" is ``|target - ticks| < 5`` encoder ticks, not ``<= 5`` (issue 19 §1;
+docs/protocols.md §2, STEPFOC firmware src/motor_control.cpp ``Gripper_mode``, ``POSITION_TOLERANCE``).
 
 Raw frames on a python-can ``virtual`` bus, built with the codec (no client classes). The simulator's clock
 is stepped by the test, so the one control tick (160 us) that separates a new command from the latch reset
