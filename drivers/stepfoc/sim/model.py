@@ -35,8 +35,11 @@ come from :mod:`grippers.drivers.stepfoc.speed`, the one model the profiles use 
   the counter keeps adding up, so a later calibration can reach the 150,000-tick time-out (calibrated 0,
   driver idle). Parts between the jaws are ignored during calibration (calibrate with empty jaws).
 * Heartbeat (command 9) only after ``heartbeat_ms`` without any frame from the node (``CAN_heartbeat``).
-* Watchdog (``CAN_watchdog``): fed only by 61 frames (any length 0 or 5), data packs and remote requests; it
-  trips again every period while unfed; its action byte is stored and never read. Save (13) stores the node
+* Watchdog (``CAN_watchdog``): fed only by 61 frames (length 0 or 5), remote requests, data pack 1 (2) at 2, 5
+  or 8 bytes and the PD data pack (4) at 8 bytes (``CAN_protocol`` sets ``watchdog_reset`` there and nowhere
+  else; data packs 2 and 3, ids 6 and 8, do nothing); it trips again every period while unfed, and at once
+  when it is set long after the last feed (command 15 does not restart the timer); its action byte is stored
+  and never read. Save (13) stores the node
   id, the watchdog and the heartbeat periods (``EEPROM.cpp``): they survive reset (14).
 * E-stop: command 0 sets only the DRIVER's e-stop error; a 61 with its estop bit sets the gripper's estop
   error (the 60 flag) and comes back after clear (1) while the stored 61 still has it.
@@ -53,11 +56,10 @@ Not modelled (what the firmware does and this model does not):
 * a calibration that stalls on a part between the jaws;
 * the vbus, encoder, driver, velocity and current errors and the thermistor check (temperature error only
   when a test sets it);
-* the motor modes (data packs 2-5, UART ``#Iq N``, ``#V``, ``#P``...): their frames only feed the watchdog
-  and the UART names are answered with ``unknown_reply``;
-* the encoder's absolute angle at power-up (it reads 0 here);
-* the watchdog's very first period when it is set long after the last feed (the firmware trips at once; here
-  too, since the last feed time is kept from power-up).
+* the motor modes (data pack 1 and the PD data pack, hall index, gains and limits; UART ``#Iq N``, ``#V``,
+  ``#P``...): their frames only feed the watchdog as above, get no ``Data_pack_1_CAN`` reply (3), which the
+  firmware always sends, and the UART names are answered with ``unknown_reply``;
+* the encoder's absolute angle at power-up (it reads 0 here).
 """
 
 from __future__ import annotations
@@ -102,6 +104,7 @@ from ..speed import (
 
 __all__ = ["Mode", "MsgModel", "Phase", "speed_ticks_per_s"]
 
+_DATA_PACK_PD = 4  # constants.h IN_DATA_PACK_PD: a motor-mode data pack the codec has no entry for
 POSITION_TOLERANCE = 5  # Gripper_mode: "pos_error < POSITION_TOLERANCE"
 VELOCITY_CONTACT = 500.0  # ticks/s: VELOCITY_CONTACT_THRESHOLD
 CURRENT_CONTACT_RATIO = 0.8  # CURRENT_CONTACT_RATIO
@@ -834,6 +837,9 @@ class MsgModel:
             return []  # frames for other nodes are ignored
         spec = COMMANDS.get(command)
         if spec is None or spec.direction is Direction.NODE_TO_HOST:
+            if command == _DATA_PACK_PD and len(data) == 8 and not is_remote:
+                self._begin(now)  # motor mode (not modelled), but it feeds the watchdog (CAN_protocol)
+                self._feed(now)
             return []
         if command == Cmd.GRIPPER_COMMAND and not is_remote:
             # docs/protocols.md §2: any 61 frame, of any length, is answered with a 60 frame
@@ -877,8 +883,8 @@ class MsgModel:
                 self.start_calibration(now)
             case _:
                 self._begin(now)
-                if command in (2, 4):  # data packs feed the watchdog (answered only in motor modes)
-                    self._feed(now)
+                if command == Cmd.DATA_PACK_1 and len(data) in (2, 5, 8):
+                    self._feed(now)  # data pack 1 feeds the watchdog at its three lengths only (CAN_protocol)
         return []
 
     def _sent(self, now: float, frames: list[CanFrame]) -> list[CanFrame]:

@@ -179,6 +179,11 @@ def test_heartbeat_9_only_after_silence() -> None:
     ("feeder", "trips"),
     [
         ((CMD_61, b"", False), False),  # polls feed it
+        ((2, bytes(8), False), False),  # data pack 1 (position, velocity or current loop: 8, 5 or 2 bytes)
+        ((2, bytes(2), False), False),
+        ((2, bytes(3), False), True),  # a wrong length (Wrong_DL) does not
+        ((4, bytes(8), False), False),  # the PD data pack feeds it
+        ((6, bytes(8), False), True),  # data packs 2 and 3 (6, 8) do nothing at all
         ((ENCODER, b"", True), False),  # remote requests feed it
         ((CALIBRATE, b"", False), True),  # 62 does not
         ((IDLE, b"", False), True),
@@ -193,6 +198,7 @@ def test_watchdog_is_fed_only_by_some_frames(feeder: tuple[int, bytes, bool], tr
     command, data, remote = feeder
     for _ in range(10):  # every 50 ms for half a second, against a 200 ms watchdog
         r.send(command, data, remote=remote, dt=0.05)
+    r.m.advance(r.t)  # the server's loop advances the model between frames too
     assert r.m.timeout_error is trips
 
 

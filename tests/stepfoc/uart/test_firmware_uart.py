@@ -10,6 +10,8 @@ from collections.abc import Iterator
 
 import pytest
 
+from grippers.drivers.simkit import SimClock
+from grippers.drivers.stepfoc.can_protocol import Cmd, Watchdog, WatchdogAction, encode_frame
 from grippers.drivers.stepfoc.sim import MsgModel, serve_uart, uart_server
 from grippers.drivers.stepfoc.sim.uart_server import UartSimServer
 
@@ -128,3 +130,49 @@ def test_a_driver_error_forces_idle_and_error_prints_it(port) -> None:
     raw.ask(b"#Clear\n")
     assert raw.ask(b"#Gripcal\n") == ["Gripper calibration! "]
     assert raw.ask(b"#Mode\n") == ["Gripper calib mode"]
+
+
+class SteppedClock(SimClock):
+    """Simulated time that moves only when the test says so: the watchdog's period is then exact."""
+
+    def __init__(self, start: float) -> None:
+        super().__init__(1.0, start=start)
+        self.t = start
+
+    def now(self) -> float:
+        return self.t
+
+
+def test_uart_lines_do_not_feed_the_can_watchdog() -> None:
+    """Issue 19 §1: ``CAN_watchdog`` is fed only by CAN 61 frames, data packs and remote requests; UART
+    traffic never feeds it, and Save (13) keeps the period over a power cycle (STEPFOC firmware
+    communication_CAN.cpp, EEPROM.cpp). A node whose watchdog was set and saved over CAN and which is then
+    driven over UART alone trips "timeout" one period after the last CAN frame although UART lines keep coming
+    and are answered."""
+    model = MsgModel(current_noise=False)
+    model.advance(0.0)
+    setup = (  # raw CAN frames from an earlier session: a 200 ms watchdog, saved, then a reset (power cycle)
+        encode_frame(0, Cmd.WATCHDOG, Watchdog(200, WatchdogAction.IDLE)),
+        encode_frame(0, Cmd.SAVE_CONFIG),
+        encode_frame(0, Cmd.RESET),
+    )
+    for i, frame in enumerate(setup, 1):
+        model.handle_frame(frame.arbitration_id, frame.data, frame.remote, i * 0.001)
+    fed = len(setup) * 0.001  # the reset restarts the watchdog's timer: the last "feed"
+    clock = SteppedClock(start=fed)
+    server = serve_uart(model, "pty", clock=clock)
+    raw = RawPort(server)
+    try:
+        errors = []
+        for step in range(1, 7):  # a UART line every 50 ms for 300 ms, against the 200 ms watchdog
+            clock.t = fed + 0.05 * step
+            assert raw.ask(b"#Grippos\n")[0].startswith("Gripper current position is: ")
+            errors.append(raw.ask(b"#Error\n", quiet=0.2))
+        assert errors[:3] == [["No errors!"]] * 3  # 50, 100, 150 ms: within the period
+        assert errors[3:] == [["In error state!", "Watchdog error"]] * 3  # 200 ms on: tripped
+        # the error forces mode 0: a calibration asked over UART does not run
+        assert raw.ask(b"#Gripcal\n") == ["Gripper calibration! "]
+        assert raw.ask(b"#Mode\n") == ["Idle mode "]
+    finally:
+        raw.close()
+        server.close()
