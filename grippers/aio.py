@@ -14,8 +14,10 @@ Cancelling a task that awaits any other call (``wait_for(g.state(), 0.01)`` on a
 call up in the driver (:meth:`grippers.Gripper._abandon` on the worker thread that runs it), as Ctrl-C gives
 up a threaded call: its wait ends at once, so the worker is free and the command's slot with it, and the next
 call goes out at once instead of queueing behind the old exchange's timeout (issue 23 §3). The abandoned
-exchange is treated as a timed-out one (a late reply swallowed); what that costs the next call of the same
-command is the driver's business (docs/asyncio.md).
+exchange is treated as a timed-out one (a late reply swallowed). What that costs the next call of the same
+command is the driver's business: on the WSG one LOOP barrier first over TCP, serial and CAN, which keep
+replies in order, but ``stale_ttl`` over UDP, which may reorder them (drivers/wsg/exchanges.py); on the MSG
+nothing (drivers/stepfoc/can_client.py, uart_client.py).
 """
 
 from __future__ import annotations
