@@ -53,9 +53,9 @@ STOP_GRACE = 2.0  # s beyond the gripper's timeout for a cancelled motion to rep
 class _Workers:
     """A fixed pool of threads for the blocking calls of one gripper (never grows; started at once).
 
-    With :meth:`give_up_with`, a call whose future is cancelled while a worker runs it is given up in the
-    driver (``abandon(thread ident)``), and the worker's next call starts afresh (``resume``): both under one
-    guard with the worker's start and end of a call, so a give-up never reaches a later call of that thread.
+    With :meth:`give_up_with`, :meth:`give_up` of a call a worker runs gives it up in the driver
+    (``abandon(thread ident)``), and the worker's next call starts afresh (``resume``): both under one guard
+    with the worker's start and end of a call, so a give-up never reaches a later call of that thread.
     """
 
     def __init__(self, name: str, size: int = WORKERS) -> None:
@@ -83,14 +83,13 @@ class _Workers:
 
     def submit(self, fn: Callable[[], T]) -> asyncio.Future[T]:
         fut: asyncio.Future[T] = asyncio.get_running_loop().create_future()
-        if self._abandon is not None:
-            fut.add_done_callback(self._cancelled)
         self._jobs.put((fn, fut))
         return fut
 
-    def _cancelled(self, fut: asyncio.Future[Any]) -> None:
-        """In the event loop: the awaiting task went away; give its call up if a worker runs it now."""
-        if not fut.cancelled() or self._abandon is None:
+    def give_up(self, fut: asyncio.Future[Any]) -> None:
+        """The task awaiting ``fut`` was cancelled: give its call up if a worker runs it now (a call not
+        started yet is skipped by the worker, as its future is cancelled)."""
+        if self._abandon is None:
             return
         with self._guard:
             ident = self._running.get(fut)
@@ -270,10 +269,16 @@ class AsyncGripper:
 
     # -- plumbing ------------------------------------------------------------------------------------------
 
-    def _call(self, fn: Callable[[], T], *, control: bool = False) -> asyncio.Future[T]:
+    async def _call(self, fn: Callable[[], T], *, control: bool = False) -> T:
         if self._closed:
             raise GripperError("the gripper is closed", device=self.sync.name)
-        return (self._control if control else self._workers).submit(fn)
+        pool = self._control if control else self._workers
+        fut = pool.submit(fn)
+        try:
+            return await fut
+        except asyncio.CancelledError:
+            pool.give_up(fut)  # the worker and the command's slot are free at once (module docstring)
+            raise
 
     async def _stop_after_cancel(self, handle: MotionHandle[Any], fut: asyncio.Future[Any]) -> None:
         """Stop the device, then let the blocking motion call report (bounded); never raises but a cancel."""
