@@ -9,6 +9,15 @@ the sans-IO cores alone do not cover it. What the bridge must not do is spend a 
 that runs only stop, fast stop and acknowledge), and any number of concurrent awaits queue for them, so 100
 concurrent calls leave the thread count where it was. Streams are plain coroutines (no thread), and
 cancelling a task that awaits a motion stops the motion on the device before ``CancelledError`` propagates.
+
+Cancelling a task that awaits any other call (``wait_for(g.state(), 0.01)`` on a silent device) gives the
+call up in the driver (:meth:`grippers.Gripper._abandon` on the worker thread that runs it), as Ctrl-C gives
+up a threaded call: its wait ends at once, so the worker is free and the command's slot with it, and the next
+call goes out at once instead of queueing behind the old exchange's timeout (issue 23 §3). The abandoned
+exchange is treated as a timed-out one (a late reply swallowed). What that costs the next call of the same
+command is the driver's business: on the WSG one LOOP barrier first over TCP, serial and CAN, which keep
+replies in order, but ``stale_ttl`` over UDP, which may reorder them (drivers/wsg/exchanges.py); on the MSG
+nothing (drivers/stepfoc/can_client.py, uart_client.py).
 """
 
 from __future__ import annotations
@@ -42,11 +51,21 @@ STOP_GRACE = 2.0  # s beyond the gripper's timeout for a cancelled motion to rep
 
 
 class _Workers:
-    """A fixed pool of threads for the blocking calls of one gripper (never grows; started at once)."""
+    """A fixed pool of threads for the blocking calls of one gripper (never grows; started at once).
+
+    With :meth:`give_up_with`, :meth:`give_up` of a call a worker runs gives it up in the driver
+    (``abandon(thread ident)``), and the worker's next call starts afresh (``resume``): both under one guard
+    with the worker's start and end of a call, so a give-up never reaches a later call of that thread.
+    """
 
     def __init__(self, name: str, size: int = WORKERS) -> None:
         self._jobs: queue.SimpleQueue[tuple[Callable[[], Any], asyncio.Future[Any] | None] | None]
         self._jobs = queue.SimpleQueue()
+        self._guard = threading.Lock()
+        self._running: dict[asyncio.Future[Any], int] = {}  # a call's future -> the thread running it
+        self._given_up: set[asyncio.Future[Any]] = set()
+        self._abandon: Callable[[int], None] | None = None
+        self._resume: Callable[[int], None] = _nothing
         self._threads = [
             threading.Thread(target=self._run, name=f"grippers-aio {name} {i}", daemon=True)
             for i in range(size)
@@ -58,10 +77,29 @@ class _Workers:
         """Run ``body`` on the pool, no result wanted (a motion's backend call; its handle reports)."""
         self._jobs.put((body, None))
 
+    def give_up_with(self, abandon: Callable[[int], None], resume: Callable[[int], None]) -> None:
+        """The gripper's hooks that give up (and forget giving up) a thread's call in the driver."""
+        self._abandon, self._resume = abandon, resume
+
     def submit(self, fn: Callable[[], T]) -> asyncio.Future[T]:
         fut: asyncio.Future[T] = asyncio.get_running_loop().create_future()
         self._jobs.put((fn, fut))
         return fut
+
+    def give_up(self, fut: asyncio.Future[Any]) -> None:
+        """The task awaiting ``fut`` was cancelled: give its call up if a worker runs it now (a call not
+        started yet is skipped by the worker, as its future is cancelled)."""
+        if self._abandon is None:
+            return
+        with self._guard:
+            ident = self._running.get(fut)
+            if ident is None:  # not started (the worker skips it) or already over
+                return
+            self._given_up.add(fut)
+            try:
+                self._abandon(ident)
+            except Exception:  # noqa: BLE001 - the call then ends by its own timeout, as before
+                log.exception("giving up a cancelled call failed")
 
     def _run(self) -> None:
         while True:
@@ -76,14 +114,28 @@ class _Workers:
                     log.exception("a motion's call raised past its handle")
                 continue
             loop = fut.get_loop()
-            if fut.cancelled():
-                continue
+            with self._guard:
+                if fut.cancelled():
+                    continue
+                self._running[fut] = threading.get_ident()
             try:
                 result = fn()
             except BaseException as exc:  # handed to the awaiting task, whatever it is
                 _deliver(loop, fut, None, exc)
             else:
                 _deliver(loop, fut, result, None)
+            finally:
+                self._finished(fut)
+
+    def _finished(self, fut: asyncio.Future[Any]) -> None:
+        with self._guard:
+            ident = self._running.pop(fut)
+            if fut in self._given_up:
+                self._given_up.discard(fut)
+                try:
+                    self._resume(ident)
+                except Exception:  # noqa: BLE001 - nothing may end the worker
+                    log.exception("resuming after a cancelled call failed")
 
     def close(self, timeout: float = 5.0) -> None:
         for _ in self._threads:
@@ -92,6 +144,10 @@ class _Workers:
         for t in self._threads:
             if t is not current:
                 t.join(timeout)
+
+
+def _nothing(_ident: int) -> None:
+    pass
 
 
 def _deliver(
@@ -205,16 +261,24 @@ class AsyncGripper:
         self.sync = gripper
         self._workers = workers
         self._control = _Workers(f"{gripper.name} control", 1)
+        for pool in (workers, self._control):  # a cancelled query or stop frees its worker at once
+            pool.give_up_with(gripper._abandon, gripper._resume)
         self._motion_pool = _Workers(f"{gripper.name} motion", MOTION_WORKERS)
         gripper._motions.spawn = self._motion_pool.spawn
         self._closed = False
 
     # -- plumbing ------------------------------------------------------------------------------------------
 
-    def _call(self, fn: Callable[[], T], *, control: bool = False) -> asyncio.Future[T]:
+    async def _call(self, fn: Callable[[], T], *, control: bool = False) -> T:
         if self._closed:
             raise GripperError("the gripper is closed", device=self.sync.name)
-        return (self._control if control else self._workers).submit(fn)
+        pool = self._control if control else self._workers
+        fut = pool.submit(fn)
+        try:
+            return await fut
+        except asyncio.CancelledError:
+            pool.give_up(fut)  # the worker and the command's slot are free at once (module docstring)
+            raise
 
     async def _stop_after_cancel(self, handle: MotionHandle[Any], fut: asyncio.Future[Any]) -> None:
         """Stop the device, then let the blocking motion call report (bounded); never raises but a cancel."""

@@ -126,6 +126,14 @@ class Gripper(OptionalFeatures, ConnectionHooks, ABC):
     @abstractmethod
     def _close(self) -> None: ...
 
+    def _abandon(self, thread_ident: int) -> None:
+        """Give up the call thread ``thread_ident`` runs in the driver (its caller stopped waiting: an asyncio
+        task cancelled, grippers/aio.py): its waits end at once, as timeouts, until :meth:`_resume`, so the
+        connection serves the next call at once. Default: nothing (the call runs into its own timeout)."""
+
+    def _resume(self, thread_ident: int) -> None:
+        """Thread ``thread_ident`` starts a new call: undo :meth:`_abandon`. Default: nothing."""
+
     def _default_release_width(self) -> float:
         """Where release() goes without a width: fully open, away from a part gripped from outside."""
         return self.limits.max_width

@@ -10,6 +10,12 @@ Known limit of the protocol, not of this client: a status reply that arrives aft
 indistinguishable from the reply to the next request with the same key. For 60 that is harmless (any 60 is a
 fresh status of the node); for remote requests it returns the same kind of value.
 
+A caller that stops waiting from another thread (an asyncio task cancelled: grippers/aio.py) gives its thread
+up with :meth:`StepfocBus.abandon`: the request it waits for ends at once with GripperTimeout and its
+(node, command) key is free for the next request, which goes out at once. Nothing more is needed: with no
+sequence number there is nothing to prove lost, and a late reply to the abandoned request is, by the rule
+above, a reply of the same kind as the next one's.
+
 Two devices with one node id answer every request twice. The reader counts, per (node, command), the requests
 seen on the bus (its own and other hosts') against the replies; a reply nobody asked for that arrives within
 :data:`DUPLICATE_WINDOW_S` of the reply to one of this client's requests marks the node as duplicated, and
@@ -116,6 +122,10 @@ def _byte(value: Any, what: str, device: str, command: str) -> int:
     return v
 
 
+def _given_up(device: str, name: str) -> GripperTimeout:
+    return GripperTimeout("abandoned: the caller stopped waiting", device=device, command=name)
+
+
 class _Waiter:
     """One request's reply slot, filled once by the reader thread (or by a failing bus).
 
@@ -124,9 +134,10 @@ class _Waiter:
     4 us per request against 0.7 us, paid on every poll of every node (docs/performance.md, target 5).
     """
 
-    __slots__ = ("_signal", "done", "error", "message")
+    __slots__ = ("_signal", "done", "error", "message", "owner")
 
-    def __init__(self) -> None:
+    def __init__(self, owner: int = 0) -> None:
+        self.owner = owner  # the waiting thread's ident (StepfocBus.abandon finds its waiter by it)
         self._signal = threading.Lock()
         self._signal.acquire()
         self.done = False  # set() was called: later frames of this key do not overwrite the reply
@@ -187,6 +198,7 @@ class StepfocBus:
         self._expected: dict[tuple[int, int], int] = {}  # requests seen minus replies seen, per key
         self._answered: dict[tuple[int, int], float] = {}  # monotonic time of the last expected reply
         self._request_locks: dict[tuple[int, int], threading.Lock] = {}
+        self._abandoned: set[int] = set()  # threads whose caller gave up (abandon(), the module docstring)
         self._states: dict[int, _NodeState] = {}
         self._listeners: list[Callable[[can.Message], None]] = []
         self._stop = threading.Event()
@@ -379,23 +391,22 @@ class StepfocBus:
         """Send ``frame`` and wait for the reply keyed (node, command). One request per key at a time."""
         deadline = time.monotonic() + timeout
         key = (node, command)
+        me = threading.get_ident()
         lock = self._request_locks.get(key)
         if lock is None:
             with self._lock:
                 lock = self._request_locks.setdefault(key, threading.Lock())
-        if not lock.acquire(timeout=max(0.0, timeout)):
-            raise GripperTimeout(
-                f"another {name} to this node did not finish within {timeout:g} s",
-                device=device,
-                command=name,
-            )
+        if not lock.acquire(False):
+            self._take_turn(lock, deadline, me, device, name, timeout)
         waiter: _Waiter | None = None
         try:
             duplicate = self._state(node).duplicate
             if duplicate is not None:
                 raise ProtocolError(duplicate, device=device, command=name)
-            waiter = _Waiter()
+            waiter = _Waiter(me)
             with self._lock:
+                if self._abandoned and me in self._abandoned:
+                    raise _given_up(device, name)
                 self._waiters[key] = waiter
                 self._expected[key] = self._expected.get(key, 0) + 1
             self.send_frame(frame, device=device, command=name, timeout=max(0.0, deadline - time.monotonic()))
@@ -411,6 +422,38 @@ class StepfocBus:
                 if waiter is not None and self._waiters.get(key) is waiter:
                     del self._waiters[key]
             lock.release()
+
+    def _take_turn(
+        self, lock: threading.Lock, deadline: float, me: int, device: str, name: str, timeout: float
+    ) -> None:
+        """Wait for another request of the same key to finish (in slices, so an abandoned caller leaves)."""
+        while True:
+            if self._abandoned and me in self._abandoned:
+                raise _given_up(device, name)
+            left = deadline - time.monotonic()
+            if left <= 0:
+                raise GripperTimeout(
+                    f"another {name} to this node did not finish within {timeout:g} s",
+                    device=device,
+                    command=name,
+                )
+            if lock.acquire(timeout=min(left, _READ_POLL_S)):
+                return
+
+    def abandon(self, thread_ident: int) -> None:
+        """Give up the request thread ``thread_ident`` waits for, and its later ones until :meth:`resume`:
+        each ends at once with GripperTimeout and frees its key (module docstring). Does not wait."""
+        with self._lock:
+            self._abandoned.add(thread_ident)
+            waiters = [w for w in self._waiters.values() if w.owner == thread_ident and not w.done]
+        for w in waiters:
+            w.error = _given_up(self.device, "request")
+            w.set()
+
+    def resume(self, thread_ident: int) -> None:
+        """Thread ``thread_ident``'s next request is a new call: no longer given up."""
+        with self._lock:
+            self._abandoned.discard(thread_ident)
 
     # ------------------------------------------------------------------------------------------ API
 
@@ -877,6 +920,13 @@ class StepfocNode:
                 )
             assert state.heartbeat is not None
             return state.heartbeat
+
+    def abandon(self, thread_ident: int) -> None:
+        """Give up the request thread ``thread_ident`` waits for (:meth:`StepfocBus.abandon`)."""
+        self.bus.abandon(thread_ident)
+
+    def resume(self, thread_ident: int) -> None:
+        self.bus.resume(thread_ident)
 
     def close(self) -> None:
         """Close the bus if this handle opened it (see :func:`open_node`); otherwise nothing."""

@@ -5,6 +5,11 @@ so every exchange is: flush what is waiting, send one line, read lines until the
 throwing away (a bounded number of) lines that are something else, all within a timeout. One lock per
 exchange keeps threads from reading each other's answers. The text itself comes from
 :mod:`grippers.drivers.stepfoc.uart_protocol`.
+
+A caller that stops waiting from another thread (an asyncio task cancelled: grippers/aio.py) gives its thread
+up with :meth:`StepfocUart.abandon`: its exchange ends with GripperTimeout at the next read poll (at most
+``_POLL_S``), which frees the port for the next exchange; that one flushes the input first, as after any
+timeout, so a late answer of the abandoned one is dropped with it.
 """
 
 from __future__ import annotations
@@ -109,6 +114,7 @@ class StepfocUart:
         self._splitter = LineSplitter(max_line)
         self._lines: deque[Line] = deque()
         self._lock = threading.RLock()
+        self._abandoned: set[int] = set()  # threads whose caller gave up (abandon(), module docstring)
         self._closed = False
         self._cal_seen = False  # #Mode showed calibration mode since the last Gripcal
         try:
@@ -401,9 +407,12 @@ class StepfocUart:
         except LimitError as exc:
             raise LimitError(exc.message, device=self.device, command=command) from None
         wait = self.timeout if timeout is None else timeout
-        with self._lock:
+        if not self._lock.acquire(False):
+            self._take_turn(command)
+        try:
             if self._closed:
                 raise ConnectionLost("the port is closed", device=self.device, command=command)
+            self._given_up(command)  # nothing sent for a caller that is gone
             self._flush(command)
             self._write(payload, command)
             deadline = time.monotonic() + wait
@@ -432,6 +441,28 @@ class StepfocUart:
                         device=self.device,
                         command=command,
                     )
+        finally:
+            self._lock.release()
+
+    def abandon(self, thread_ident: int) -> None:
+        """Give up the exchange thread ``thread_ident`` runs, and its later ones until :meth:`resume`: each
+        ends with GripperTimeout within ``_POLL_S`` (module docstring). Does not wait for that thread."""
+        self._abandoned.add(thread_ident)
+
+    def resume(self, thread_ident: int) -> None:
+        """Thread ``thread_ident``'s next exchange is a new call: no longer given up."""
+        self._abandoned.discard(thread_ident)
+
+    def _given_up(self, command: str) -> None:
+        if self._abandoned and threading.get_ident() in self._abandoned:
+            raise GripperTimeout("abandoned: the caller stopped waiting", device=self.device, command=command)
+
+    def _take_turn(self, command: str) -> None:
+        """Wait for the exchange another thread runs, in slices, so an abandoned caller leaves at once."""
+        while True:
+            self._given_up(command)
+            if self._lock.acquire(timeout=_POLL_S):
+                return
 
     def _flush(self, command: str) -> None:
         """Drop stale input (a late answer to a timed-out command must not answer this one)."""
@@ -455,6 +486,7 @@ class StepfocUart:
 
     def _next_line(self, command: str, deadline: float, wait: float) -> Line:
         while not self._lines:
+            self._given_up(command)
             if time.monotonic() >= deadline:
                 raise GripperTimeout(
                     f"no answer within {wait:g} s (the firmware ignores unknown or malformed commands)",

@@ -17,6 +17,13 @@ or removing twice changes nothing) and the waits come back with the lock held (:
 handler (:meth:`ExchangeEngine._rescue`) matches what was read, hands the role back and abandons the exchange
 as a timeout does (its late reply is swallowed, its id freed). A STOP can then go out at once.
 
+Abandoned callers (issue 23 §3): :meth:`ExchangeEngine.abandon` gives up the call a given thread runs
+(the asyncio face does it when the task awaiting a query is cancelled). Its current wait ends at once and
+so does every later one of that thread until :meth:`ExchangeEngine.resume`, each as a timeout would: the
+exchange is abandoned, its late reply swallowed. Where the line keeps replies in order (TCP, serial, CAN) the
+marker needs no reorder margin, so the next request of that id sends the LOOP barrier at once and goes out
+as soon as the device answers it; on UDP the margin (``stale_ttl``) stays, as after a timeout.
+
 Stops first (issue 23 §1): STOP and FAST STOP never wait for a stale marker of their id (the session), and
 each one fences the motion requests still waiting for their slot: those end with E_CMD_ABORTED instead of
 going out after the stop (a servo target queued behind a running move would otherwise start a new motion the
@@ -85,8 +92,32 @@ class ExchangeEngine(LineReader):
         self.motion_timeout = motion_timeout
         self.firmware: Any = None  # FirmwareVersion once 50h was read: decides what is refused locally
         self._stops_sent = 0  # the fence of queued motion requests (module docstring, "Stops first")
+        # Threads whose caller gave up (module docstring, "Abandoned callers"); read without the lock on the
+        # hot path: an empty set costs one truth test per step.
+        self._abandoned: set[int] = set()
+        # Whether replies keep their order on this line: then an abandoned reply needs no reorder margin. A
+        # transport that does not say (a plugin's) keeps the margin.
+        self._ordered = bool(getattr(transport, "ordered", False))
 
     # ------------------------------------------------------------------------------------------ requests
+
+    def abandon(self, thread_ident: int) -> None:
+        """Give up the call that thread ``thread_ident`` runs: its waits end now with GripperTimeout, as
+        timeouts would (exchange abandoned, late reply swallowed), until :meth:`resume`. For a caller that
+        stops waiting from another thread (an asyncio task cancelled); it does not wait for that thread."""
+        with self._lock:
+            self._abandoned.add(thread_ident)
+            self._cond.notify_all()
+
+    def resume(self, thread_ident: int) -> None:
+        """Thread ``thread_ident``'s next call is a new one: its waits are no longer given up."""
+        with self._lock:
+            self._abandoned.discard(thread_ident)
+
+    def _given_up(self, cmd: int) -> GripperTimeout:
+        return GripperTimeout(
+            "abandoned: the caller stopped waiting", device=self.device, command=command_name(cmd)
+        )
 
     def _usable(self, name: str, internal: bool) -> None:
         if self._lost is not None:
@@ -133,6 +164,8 @@ class ExchangeEngine(LineReader):
                 while True:
                     if self._lost is not None or self._closing or self._closed:
                         self._usable(command_name(cmd), internal)
+                    if self._abandoned and me in self._abandoned:
+                        raise self._given_up(cmd)
                     if fence != self._stops_sent and cmd in MOTIONS:
                         raise CommandFailed(
                             "aborted by a stop sent while it waited for its turn (not sent)",
@@ -299,6 +332,11 @@ class ExchangeEngine(LineReader):
             now = time.monotonic()
             if now >= deadline:
                 self._timed_out(exchange, now, abandon, waited)
+            if self._abandoned and get_ident() in self._abandoned:
+                if abandon:
+                    self._session.abandon(exchange, now, margin=0.0 if self._ordered else None)
+                    self._cond.notify_all()
+                raise self._given_up(exchange.command)
             if self._reading or self._subs or self._stop.is_set() or self._lost is not None:
                 if not self._reading:
                     self._bg.notify()  # subscriptions: the reader thread reads (and runs the callbacks)

@@ -248,14 +248,18 @@ class Session:
             del self._active[command]
             exchange.state = ExchangeState.FAILED
 
-    def abandon(self, exchange: Exchange, now: float) -> None:
-        """The caller stopped waiting (timeout): leave a stale marker that swallows the late reply."""
+    def abandon(self, exchange: Exchange, now: float, *, margin: float | None = None) -> None:
+        """The caller stopped waiting (timeout): leave a stale marker that swallows the late reply.
+
+        ``margin`` replaces ``stale_ttl`` for an immediate reply's marker: 0 where the line keeps replies in
+        order (TCP, serial, CAN) and the caller gave up early (a cancelled asyncio call), so the next request
+        of that id can prove the reply lost with a barrier at once instead of waiting out the margin."""
         if self._active.get(exchange.command) is not exchange:
             return
         del self._active[exchange.command]
         pending = exchange.state is ExchangeState.PENDING
         exchange.state = ExchangeState.ABANDONED
-        ttl = self.stale_final_ttl if pending else self.stale_ttl
+        ttl = self.stale_final_ttl if pending else self.stale_ttl if margin is None else margin
         self._stale[exchange.command] = _Stale(exchange, pending, now + ttl)
 
     def fail_all(self, error: GripperError) -> list[Exchange]:

@@ -86,6 +86,8 @@ class Transport(Protocol):
         ...
 
     # Optional, where it is cheaper than recv_nowait: ``ready(0)`` is true when something may have arrived.
+    # Optional: ``ordered = True`` where replies arrive in the order the device sent them (a stream or one
+    # bus; not UDP): an abandoned reply then needs no reorder margin (exchanges.py, "Abandoned callers").
 
     def close(self) -> None: ...
 
@@ -94,6 +96,7 @@ _DRAIN_READS = 64  # recv_nowait reads at most this many datagrams or frames: bo
 
 
 class TcpTransport:
+    ordered = True
     connection_oriented = True
     silent_gap = False
 
@@ -258,6 +261,7 @@ def _route_source(family: int, peer: tuple) -> tuple:
 class SerialTransport:
     """RS-232 through pyserial; ``port`` may be any pyserial URL (``/dev/ttyUSB0``, ``socket://``, ``loop://``)."""
 
+    ordered = True
     connection_oriented = False
     silent_gap = True
 
@@ -326,6 +330,7 @@ class CanTransport:
     frame data.
     """
 
+    ordered = True
     connection_oriented = False
     silent_gap = False
 

@@ -648,6 +648,12 @@ class MsgGripper(Gripper):
         self._mode, self._held = "move", False
         return True
 
+    def _abandon(self, thread_ident: int) -> None:
+        self._link.driver.abandon(thread_ident)
+
+    def _resume(self, thread_ident: int) -> None:
+        self._link.driver.resume(thread_ident)
+
     def _link_alive(self) -> bool:
         link = self._link
         if isinstance(link, _CanLink):

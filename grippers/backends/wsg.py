@@ -261,6 +261,12 @@ class WsgGripper(Gripper):
     def _identity(self) -> dict[str, str]:
         return _identity(self._system_info)
 
+    def _abandon(self, thread_ident: int) -> None:
+        self._client.abandon(thread_ident)
+
+    def _resume(self, thread_ident: int) -> None:
+        self._client.resume(thread_ident)
+
     def _link_alive(self) -> bool:
         return self._client.connection_lost is None and not self._client.closed
 
