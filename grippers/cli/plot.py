@@ -12,7 +12,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from .output import EXIT_OK, UsageError
+from .output import EXIT_OK, UsageError, write_json
 
 HELP = "plot a recording (grippers record) to PNG or SVG: width, speed, force or current, commands marked"
 EXAMPLE = "grippers plot grasp.csv -o grasp.png"
@@ -22,6 +22,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("recording", metavar="FILE", help="a recording: FILE.csv, FILE.jsonl or FILE.mcap")
     parser.add_argument("-o", "--output", required=True, metavar="IMAGE", help="IMAGE.png or IMAGE.svg")
     parser.add_argument("--title", help="the picture's title (default: the recorded URL)")
+    parser.add_argument("--json", action="store_true", help="print what was drawn as JSON (docs/cli.md)")
 
 
 def _series(rows: list[dict[str, Any]], key: str) -> tuple[list[float], list[float]]:
@@ -108,5 +109,16 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError(f"{args.recording}: cannot be drawn: {' '.join(str(exc).split())[:200]}") from None
     finally:
         plt.close(fig)
-    print(f"wrote {args.output}")
+    if getattr(args, "json", False):
+        write_json(
+            {
+                "schema": "grippers.plot/1",
+                "recording": args.recording,
+                "output": args.output,
+                "states": len(width[0]),
+                "commands": len(commands),
+            }
+        )
+    else:
+        print(f"wrote {args.output}")
     return EXIT_OK

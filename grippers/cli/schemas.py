@@ -264,6 +264,30 @@ class SimDocument(_Strict):
     urls: list[str] = Field(description="the URLs a client opens, one per simulated device")
 
 
+class ServedGripper(_Strict):
+    name: str
+    model: str
+    target: str = Field(description="what serve opened (a URL)")
+    url: str = Field(description="the zenoh:// URL clients open")
+
+
+class ServeDocument(_Strict):
+    """``grippers serve ... --json``: what is served where, printed once when serving starts."""
+
+    schema_: Literal["grippers.serve/1"] = Field(alias="schema")
+    grippers: list[ServedGripper]
+
+
+class PlotDocument(_Strict):
+    """``grippers plot FILE -o IMAGE --json``: what was drawn from what."""
+
+    schema_: Literal["grippers.plot/1"] = Field(alias="schema")
+    recording: str
+    output: str
+    states: int
+    commands: int
+
+
 class SelftestLine(_Strict):
     check: str = Field(description="what was checked, e.g. 'speed 20 mm/s', 'home (2nd)'")
     measured: str
@@ -311,6 +335,8 @@ SCHEMAS: dict[str, type[BaseModel]] = {
     "grippers.settings/1": SettingsDocument,
     "grippers.doctor/1": DoctorDocument,
     "grippers.sim/1": SimDocument,
+    "grippers.serve/1": ServeDocument,
+    "grippers.plot/1": PlotDocument,
     "grippers.selftest/1": SelftestDocument,
     "grippers.record-result/1": RecordResultDocument,
 }

@@ -41,6 +41,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--connect", action="append", metavar="ENDPOINT", help="a router or peer to connect to"
     )
     parser.add_argument(
+        "--json", action="store_true", help="print what is served where as one JSON document (docs/cli.md)"
+    )
+    parser.add_argument(
         "--zenoh-config", metavar="FILE", help="a Zenoh JSON5 configuration (TLS, ACL, routers)"
     )
     parser.add_argument(
@@ -120,7 +123,7 @@ def run(args: argparse.Namespace) -> int:
     from grippers.remote import protocol
     from grippers.remote.server import Server
 
-    from .output import UsageError
+    from .output import UsageError, write_json
 
     targets = parse_targets(args.targets)
     for name, target in targets:
@@ -159,10 +162,18 @@ def run(args: argparse.Namespace) -> int:
         except ValueError as exc:
             raise UsageError(str(exc)) from None
         server.start()
+        if args.json:
+            listing = [
+                {"name": n, "model": g.profile.model, "target": g.url, "url": server.url(n)}
+                for n, g in opened.items()
+            ]
+            write_json({"schema": "grippers.serve/1", "grippers": listing})
         for name, gripper in opened.items():
-            print(
-                f"{name}: {gripper.profile.model} at {gripper.url} serving at {server.url(name)}", flush=True
-            )
+            if not args.json:
+                print(
+                    f"{name}: {gripper.profile.model} at {gripper.url} serving at {server.url(name)}",
+                    flush=True,
+                )
             log.info(
                 "serving %s (%s at %s) at %s", name, gripper.profile.model, gripper.url, server.url(name)
             )

@@ -142,6 +142,16 @@ def test_old_csv_with_a_comment_header_still_reads(tmp_path: Path) -> None:
     assert header["target"] == "sim://wsg50" and rows[0]["width_mm"] == 10.0
 
 
+def test_plot_json_says_what_was_drawn(cli, tmp_path: Path) -> None:
+    rec = tmp_path / "r.jsonl"
+    assert cli("record", URL, "-o", str(rec), "--do", "home").returncode == 0
+    r = cli("plot", str(rec), "-o", str(tmp_path / "r.svg"), "--json")
+    assert r.returncode == 0, r.stderr
+    doc = r.json()  # validated against the CLI's schemas by the fixture
+    assert doc["schema"] == "grippers.plot/1" and doc["output"] == str(tmp_path / "r.svg")
+    assert doc["states"] > 0 and doc["commands"] == 2
+
+
 def test_record_json_is_json(cli, tmp_path: Path) -> None:
     out = tmp_path / "r.jsonl"
     r = cli("record", URL, "-o", str(out), "--do", "home", "--json")

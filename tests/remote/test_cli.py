@@ -74,3 +74,35 @@ def test_serve_usage_errors(capsys: pytest.CaptureFixture[str]) -> None:
     assert "served name" in capsys.readouterr().err
     assert main(["serve", "a=sim://wsg50?time_scale=50", "a=sim://wsg50?time_scale=50"]) == 2
     assert "two grippers named" in capsys.readouterr().err
+
+
+def test_serve_json_prints_what_is_served_where() -> None:
+    import signal
+    import subprocess
+    import sys
+
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "grippers",
+            "serve",
+            f"left={sim('wsg50')}",
+            "--listen",
+            "tcp/127.0.0.1:0",
+            "--json",
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        assert proc.stdout is not None
+        doc = json.loads(proc.stdout.readline())
+        validate(doc)
+        (left,) = doc["grippers"]
+        assert doc["schema"] == "grippers.serve/1" and left["name"] == "left"
+        assert left["url"].startswith("zenoh://left?connect=tcp/127.0.0.1:")
+    finally:
+        proc.send_signal(signal.SIGTERM)
+        proc.communicate(timeout=20)
