@@ -19,7 +19,7 @@ import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
-from types import FrameType
+from types import CodeType, FrameType
 from typing import Any
 
 import pytest
@@ -35,20 +35,37 @@ _ENGINE = {
 }
 
 
+def _after(code: CodeType) -> dict[int, int]:
+    """Offset of each instruction -> offset of the one laid out after it (cached per code object)."""
+    table = _AFTER.get(code)
+    if table is None:
+        offsets = [i.offset for i in dis.get_instructions(code)]
+        table = _AFTER[code] = dict(zip(offsets, offsets[1:], strict=False))
+    return table
+
+
+_AFTER: dict[CodeType, dict[int, int]] = {}
+
+
 class _Interrupter:
     """Ctrl-C at the first point where Python would deliver a signal, from the ``n``-th line event on.
 
     A trace function raising at any line event would also hit points a real signal never reaches (the line
     of a ``with`` block's exit, before its lock is released: no code can survive that). Python runs signal
-    handlers at function entry, at backward jumps and after a call returns (its eval breaker), so the
-    interrupt is raised at the first such point once ``n`` lines of the client's modules have run.
+    handlers at function entry, at backward jumps (not ``JUMP_BACKWARD_NO_INTERRUPT``) and after a call
+    returns (its eval breaker, still at the call's offset), so the interrupt is raised at the first such point
+    once ``n`` lines of the client's modules have run: at a function's first instruction, after a backward
+    jump, or at the instruction laid out right after a call that returned. Python 3.13 sometimes reports no
+    event for that instruction (seen after a call that blocked); the next event is then at another offset and
+    is not taken for a delivery point (it once was, outside the call's ``try``: a failure of this test, not
+    of the client).
     """
 
     def __init__(self, n: int) -> None:
         self.n = n
         self.lines = 0
         self.fired = False
-        self._previous: dict[int, str] = {}  # frame id -> its last opcode seen
+        self._previous: dict[int, tuple[int, str]] = {}  # frame id -> (offset, name) of its last opcode seen
 
     def __call__(self, frame: FrameType, event: str, arg: Any) -> Any:
         if frame.f_code.co_filename not in _ENGINE:
@@ -56,19 +73,26 @@ class _Interrupter:
         frame.f_trace_opcodes = True
         return self._local
 
+    def _delivery_point(self, frame: FrameType) -> bool:
+        previous = self._previous.get(id(frame))
+        if previous is None:
+            return True  # a function's entry
+        offset, name = previous
+        if name.startswith("JUMP_BACKWARD"):
+            return name != "JUMP_BACKWARD_NO_INTERRUPT"
+        return name.startswith("CALL") and _after(frame.f_code).get(offset) == frame.f_lasti
+
     def _local(self, frame: FrameType, event: str, arg: Any) -> Any:
         frame.f_trace_opcodes = True  # Python 3.13 needs it set from the local trace function too
         if self.fired:
             return self._local
         if event == "line":
             self.lines += 1
-        elif event == "opcode" and self.n and self.lines >= self.n:
-            previous = self._previous.get(id(frame))
-            if previous is None or previous.startswith(("CALL", "JUMP_BACKWARD")):
-                self.fired = True
-                raise KeyboardInterrupt(f"after line event {self.n}")
+        elif event == "opcode" and self.n and self.lines >= self.n and self._delivery_point(frame):
+            self.fired = True
+            raise KeyboardInterrupt(f"after line event {self.n}")
         if event == "opcode":
-            self._previous[id(frame)] = dis.opname[frame.f_code.co_code[frame.f_lasti]]
+            self._previous[id(frame)] = (frame.f_lasti, dis.opname[frame.f_code.co_code[frame.f_lasti]])
         elif event == "return":
             self._previous.pop(id(frame), None)
         return self._local
