@@ -41,11 +41,34 @@ if LONG and os.environ.get("GRIPPERS_FUZZ_EXAMPLES"):
     settings.load_profile("long-n")
 
 
+# Tests that share a host-wide resource run one after another on one pytest-xdist worker (``--dist
+# loadgroup``, the README's test command): python-can's udp_multicast bus is one UDP port for every group
+# (docs/protocols.md §2), and the README's examples listen on the fixed ports they print.
+_SERIAL_FILES = {
+    "test_readme_examples.py": "fixed-ports",
+    "test_udp_multicast.py": "udp_multicast",
+    "test_reconnect_msg_can.py": "udp_multicast",
+}
+
+
+def _serial_group(item: pytest.Item) -> str | None:
+    if item.get_closest_marker("udp_multicast") or "mcast_channel" in getattr(item, "fixturenames", ()):
+        return "udp_multicast"
+    if "udp_multicast" in item.name:
+        return "udp_multicast"
+    return _SERIAL_FILES.get(item.path.name)
+
+
+@pytest.hookimpl(tryfirst=True)  # before pytest-xdist reads the groups
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    """Long mode: no pytest-timeout (120 s in pyproject.toml); a million examples take many minutes."""
-    if LONG:
-        for item in items:
+    """Long mode: no pytest-timeout (120 s in pyproject.toml); a million examples take many minutes.
+    Under pytest-xdist, the tests of one host-wide resource share a group (see ``_serial_group``)."""
+    for item in items:
+        if LONG:
             item.add_marker(pytest.mark.timeout(0))
+        group = _serial_group(item)
+        if group:
+            item.add_marker(pytest.mark.xdist_group(group))
 
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -12,6 +12,7 @@ command, so what was recorded is never lost.
 from __future__ import annotations
 
 import argparse
+import logging
 import shlex
 import sys
 import threading
@@ -20,6 +21,8 @@ from typing import Any
 
 from .common import add_common, add_target, open_gripper, positive_float, state_dict
 from .output import EXIT_FAILED, EXIT_OK, UsageError, error_line, write_json
+
+log = logging.getLogger("grippers.cli.record")
 
 HELP = (
     "record states (and the commands run with --do) over time to CSV, JSON Lines or MCAP, for grippers plot"
@@ -142,6 +145,9 @@ def run(args: argparse.Namespace) -> int:
             )
 
     stream = gripper.stream(rate_hz=args.rate, callback=sample)
+    log.info(
+        "recording %s to %s (Ctrl-C ends it; the file is written then)", args.target, ", ".join(sink.files)
+    )
     try:
         for text, name, do_args in plan:
             event(text, "start")

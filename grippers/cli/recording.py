@@ -116,11 +116,15 @@ class Sink:
                 writer.writerow({k: ("" if out.get(k) is None else out[k]) for k in COLUMNS})
 
     def abandon(self) -> None:
+        """Close and remove the files opened for this recording: nothing was recorded (the gripper did not
+        open, or Ctrl-C came first), and an empty file would later read as a broken recording."""
         for fh in (self._fh, self._side):
             if fh is not None:
                 fh.close()
         if self._mcap is not None:
             self._mcap.abandon()
+        for name in self.files:
+            Path(name).unlink(missing_ok=True)
 
 
 def open_sink(path: str | Path) -> Sink:

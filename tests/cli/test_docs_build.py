@@ -4,7 +4,9 @@ has the docstrings it is built from (with a Raises section where a call talks to
 from __future__ import annotations
 
 import inspect
+import os
 import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -52,7 +54,8 @@ def test_the_docs_build_with_warnings_as_errors(tmp_path: Path) -> None:
         capture_output=True,
         text=True,
         timeout=300,
-    )
+        env={**os.environ, "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ.get('PATH', '')}"},
+    )  # the script's ``python`` is this interpreter's, activated or not
     assert proc.returncode == 0, proc.stderr[-3000:]
     api = (tmp_path / "site" / "api" / "index.html").read_text()
     for name in ("grippers.open", "ProfileAssumed", "GripperTimeout"):

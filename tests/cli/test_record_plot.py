@@ -89,6 +89,7 @@ def test_plot_refuses_what_is_not_a_recording(cli, tmp_path: Path) -> None:
 
 def test_record_ctrl_c_keeps_the_file_and_exits_130(tmp_path: Path) -> None:
     import os
+    import selectors
     import signal
     import subprocess
     import sys
@@ -96,18 +97,41 @@ def test_record_ctrl_c_keeps_the_file_and_exits_130(tmp_path: Path) -> None:
 
     out = tmp_path / "cut.jsonl"
     proc = subprocess.Popen(
-        [sys.executable, "-m", "grippers", "record", URL, "-o", str(out), "--duration", "60"],
+        [sys.executable, "-m", "grippers", "record", URL, "-o", str(out), "--duration", "60", "-v"],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
         env={**os.environ, "PYTHONUNBUFFERED": "1"},
     )
-    time.sleep(3.0)  # started and sampling (the exact moment does not matter)
+    assert proc.stderr is not None
+    seen = []
+    with selectors.DefaultSelector() as sel:  # sampling has started when it says so (-v): then Ctrl-C
+        sel.register(proc.stderr, selectors.EVENT_READ)
+        deadline = time.monotonic() + 60.0
+        while not any("recording " in line for line in seen):
+            assert sel.select(max(0.0, deadline - time.monotonic())) and time.monotonic() < deadline, seen
+            line = proc.stderr.readline()
+            assert line, f"record ended first: {seen}"
+            seen.append(line)
+    time.sleep(0.3)  # a few samples at the default rate
     proc.send_signal(signal.SIGINT)
     _, err = proc.communicate(timeout=20)
     assert proc.returncode == 130 and err.strip().splitlines()[-1] == "grippers record: interrupted"
     _, rows = read(out)
     assert rows and all(row["kind"] == "state" for row in rows)
+
+
+def test_record_ctrl_c_before_the_gripper_opened_leaves_no_empty_file(tmp_path: Path) -> None:
+    """A Ctrl-C (or any failure) while the gripper is being opened: nothing was recorded, and the file the
+    sink created at start (to find a bad path early) is removed rather than left empty (it read as "not a
+    grippers recording" later)."""
+    from grippers.cli.recording import open_sink
+
+    for name in ("a.jsonl", "b.csv"):
+        sink = open_sink(tmp_path / name)
+        assert (tmp_path / name).exists()
+        sink.abandon()
+    assert list(tmp_path.iterdir()) == []
 
 
 # --- issue 22 §2 and §4, issue 23 §3, issue 21 §4 -------------------------------------------------------
