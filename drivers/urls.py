@@ -224,7 +224,7 @@ def _host_port(url: str, netloc: str, listen: bool) -> tuple[str | None, int | N
         raise URLError(f"{shown(url)}: no host")
     port: int | None = None
     if port_text:
-        if not (port_text.isascii() and port_text.isdigit()) or int(port_text) > 65535:
+        if not (port_text.isascii() and port_text.isdigit()) or len(port_text) > 5 or int(port_text) > 65535:
             raise URLError(f"{shown(url)}: bad port {port_text[:20]!r} (1..65535)")
         port = int(port_text)
         if port == 0 and not listen:
