@@ -40,7 +40,7 @@ import ipaddress
 import re
 from dataclasses import dataclass, field
 from typing import Any
-from urllib.parse import parse_qsl, unquote
+from urllib.parse import parse_qsl, quote, unquote, unquote_plus
 
 from .errors import URLError
 from .numbers import finite
@@ -58,6 +58,7 @@ __all__ = [
     "to_bool",
     "to_float",
     "to_int",
+    "with_params",
 ]
 
 TRANSPORTS = ("tcp", "udp", "serial", "can")
@@ -179,6 +180,19 @@ def parse_query(url: str, query: str) -> dict[str, str]:
             raise URLError(f"{shown(url)}: {key} given twice ({params[key][:40]!r} and {value[:40]!r})")
         params[key] = value
     return params
+
+
+def with_params(url: str, **values: Any) -> str:
+    """``url`` with these query parameters set, first and in this order; the others kept as written.
+
+    For a URL the CLI hands back to the user (``grippers settings --node-id`` names the node's new URL).
+    """
+    parse_url(url)  # only a URL of the grammar is rewritten
+    serial = url.partition("://")[0].lower().endswith("+serial")
+    base, _, query = url.rpartition("?") if serial and "?" in url else url.partition("?")
+    kept = [f for f in query.split("&") if f and unquote_plus(f.partition("=")[0]) not in values]
+    ours = [f"{quote(k, safe='')}={quote(str(v), safe='/:,.')}" for k, v in values.items()]
+    return f"{base}?{'&'.join(ours + kept)}"
 
 
 def refuse_unknown(url: str, params: dict[str, str], known: tuple[str, ...] | frozenset[str]) -> None:

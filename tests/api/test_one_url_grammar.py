@@ -245,3 +245,15 @@ def test_any_text_is_a_parsed_url_or_a_url_error(text: str, bare: str | None, li
     assert u.port is None or 0 <= u.port <= 65535
     for value in (u.host, u.serial_port, u.interface, u.channel, u.profile, *u.params, *u.params.values()):
         assert value is None or not re.search(r"[\x00-\x1f\x7f]", value)
+
+
+def test_with_params_sets_a_parameter_and_keeps_the_others_as_written() -> None:
+    """``grippers settings --node-id`` hands back the node's new URL; it filtered ``node=`` by hand before."""
+    w = driver_urls.with_params
+    assert (
+        w("stepfoc+can://virtual/ch?bitrate=5&node=0", node=3) == "stepfoc+can://virtual/ch?node=3&bitrate=5"
+    )
+    assert w("stepfoc+can://virtual/ch", node=3) == "stepfoc+can://virtual/ch?node=3"
+    assert parse_url(w("stepfoc+can://virtual/ch?n%6Fde=1", node=2)).params == {"node": "2"}
+    with pytest.raises(URLError):
+        w("stepfoc+can://virtual/ch#x", node=2)
