@@ -257,3 +257,17 @@ def test_with_params_sets_a_parameter_and_keeps_the_others_as_written() -> None:
     assert parse_url(w("stepfoc+can://virtual/ch?n%6Fde=1", node=2)).params == {"node": "2"}
     with pytest.raises(URLError):
         w("stepfoc+can://virtual/ch#x", node=2)
+
+
+def test_a_simulator_on_ipv6_loopback_names_a_url_the_grammar_reads_back() -> None:
+    try:
+        server = serve(WsgModel(), "tcp://[::1]:0")
+    except OSError:
+        pytest.skip("no IPv6 loopback on this machine")
+    try:
+        u = parse_url(server.url)
+        assert (u.host, u.port) == ("::1", server.address[1])
+        with WsgClient.from_url(server.url, timeout=2.0) as client:
+            assert client.system_info() is not None
+    finally:
+        server.close()
