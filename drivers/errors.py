@@ -63,3 +63,8 @@ class NotSupported(GripperError):
 
 class ProtocolError(GripperError):
     """Bytes or frames that do not decode: wrong length, bad checksum, unknown layout."""
+
+
+class URLError(GripperError, ValueError):
+    """A connection URL that does not follow the grammar in ``drivers/urls.py`` (:mod:`grippers.urls`), or a
+    setting out of its range; also a :class:`ValueError`."""

@@ -10,6 +10,7 @@ from grippers.drivers.errors import (
     LimitError,
     NotSupported,
     ProtocolError,
+    URLError,
 )
 
 __all__ = [
@@ -41,10 +42,6 @@ class DeviceMismatch(ConnectionLost):
 
 class ProfileError(GripperError, ValueError):
     """A profile not found or failing validation; the message names the file, the field and the rule."""
-
-
-class URLError(GripperError, ValueError):
-    """A connection URL that does not follow the grammar in :mod:`grippers.urls`."""
 
 
 class AccessDenied(GripperError):

@@ -19,9 +19,9 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from enum import Enum, IntEnum
 from typing import Any, NamedTuple
-from urllib.parse import parse_qs
 
-from ..errors import LimitError, ProtocolError
+from ..errors import LimitError, ProtocolError, URLError
+from ..urls import parse_url, shown
 
 __all__ = [
     "COMMANDS",
@@ -665,14 +665,12 @@ def describe(arbitration_id: int, data: bytes | bytearray, is_remote: bool = Fal
 
 
 def parse_can_url(listen: str) -> tuple[str, str, dict[str, str]]:
-    """``can://INTERFACE/CHANNEL?k=v`` -> (interface, channel, query). Parsed by hand because a multicast
-    channel may be an IPv6 address full of colons."""
-    scheme, sep, rest = listen.partition("://")
-    if not sep or scheme not in ("can", "stepfoc+can"):
-        raise ValueError(f"not a CAN URL: {listen!r} (expected can://INTERFACE/CHANNEL)")
-    rest, _, query = rest.partition("?")
-    interface, _, channel = rest.partition("/")
-    if not interface or not channel:
-        raise ValueError(f"CAN URL needs an interface and a channel: {listen!r}")
-    params = {k: v[-1] for k, v in parse_qs(query).items()}
-    return interface, channel, params
+    """``[stepfoc+]can://INTERFACE/CHANNEL?k=v`` -> (interface, channel, query), by the one URL grammar
+    (``drivers/urls.py``: everything after the first ``/`` is the channel, so a multicast channel may be an
+    IPv6 address full of colons). A malformed URL is a URLError (also a ValueError)."""
+    scheme = listen.partition("://")[0] if isinstance(listen, str) else ""
+    if scheme not in ("can", "stepfoc+can"):
+        raise URLError(f"not a CAN URL: {shown(listen)} (expected can://INTERFACE/CHANNEL)")
+    url = parse_url(listen, bare_family="stepfoc")
+    assert url.interface and url.channel  # the grammar refuses a CAN URL without them
+    return url.interface, url.channel, url.params

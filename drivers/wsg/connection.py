@@ -12,11 +12,11 @@ import threading
 from collections.abc import Callable
 from threading import get_ident
 from typing import Any, Self
-from urllib.parse import parse_qs, urlsplit
 
 from can import BusABC
 
 from ..errors import ConnectionLost, GripperError, LimitError, NotSupported
+from ..urls import TRANSPORTS, parse_url, refuse_unknown, shown, to_bool, to_float, to_int
 from .commands import AUTO_UPDATE_COMMANDS, Cmd, command_name, encode_request
 from .exchanges import POLL, SILENT_GAP, ExchangeEngine
 from .handles import Subscription
@@ -38,6 +38,14 @@ __all__ = ["WsgConnection"]
 
 log = logging.getLogger(__name__)
 
+# The query parameters from_url takes, per transport (the client's framing and ids; the API's settings are
+# grippers.open's business).
+_FROM_URL_PARAMETERS: dict[str, tuple[str, ...]] = {
+    "tcp": (),
+    "udp": ("local_port",),
+    "serial": ("baudrate", "bytesize", "parity", "stopbits"),
+    "can": ("bitrate", "extended", "recv_id", "send_id"),
+}
 _MIN_PERIOD_MS = 10  # docs/protocols.md §1: auto-update period minimum
 
 
@@ -128,47 +136,49 @@ class WsgConnection(ExchangeEngine):
 
     @classmethod
     def from_url(cls, url: str, **kw: Any) -> Self:
-        """``[wsg+]tcp://H:P``, ``[wsg+]udp://H:P?local_port=N``, ``[wsg+]serial://PATH-OR-PYSERIAL-URL?baudrate=..``,
-        ``[wsg+]can://INTERFACE/CHANNEL?send_id=..&recv_id=..&bitrate=..`` (the simulator's ``.url``)."""
-        parts = urlsplit(url)
-        scheme = parts.scheme.lower().removeprefix("wsg+")
-        query = {k: v[-1] for k, v in parse_qs(parts.query).items()}
+        """``[wsg+]tcp://H:P``, ``[wsg+]udp://H:P?local_port=N``,
+        ``[wsg+]serial://PATH-OR-PYSERIAL-URL?baudrate=..``,
+        ``[wsg+]can://INTERFACE/CHANNEL?send_id=..&recv_id=..&bitrate=..`` (the simulator's ``.url``), read by
+        the one grammar (``drivers/urls.py``). A scheme of another family is a LimitError (not a WSG); a URL
+        the grammar refuses, or an unknown parameter, a URLError."""
+        scheme = url.partition("://")[0].lower() if isinstance(url, str) else ""
+        if scheme.removeprefix("wsg+") not in TRANSPORTS:
+            raise LimitError(f"unsupported WSG URL {shown(url)} (tcp, udp, serial or can)")
+        u = parse_url(url, bare_family="wsg")
+        refuse_unknown(url, u.params, _FROM_URL_PARAMETERS[u.transport])
+        query = u.params
 
-        def num(key: str, default: int | None) -> int | None:
-            return int(query[key], 0) if key in query else default
+        def num(key: str, default: int) -> int:
+            return to_int(query[key], key, url) if key in query else default
 
-        if scheme == "tcp":
-            return cls.tcp(parts.hostname or "127.0.0.1", parts.port or DEFAULT_TCP_PORT, **kw)
-        if scheme == "udp":
+        if u.transport == "tcp":
+            return cls.tcp(u.host or "127.0.0.1", u.port or DEFAULT_TCP_PORT, **kw)
+        if u.transport == "udp":
             return cls.udp(
-                parts.hostname or "127.0.0.1",
-                parts.port or DEFAULT_UDP_PORT,
-                local_port=num("local_port", DEFAULT_UDP_LOCAL_PORT) or 0,
+                u.host or "127.0.0.1",
+                u.port or DEFAULT_UDP_PORT,
+                local_port=num("local_port", DEFAULT_UDP_LOCAL_PORT),
                 **kw,
             )
-        if scheme == "serial":
-            rest = url.split("://", 1)[1].split("?", 1)[0]
+        if u.transport == "serial":
             framing: dict[str, Any] = {"baudrate": num("baudrate", DEFAULT_BAUDRATE)}
             if "parity" in query:
                 framing["parity"] = query["parity"]
             if "stopbits" in query:
-                framing["stopbits"] = float(query["stopbits"])
+                framing["stopbits"] = to_float(query["stopbits"], "stopbits", url)
             if "bytesize" in query:
-                framing["bytesize"] = int(query["bytesize"])
-            return cls.serial(rest, **framing, **kw)
-        if scheme == "can":
-            return cls.can(
-                interface=parts.netloc or None,
-                channel=parts.path.lstrip("/") or None,
-                bitrate=num("bitrate", None),
-                send_id=num("send_id", DEFAULT_CAN_SEND_ID) or 0,
-                recv_id=num("recv_id", DEFAULT_CAN_RECV_ID) or 0,
-                extended_id=(
-                    query["extended"].lower() in ("1", "true", "yes") if "extended" in query else None
-                ),
-                **kw,
-            )
-        raise LimitError(f"unsupported WSG URL {url!r} (tcp, udp, serial or can)")
+                framing["bytesize"] = num("bytesize", 8)
+            assert u.serial_port is not None  # the grammar refuses a serial URL without a port
+            return cls.serial(u.serial_port, **framing, **kw)
+        return cls.can(
+            interface=u.interface,
+            channel=u.channel,
+            bitrate=num("bitrate", 0) if "bitrate" in query else None,
+            send_id=num("send_id", DEFAULT_CAN_SEND_ID),
+            recv_id=num("recv_id", DEFAULT_CAN_RECV_ID),
+            extended_id=to_bool(query["extended"], "extended", url) if "extended" in query else None,
+            **kw,
+        )
 
     # -------------------------------------------------------------------------------------------- lifetime
 

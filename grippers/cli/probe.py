@@ -165,10 +165,16 @@ def garbage_check(url: str, timeout: float) -> str | None:
     """After a timeout on a byte stream (TCP, UDP, serial): ask once more on a raw connection and count what
     comes back. A device that answers with bytes that are not a packet of the family is reported as sending
     garbage (wrong baud rate, wrong protocol), not as silent. None when nothing came back."""
-    from urllib.parse import unquote, urlsplit
+    from grippers.errors import URLError
+    from grippers.urls import parse_url, to_int
 
-    parts = urlsplit(url)
-    family, _, transport = parts.scheme.partition("+")
+    from .probe_targets import WSG_TCP_PORT, WSG_UDP_PORT
+
+    try:
+        u = parse_url(url)
+    except URLError:
+        return None  # opening it has said why
+    family, transport = u.family, u.transport
     goodbye = b""
     if family == "wsg":
         from grippers.drivers.wsg import probe as wsg_probe
@@ -187,10 +193,10 @@ def garbage_check(url: str, timeout: float) -> str | None:
             import socket
 
             kind = socket.SOCK_STREAM if transport == "tcp" else socket.SOCK_DGRAM
-            family_ = socket.AF_INET6 if ":" in (parts.hostname or "") else socket.AF_INET
+            family_ = socket.AF_INET6 if ":" in (u.host or "") else socket.AF_INET
             with socket.socket(family_, kind) as s:
                 s.settimeout(timeout)
-                s.connect((parts.hostname, parts.port))
+                s.connect((u.host, u.port or (WSG_TCP_PORT if transport == "tcp" else WSG_UDP_PORT)))
                 s.sendall(request)
                 end = time.monotonic() + timeout
                 while time.monotonic() < end and len(received) < 64:
@@ -210,9 +216,8 @@ def garbage_check(url: str, timeout: float) -> str | None:
         elif transport == "serial":
             import serial
 
-            baud = dict(p.split("=", 1) for p in parts.query.split("&") if "=" in p).get("baudrate")
-            port = unquote(parts.netloc + parts.path)
-            with serial.Serial(port, int(baud or 115200), timeout=timeout, write_timeout=timeout) as ser:
+            baud = to_int(u.params.get("baudrate", 115200), "baudrate", url)
+            with serial.Serial(u.serial_port, baud, timeout=timeout, write_timeout=timeout) as ser:
                 ser.reset_input_buffer()
                 ser.write(request)
                 received = ser.read(64)

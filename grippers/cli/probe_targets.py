@@ -12,7 +12,9 @@ import ipaddress
 import os
 from dataclasses import dataclass, field
 from typing import Any
-from urllib.parse import parse_qsl, unquote, urlsplit
+
+from grippers.errors import URLError
+from grippers.urls import ConnectionURL, format_host, parse_url, to_int
 
 from .output import UsageError
 
@@ -63,57 +65,40 @@ def empty_location() -> dict[str, Any]:
     }
 
 
+class TargetError(UsageError, URLError):
+    """A target the URL grammar refuses: the grammar's URLError, and a usage error of the command (exit 2)."""
+
+
+def _parse(text: str, bare: bool = False) -> ConnectionURL:
+    """The one grammar (``drivers/urls.py``); a bare ``tcp://`` is read as a WSG's, for its checks."""
+    try:
+        return parse_url(text, bare_family="wsg" if bare else None)
+    except URLError as exc:
+        raise TargetError(exc.message) from None
+
+
 def location_of(url: str) -> dict[str, Any]:
     """Where a family URL points, as the ``location`` object of the probe schema."""
     loc = empty_location()
-    parts = urlsplit(url)
-    scheme = parts.scheme.lower()
-    transport = scheme.split("+", 1)[-1]
-    loc["transport"] = transport
-    query = dict(parse_qsl(parts.query))
-    if transport in ("tcp", "udp"):
-        loc["host"] = parts.hostname
-        try:
-            loc["port"] = parts.port
-        except ValueError:
-            loc["port"] = None
-    elif transport == "serial":
-        loc["serial_port"] = unquote(parts.netloc + parts.path) or None
-    elif transport == "can":
-        loc["interface"] = parts.netloc or None
-        loc["channel"] = unquote(parts.path.lstrip("/")) or None
-        if "node" in query:
+    u = _parse(url)
+    loc["transport"] = u.transport or "sim"
+    loc["host"], loc["port"] = u.host, u.port
+    loc["serial_port"], loc["profile"] = u.serial_port, u.profile
+    if u.transport == "can":
+        loc["interface"], loc["channel"] = u.interface, u.channel
+        if "node" in u.params:
             try:
-                loc["node"] = int(query["node"], 0)
-            except ValueError:
-                loc["node"] = None
-    elif scheme == "sim":
-        loc["profile"] = (parts.netloc + parts.path).strip("/") or None
+                loc["node"] = to_int(u.params["node"], "node", url)
+            except URLError:
+                loc["node"] = None  # opening it says why
     return loc
-
-
-def _port(parts: Any, default: int, text: str) -> int:
-    try:
-        port = parts.port
-    except ValueError:
-        raise UsageError(f"{text}: bad port") from None
-    return default if port is None else port
-
-
-def _host(parts: Any, text: str) -> str:
-    if not parts.hostname:
-        raise UsageError(f"{text}: no host")
-    return parts.hostname
-
-
-def _netloc(host: str, port: int) -> str:
-    return f"[{host}]:{port}" if ":" in host else f"{host}:{port}"
 
 
 def expand(
     target: str, bitrate: int | None = None, wsg_can_ids: tuple[tuple[int, int], ...] = WSG_CAN_IDS
 ) -> Plan:
-    """The candidates for one target given on the command line; raises UsageError for a malformed one."""
+    """The candidates for one target given on the command line; raises UsageError for a malformed one
+    (a :class:`TargetError`, also the grammar's URLError, when the URL grammar refuses it)."""
     text = target.strip()
     plan = Plan()
     if text.startswith("/") or (len(text) > 3 and text[:3].upper() == "COM" and text[3:].isdigit()):
@@ -126,17 +111,17 @@ def expand(
             f"{target!r} is not a URL (expected e.g. tcp://HOST, can://IF/CH, serial:///dev/ttyX)"
             + (f" ({fix})" if fix else "")
         )
-    parts = urlsplit(text)
-    scheme = parts.scheme.lower()
+    raw_scheme = text.partition("://")[0]
+    scheme = raw_scheme.lower()
     if scheme == "sim":
-        profile = (parts.netloc + parts.path).strip("/")
-        if profile:
+        u = _parse(text)
+        if u.profile:
             plan.candidates.append(Candidate(text, location_of(text), group=text))
         else:
             plan.sim_all = True
         return plan
     if scheme in FAMILY_SCHEMES or _is_plugin_scheme(scheme):
-        _check_family(text, scheme, parts)
+        _parse(text)
         plan.candidates.append(Candidate(text, location_of(text), group=_group_of(text)))
         return plan
     if scheme not in BARE_SCHEMES:
@@ -145,20 +130,16 @@ def expand(
         known = ", ".join(BARE_SCHEMES + FAMILY_SCHEMES + ("sim", "FAMILY+TRANSPORT of a plugin"))
         fix = hint(text)
         raise UsageError(
-            f"{target!r}: unknown scheme {parts.scheme!r} (known: {known})" + (f"; {fix}" if fix else "")
+            f"{target!r}: unknown scheme {raw_scheme!r} (known: {known})" + (f"; {fix}" if fix else "")
         )
-    if scheme == "tcp":
-        host, port = _host(parts, target), _port(parts, WSG_TCP_PORT, target)
-        url = f"wsg+tcp://{_netloc(host, port)}"
-        plan.candidates.append(Candidate(url, location_of(url), group=url))
-    elif scheme == "udp":
-        host, port = _host(parts, target), _port(parts, WSG_UDP_PORT, target)
-        url = f"wsg+udp://{_netloc(host, port)}"
+    u = _parse(text, bare=True)
+    if scheme in ("tcp", "udp"):
+        assert u.host is not None  # the grammar refuses a tcp/udp URL without a host
+        port = u.port or (WSG_TCP_PORT if scheme == "tcp" else WSG_UDP_PORT)
+        url = f"wsg+{scheme}://{format_host(u.host, port)}"
         plan.candidates.append(Candidate(url, location_of(url), group=url))
     elif scheme == "serial":
-        path = unquote(parts.netloc + parts.path)
-        if not path:
-            raise UsageError(f"{target!r}: no serial port (expected serial:///dev/ttyUSB0)")
+        path = u.serial_port
         group = f"serial:{path}"
         for url in (
             f"wsg+serial://{path}?baudrate={WSG_SERIAL_BAUD}",
@@ -166,9 +147,7 @@ def expand(
         ):
             plan.candidates.append(Candidate(url, location_of(url), group=group))
     else:  # can
-        interface, channel = parts.netloc, unquote(parts.path.lstrip("/"))
-        if not interface or not channel:
-            raise UsageError(f"{target!r}: expected can://INTERFACE/CHANNEL, e.g. can://socketcan/can0")
+        interface, channel = u.interface, u.channel
         extra = f"&bitrate={bitrate}" if bitrate else ""
         for node in STEPFOC_NODES:
             url = f"stepfoc+can://{interface}/{channel}?node={node}{extra}"
@@ -191,17 +170,6 @@ def _is_plugin_scheme(scheme: str) -> bool:
     from grippers.backends import available_backends
 
     return family in available_backends()
-
-
-def _check_family(text: str, scheme: str, parts: Any) -> None:
-    transport = scheme.split("+", 1)[1]
-    if transport in ("tcp", "udp"):
-        _host(parts, text)
-        _port(parts, 0, text)
-    elif transport == "serial" and not (parts.netloc + parts.path):
-        raise UsageError(f"{text!r}: no serial port")
-    elif transport == "can" and not (parts.netloc and parts.path.strip("/")):
-        raise UsageError(f"{text!r}: expected {scheme}://INTERFACE/CHANNEL")
 
 
 def _group_of(url: str) -> str:

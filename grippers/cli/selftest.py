@@ -23,7 +23,6 @@ import sys
 import time
 from pathlib import Path
 from typing import Any
-from urllib.parse import parse_qs, urlsplit
 
 from .common import add_common, add_target, open_gripper, positive_float
 from .output import EXIT_OK, UsageError, table, write_json
@@ -74,14 +73,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def _time_scale(args: argparse.Namespace) -> float:
     if args.time_scale is not None:
         return float(args.time_scale)
-    parts = urlsplit(args.target)
-    if parts.scheme == "sim":
-        values = parse_qs(parts.query).get("time_scale")
-        if values:
-            try:
-                return float(values[-1])
-            except ValueError:
-                pass  # the URL parser refuses it with its own message when the gripper opens
+    from grippers.urls import URLError, parse_url, to_float
+
+    try:
+        target = parse_url(args.target)
+        if target.family == "sim" and "time_scale" in target.params:
+            return to_float(target.params["time_scale"], "time_scale", args.target)
+    except URLError:
+        pass  # refused with the grammar's own message when the gripper opens
     return 1.0
 
 

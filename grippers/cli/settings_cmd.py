@@ -296,9 +296,9 @@ def _change_msg(gripper: Any, args: argparse.Namespace, changed: list[str]) -> s
                 command="set_can_id",
             )
         changed.append("node_id")
-        base, _, query = gripper.url.partition("?")
-        params = [p for p in query.split("&") if p and not p.startswith("node=")]
-        new_url = base + "?" + "&".join([f"node={args.node_id}", *params])
+        from grippers.drivers.urls import with_params
+
+        new_url = with_params(gripper.url, node=args.node_id)
     if save:
         driver.save_config()
     return new_url

@@ -139,6 +139,7 @@ def serve_replay(args: argparse.Namespace, family: str) -> int:
     """``--replay FILE``: serve the capture instead of a simulated device; exit 1 if a request mismatched."""
     from grippers.drivers.captures import CaptureError
     from grippers.drivers.replay import summary
+    from grippers.urls import parse_url, to_int
 
     from .output import UsageError
 
@@ -153,12 +154,14 @@ def serve_replay(args: argparse.Namespace, family: str) -> int:
 
             script = wsg_script(blob, args.replay)
             listen = args.listen or "tcp://127.0.0.1:1000"
-            scheme, _, rest = listen.partition("://")
-            host, _, port = rest.rpartition(":")
-            if scheme != "tcp" or not host or not port.isdigit():
+            if listen.partition("://")[0] != "tcp":
+                raise UsageError(f"--replay serves a WSG on tcp://HOST:PORT, not {listen!r}")
+            where = parse_url(listen, bare_family="wsg", listen=True)  # the one grammar: drivers/urls.py
+            host, port = where.host, where.port
+            if not host or port is None:
                 raise UsageError(f"--replay serves a WSG on tcp://HOST:PORT, not {listen!r}")
             server: Any = start_server(
-                lambda _: WsgReplayServer(script, host.strip("[]"), int(port), args.time_scale),
+                lambda _: WsgReplayServer(script, host, port, args.time_scale),
                 listen,
                 listen,
             )
@@ -171,11 +174,9 @@ def serve_replay(args: argparse.Namespace, family: str) -> int:
                 raise UsageError(
                     "--replay serves STEPFOC nodes on a CAN bus: --listen can://INTERFACE/CHANNEL"
                 )
-            from urllib.parse import parse_qsl
-
-            base, _, query = listen[len("can://") :].partition("?")
-            interface, _, channel = base.partition("/")
-            bus = {k: int(v) for k, v in parse_qsl(query) if k in ("port", "bitrate")}
+            where = parse_url(listen, bare_family="stepfoc")
+            interface, channel = where.interface or "", where.channel or ""
+            bus = {k: to_int(v, k, listen) for k, v in where.params.items() if k in ("port", "bitrate")}
             if interface in ("virtual", "udp_multicast"):
                 bus.pop("bitrate", None)
             warn_private_bus(listen)

@@ -44,10 +44,12 @@ def run(args: argparse.Namespace) -> int:
     nodes = [0]
     bus_query = ""
     if listen.startswith("can://"):
-        base, _, query = listen.partition("?")
-        from urllib.parse import parse_qsl, urlencode
+        from urllib.parse import urlencode
 
-        params = dict(parse_qsl(query))
+        from grippers.urls import parse_url
+
+        params = dict(parse_url(listen, bare_family="stepfoc").params)  # the one grammar: drivers/urls.py
+        base = listen.partition("?")[0]
         try:
             nodes = [int(n, 0) for n in params.pop("node", "0").split(",")]
         except ValueError:

@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
-from urllib.parse import parse_qsl, quote
+from urllib.parse import quote
 
 from ..errors import URLError
+from ..urls import parse_url
 from . import protocol
 
 
@@ -30,10 +31,10 @@ def served_urls(target: str, timeout: float = 2.0) -> list[str]:
     """``zenoh://?connect=E``: one ``zenoh://NAME?connect=E`` per served gripper; ``zenoh://NAME?…`` as is."""
     if not target.startswith("zenoh://"):
         raise URLError(f"{target!r} is not a zenoh:// URL")
-    name, _, query = target[len("zenoh://") :].partition("?")
-    if name.strip("/"):
+    url = parse_url(target)  # the one grammar: drivers/urls.py
+    if url.channel:
         return [target]
-    params = dict(parse_qsl(query, keep_blank_values=True))
+    params = url.params
     connect = [e for e in params.get("connect", "").split(",") if e]
     if not connect and "zenoh_config" not in params:
         raise URLError(f"{target!r}: say where to look: zenoh://?connect=tcp/HOST:7447")

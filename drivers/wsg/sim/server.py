@@ -7,15 +7,19 @@ Listen URLs (the simulator's side; it binds to loopback unless a host is given):
 - ``pty`` (a new pseudo-terminal; ``.url`` names its slave path)
 - ``can://INTERFACE/CHANNEL?send_id=..&recv_id=..&bitrate=..&extended=1`` (any python-can interface; the ids
   are the client's: the simulator receives on ``send_id`` (default 0x000) and answers on ``recv_id`` (default
-  0x001); standard 11-bit frames unless ``extended=1``; an id the frame format cannot carry is a ValueError)
+  0x001); standard 11-bit frames unless ``extended=1``; an id the frame format cannot carry is a
+  ValueError)
+
+They are read by the one URL grammar (``drivers/urls.py``, with ``listen=True``): a malformed URL or an
+unknown parameter is a URLError (also a ValueError), as it is for a client.
 """
 
 from __future__ import annotations
 
-from urllib.parse import parse_qs, urlsplit
-
 import can
 
+from ...errors import URLError
+from ...urls import parse_url, refuse_unknown, shown, to_bool, to_int
 from .engine import SimServer
 from .model import WsgModel
 from .transports import CanSimServer, PtySimServer, TcpSimServer, UdpSimServer
@@ -24,10 +28,6 @@ __all__ = ["SimServer", "serve"]
 
 LOOPBACK = "127.0.0.1"
 DEFAULT_PORTS = {"tcp": 1000, "udp": 1500}  # docs/protocols.md §1, transport defaults
-
-
-def _int(text: str) -> int:
-    return int(text, 0)
 
 
 def serve(
@@ -45,33 +45,28 @@ def serve(
     """
     if listen in ("pty", "pty://"):
         return PtySimServer(model, time_scale=time_scale)
-    parts = urlsplit(listen)
-    scheme = parts.scheme.lower()
-    if scheme in ("tcp", "udp"):
-        address = parts.hostname or host
-        port = parts.port if parts.port is not None else DEFAULT_PORTS[scheme]
-        cls = TcpSimServer if scheme == "tcp" else UdpSimServer
-        return cls(model, address, port, time_scale=time_scale)
-    if scheme == "can":
-        interface = parts.netloc
-        channel = parts.path.lstrip("/") or "wsg-sim"
-        if not interface:
-            raise ValueError(f"listen URL {listen!r} names no python-can interface (can://INTERFACE/CHANNEL)")
-        query = {k: v[-1] for k, v in parse_qs(parts.query).items()}
-        unknown = set(query) - {"send_id", "recv_id", "bitrate", "extended"}
-        if unknown:
-            raise ValueError(f"listen URL {listen!r}: unknown parameter(s) {', '.join(sorted(unknown))}")
-        return CanSimServer(
-            model,
-            interface=interface,
-            channel=channel,
-            send_id=_int(query.get("send_id", "0")),
-            recv_id=_int(query.get("recv_id", "1")),
-            bitrate=_int(query["bitrate"]) if "bitrate" in query else None,
-            extended_id=query.get("extended", "0").lower() in ("1", "true", "yes"),
-            bus=bus,
-            time_scale=time_scale,
+    scheme = listen.partition("://")[0].lower()
+    if scheme not in ("tcp", "udp", "can"):
+        raise URLError(
+            f"listen URL {shown(listen)}: expected tcp://HOST:PORT, udp://HOST:PORT, pty or can://IF/CHANNEL"
         )
-    raise ValueError(
-        f"listen URL {listen!r}: expected tcp://HOST:PORT, udp://HOST:PORT, pty or can://IF/CHANNEL"
+    url = parse_url(listen, bare_family="wsg", listen=True)  # the one grammar: drivers/urls.py
+    if url.transport in ("tcp", "udp"):
+        refuse_unknown(listen, url.params, ())
+        port = url.port if url.port is not None else DEFAULT_PORTS[url.transport]
+        cls = TcpSimServer if url.transport == "tcp" else UdpSimServer
+        return cls(model, url.host or host, port, time_scale=time_scale)
+    assert url.interface  # the grammar refuses a CAN URL without one
+    query = url.params
+    refuse_unknown(listen, query, ("send_id", "recv_id", "bitrate", "extended"))
+    return CanSimServer(
+        model,
+        interface=url.interface,
+        channel=url.channel or "wsg-sim",
+        send_id=to_int(query.get("send_id", "0"), "send_id", listen),
+        recv_id=to_int(query.get("recv_id", "1"), "recv_id", listen),
+        bitrate=to_int(query["bitrate"], "bitrate", listen) if "bitrate" in query else None,
+        extended_id=to_bool(query.get("extended", "0"), "extended", listen),
+        bus=bus,
+        time_scale=time_scale,
     )

@@ -17,6 +17,7 @@ from typing import Any
 import can
 
 from ...canlink import is_link_failure
+from ...urls import format_host
 from ..protocol import PacketParser, can_frames
 from .engine import Link, SimServer
 from .model import WsgModel
@@ -64,7 +65,7 @@ class TcpSimServer(_SelectorServer):
         self._clients: dict[int, tuple[socket.socket, Link]] = {}
         self._selector.register(self._listener, selectors.EVENT_READ, self._accept)
         self.address = self._listener.getsockname()[:2]
-        self.url = f"wsg+tcp://{_host_for_url(self.address[0])}:{self.address[1]}"
+        self.url = f"wsg+tcp://{format_host(self.address[0], self.address[1])}"
         self._start(f"wsg-sim-tcp-{self.address[1]}")
 
     def _accept(self) -> None:
@@ -137,7 +138,7 @@ class UdpSimServer(_SelectorServer):
         self._selector.register(self._sock, selectors.EVENT_READ, self._readable)
         self.address = self._sock.getsockname()[:2]
         # The simulator replies to the sender's port, so the client may bind any local port.
-        self.url = f"wsg+udp://{_host_for_url(self.address[0])}:{self.address[1]}?local_port=0"
+        self.url = f"wsg+udp://{format_host(self.address[0], self.address[1])}?local_port=0"
         self._start(f"wsg-sim-udp-{self.address[1]}")
 
     def _readable(self) -> None:
@@ -317,7 +318,3 @@ class CanSimServer(SimServer):
     def _close_transport(self) -> None:
         if self._own_bus:
             self._bus.shutdown()
-
-
-def _host_for_url(host: str) -> str:
-    return f"[{host}]" if ":" in host else host

@@ -1,0 +1,330 @@
+"""The one connection-URL grammar of the library, parsed without I/O.
+
+::
+
+    wsg+tcp://HOST[:PORT]                    wsg+udp://HOST[:PORT][?local_port=N]
+    wsg+serial://PORT-OR-PYSERIAL-URL[?baudrate=N&stopbits=2]
+    wsg+can://INTERFACE/CHANNEL[?bitrate=N&send_id=0x000&recv_id=0x001]
+    stepfoc+can://INTERFACE/CHANNEL[?node=N&bitrate=N]      stepfoc+serial://PORT[?baudrate=N]
+    sim://PROFILE[?part_width_mm=40&transport=tcp]          (an in-process simulated gripper)
+    zenoh://NAME?connect=tcp/HOST:7447                       (a gripper served by `grippers serve`)
+
+It lives in ``drivers`` so that the drivers, the simulators' listen URLs, the CLI and :mod:`grippers.urls`
+(the API's face of it) all read a URL the same way: copies of this parser had drifted (one kept a
+``#fragment``'s text, one silently dropped a ``bitrate=`` left blank, one took ``tcp://h:1000/x`` for
+``h:1000``).
+
+The rules, each one a :class:`~grippers.drivers.errors.URLError` naming the URL when broken:
+
+- The scheme is ``FAMILY+TRANSPORT`` (a third-party backend brings its own family name). Where a caller knows
+  the family (a driver's ``from_url``, a simulator's listen URL) it may accept the bare transport (``tcp://``).
+- A host is a name, an IPv4 address or a bracketed IPv6 address (``[fe80::1%25eth0]``: the zone is written
+  ``%25``, RFC 6874, and handed to the socket as ``fe80::1%eth0``); the port is 1..65535 (0, "any free port",
+  only in a listen URL). A user name, a path or a fragment after the host is refused, never silently dropped.
+- A CAN URL is ``INTERFACE/CHANNEL``; everything after the first ``/`` is the channel, so a serial-line CAN
+  adapter keeps its device path (``wsg+can://slcan//dev/ttyACM0@115200``) and a multicast channel may be an
+  IPv6 address full of colons.
+- A serial port may itself be a pyserial URL (``wsg+serial://socket://host:4000``, ``wsg+serial://loop://``);
+  our parameters follow the LAST ``?``. A device path is written with its leading slash
+  (``wsg+serial:///dev/ttyUSB0``).
+- The query is ``key=value`` pairs joined by ``&``, percent-decoded; a field without ``=``, an empty field or
+  an empty key is malformed. A key given twice with two different values is refused (which one did the user
+  mean? On a bus, the wrong ``node`` drives another gripper); the same value twice is accepted.
+- Host, interface, channel, profile, serial port and query values are percent-decoded; a control character
+  (raw or decoded) anywhere is refused: a newline in a URL is an injection, not a device name.
+"""
+
+from __future__ import annotations
+
+import ipaddress
+import re
+from dataclasses import dataclass, field
+from typing import Any
+from urllib.parse import parse_qsl, quote, unquote, unquote_plus
+
+from .errors import URLError
+from .numbers import finite
+
+__all__ = [
+    "TRANSPORTS",
+    "ConnectionURL",
+    "URLError",
+    "format_host",
+    "is_url",
+    "parse_query",
+    "parse_url",
+    "refuse_unknown",
+    "shown",
+    "to_bool",
+    "to_float",
+    "to_int",
+    "with_params",
+]
+
+TRANSPORTS = ("tcp", "udp", "serial", "can")
+_FAMILY = re.compile(r"[a-z][a-z0-9_-]*\Z")
+_CONTROL = re.compile(r"[\x00-\x1f\x7f]")
+_SHOWN = 200  # characters of a URL quoted in an error message: a megabyte of hostile text stays one line
+
+
+@dataclass(frozen=True)
+class ConnectionURL:
+    """A parsed URL: ``family`` and ``transport`` from the scheme, where to go, and the query as settings."""
+
+    url: str
+    family: str  # "wsg", "stepfoc", a third-party family, "sim" or "zenoh"
+    transport: str  # "tcp", "udp", "serial", "can", "zenoh", or "" for sim://
+    host: str | None = None
+    port: int | None = None
+    serial_port: str | None = None
+    interface: str | None = None
+    channel: str | None = None
+    profile: str | None = None  # sim://PROFILE
+    params: dict[str, str] = field(default_factory=dict)
+
+    def location(self) -> dict[str, Any]:
+        """Where the device is, for messages and ``grippers probe``."""
+        return {
+            k: v
+            for k, v in {
+                "transport": self.transport or "sim",
+                "host": self.host,
+                "port": self.port,
+                "serial_port": self.serial_port,
+                "interface": self.interface,
+                "channel": self.channel,
+                "profile": self.profile,
+            }.items()
+            if v is not None
+        }
+
+
+def is_url(text: str) -> bool:
+    return "://" in text
+
+
+def shown(url: str) -> str:
+    """The URL as error messages quote it."""
+    text = repr(url)
+    return text if len(text) <= _SHOWN else f"{text[:_SHOWN]}... ({len(url)} characters)"
+
+
+def parse_url(url: str, *, bare_family: str | None = None, listen: bool = False) -> ConnectionURL:
+    """Parse ``url`` by the grammar above.
+
+    ``bare_family``: a bare transport scheme (``tcp://``) is read as that family's (a driver or a simulator
+    knows which protocol it speaks). ``listen``: a simulator's listen URL, where the host may be left out
+    (the caller binds loopback), port 0 asks for any free port and a CAN channel may be left out.
+    """
+    if not isinstance(url, str):
+        raise URLError(f"{url!r} is not a connection URL (a str)")
+    _no_control(url, url, "URL")
+    if "://" not in url:
+        raise URLError(
+            f"{shown(url)} is not a connection URL (expected FAMILY+TRANSPORT://…, or sim://PROFILE)"
+        )
+    scheme, rest = url.split("://", 1)
+    scheme = scheme.lower()
+    if scheme == "sim":
+        return _parse_sim(url, rest)
+    if scheme == "zenoh":  # zenoh://NAME?connect=tcp/HOST:7447, a served gripper (docs/remote.md)
+        return _parse_zenoh(url, rest)
+    family, plus, transport = scheme.partition("+")
+    if not plus and bare_family is not None and scheme in TRANSPORTS:
+        family, transport = bare_family, scheme
+    elif not plus or not _FAMILY.match(family) or transport not in TRANSPORTS:
+        raise URLError(
+            f"{shown(url)}: scheme {scheme[:40]!r} is not FAMILY+TRANSPORT, "
+            f"TRANSPORT one of {', '.join(TRANSPORTS)}"
+        )
+    if transport == "serial":
+        return _parse_serial(url, family, rest)
+    if "#" in rest:
+        raise URLError(f"{shown(url)}: a connection URL has no #fragment (write # in a value as %23)")
+    base, _, query = rest.partition("?")
+    params = parse_query(url, query)
+    if transport in ("tcp", "udp"):
+        netloc, _, path = base.partition("/")
+        if path:
+            raise URLError(f"{shown(url)}: a {transport} URL is HOST[:PORT], with no path ({path[:40]!r})")
+        host, port = _host_port(url, netloc, listen)
+        return ConnectionURL(url, family, transport, host=host, port=port, params=params)
+    # can://INTERFACE/CHANNEL
+    raw_interface, _, raw_channel = base.partition("/")
+    if "[" in raw_interface or "]" in raw_interface:
+        raise URLError(f"{shown(url)}: a CAN interface is a python-can interface name, not {raw_interface!r}")
+    interface = _decoded(url, raw_interface, "interface")
+    channel = _decoded(url, raw_channel, "channel")
+    if not interface or not (channel or listen):
+        raise URLError(f"{shown(url)}: a CAN URL names INTERFACE/CHANNEL, e.g. {family}+can://socketcan/can0")
+    return ConnectionURL(url, family, transport, interface=interface, channel=channel or None, params=params)
+
+
+def parse_query(url: str, query: str) -> dict[str, str]:
+    """``k=v&k2=v2`` as a dict of percent-decoded strings (the rules in the module's docstring)."""
+    if not query:
+        return {}
+    try:
+        pairs = parse_qsl(query, keep_blank_values=True, strict_parsing=True)
+    except ValueError:
+        raise URLError(
+            f"{shown(url)}: malformed query {query[:80]!r} (expected key=value&key=value)"
+        ) from None
+    params: dict[str, str] = {}
+    for key, value in pairs:
+        if not key:
+            raise URLError(f"{shown(url)}: malformed query {query[:80]!r} (a value without a key)")
+        _no_control(url, key, "query key")
+        _no_control(url, value, key)
+        if key in params and params[key] != value:
+            raise URLError(f"{shown(url)}: {key} given twice ({params[key][:40]!r} and {value[:40]!r})")
+        params[key] = value
+    return params
+
+
+def with_params(url: str, **values: Any) -> str:
+    """``url`` with these query parameters set, first and in this order; the others kept as written.
+
+    For a URL the CLI hands back to the user (``grippers settings --node-id`` names the node's new URL).
+    """
+    parse_url(url)  # only a URL of the grammar is rewritten
+    serial = url.partition("://")[0].lower().endswith("+serial")
+    base, _, query = url.rpartition("?") if serial and "?" in url else url.partition("?")
+    kept = [f for f in query.split("&") if f and unquote_plus(f.partition("=")[0]) not in values]
+    ours = [f"{quote(k, safe='')}={quote(str(v), safe='/:,.')}" for k, v in values.items()]
+    return f"{base}?{'&'.join(ours + kept)}"
+
+
+def refuse_unknown(url: str, params: dict[str, str], known: tuple[str, ...] | frozenset[str]) -> None:
+    """A misspelt parameter is an error, not a default silently used instead of what the user wrote."""
+    unknown = sorted(set(params) - set(known))
+    if unknown:
+        raise URLError(
+            f"{shown(url)}: unknown parameter(s) {', '.join(unknown)} (known: {', '.join(sorted(known))})"
+        )
+
+
+def format_host(host: str, port: int | None = None) -> str:
+    """``HOST[:PORT]`` as a URL writes it: an IPv6 address in brackets, its zone as ``%25``."""
+    text = f"[{host.replace('%', '%25')}]" if ":" in host else host
+    return text if port is None else f"{text}:{port}"
+
+
+def _host_port(url: str, netloc: str, listen: bool) -> tuple[str | None, int | None]:
+    if "@" in netloc:
+        raise URLError(f"{shown(url)}: a gripper URL carries no user name (nothing before '@')")
+    if netloc.startswith("["):
+        end = netloc.find("]")
+        if end < 0:
+            raise URLError(f"{shown(url)}: unclosed '[' of an IPv6 address")
+        raw_host, after = netloc[1:end], netloc[end + 1 :]
+        host = _decoded(url, raw_host, "host").lower()
+        try:
+            ipaddress.IPv6Address(host.partition("%")[0])
+        except ValueError:
+            raise URLError(f"{shown(url)}: [{raw_host[:60]}] is not an IPv6 address") from None
+        if after and not after.startswith(":"):
+            raise URLError(f"{shown(url)}: {after[:40]!r} after the IPv6 address (expected :PORT)")
+        port_text = after[1:] if after else ""
+    else:
+        if "[" in netloc or "]" in netloc:
+            raise URLError(f"{shown(url)}: unbalanced brackets in {netloc[:60]!r}")
+        raw_host, _, port_text = netloc.partition(":")
+        if ":" in port_text:
+            raise URLError(f"{shown(url)}: an IPv6 address is written in brackets, e.g. wsg+tcp://[::1]:1000")
+        host = _decoded(url, raw_host, "host").lower()
+        _check_host_name(url, host)
+    if not host and not listen:
+        raise URLError(f"{shown(url)}: no host")
+    port: int | None = None
+    if port_text:
+        if not (port_text.isascii() and port_text.isdigit()) or len(port_text) > 5 or int(port_text) > 65535:
+            raise URLError(f"{shown(url)}: bad port {port_text[:20]!r} (1..65535)")
+        port = int(port_text)
+        if port == 0 and not listen:
+            # Port 0 means "any port" to a socket; connecting there silently went to the profile's default.
+            raise URLError(
+                f"{shown(url)}: port 0 is not a port a gripper listens on (1..65535, or leave it out)"
+            )
+    return host or None, port
+
+
+def _check_host_name(url: str, host: str) -> None:
+    """Refuse a host name that no resolver could take (``a..b``: an empty label), here, as a URLError,
+    instead of a UnicodeError from the IDNA codec when the socket connects."""
+    if not host:
+        return
+    try:
+        ipaddress.ip_address(host)
+        return
+    except ValueError:
+        pass
+    try:
+        host.encode("idna")
+    except UnicodeError as exc:
+        raise URLError(f"{shown(url)}: {host[:80]!r} is not a valid host name ({exc})") from None
+
+
+def _decoded(url: str, text: str, what: str) -> str:
+    value = unquote(text)
+    _no_control(url, value, what)
+    return value
+
+
+def _no_control(url: str, text: str, what: str) -> None:
+    if _CONTROL.search(text):
+        raise URLError(f"{shown(url)}: a control character in the {what}")
+
+
+def _parse_serial(url: str, family: str, rest: str) -> ConnectionURL:
+    # The port may be a pyserial URL with its own "://"; our parameters follow the last "?".
+    port, _, query = rest.rpartition("?") if "?" in rest else (rest, "", "")
+    port = _decoded(url, port, "serial port")
+    if not port:
+        raise URLError(f"{shown(url)}: no serial port (e.g. {family}+serial:///dev/ttyUSB0)")
+    return ConnectionURL(url, family, "serial", serial_port=port, params=parse_query(url, query))
+
+
+def _parse_sim(url: str, rest: str) -> ConnectionURL:
+    if "#" in rest:
+        raise URLError(f"{shown(url)}: a connection URL has no #fragment (write # in a value as %23)")
+    base, _, query = rest.partition("?")
+    if "[" in base or "]" in base:
+        raise URLError(f"{shown(url)}: {base[:60]!r} is not a profile name")
+    profile = _decoded(url, base, "profile").strip("/") or None
+    return ConnectionURL(url, "sim", "", profile=profile, params=parse_query(url, query))
+
+
+def _parse_zenoh(url: str, rest: str) -> ConnectionURL:
+    name, _, query = rest.partition("?")
+    served = _decoded(url, name, "served name").strip("/") or None
+    return ConnectionURL(url, "zenoh", "zenoh", channel=served, params=parse_query(url, query))
+
+
+def to_int(value: Any, name: str, url: str = "") -> int:
+    """Integers in queries may be decimal or 0x-hex (CAN ids are written in hex)."""
+    if isinstance(value, bool):
+        raise URLError(f"{url or 'settings'}: {name} must be an integer, not {value!r}")
+    if isinstance(value, int):
+        return value
+    try:
+        return int(str(value), 0)
+    except ValueError:
+        raise URLError(f"{url or 'settings'}: {name} must be an integer, not {str(value)[:40]!r}") from None
+
+
+def to_float(value: Any, name: str, url: str = "") -> float:
+    """A finite number: no setting (timeout, time scale, a width) means anything as nan or inf, and a nan
+    timeout would make every deadline comparison false, i.e. a wait without end."""
+    return finite(value, name, device=url or "settings", error=URLError)
+
+
+def to_bool(value: Any, name: str, url: str = "") -> bool:
+    if isinstance(value, bool):
+        return value
+    text = str(value).lower()
+    if text in ("1", "true", "yes", "on"):
+        return True
+    if text in ("0", "false", "no", "off"):
+        return False
+    raise URLError(f"{url or 'settings'}: {name} must be true or false, not {str(value)[:40]!r}")
