@@ -31,7 +31,7 @@ import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Generic, Protocol, TypeVar, overload
 
 import can
 
@@ -497,6 +497,42 @@ class StepfocBus:
         self.close()
 
 
+_T = TypeVar("_T")
+_T_co = TypeVar("_T_co", covariant=True)
+
+
+class _Reading(Protocol[_T_co]):
+    def __call__(self, timeout: float | None = None) -> _T_co: ...
+
+
+class _RemoteRead(Generic[_T]):
+    """A read that is one remote frame and its answer, decoded by the command table: each read of
+    :class:`StepfocNode` is one line naming its command instead of one more copy of the same method body."""
+
+    def __init__(self, command: Cmd, doc: str) -> None:
+        self.command = command
+        self.__doc__ = doc
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self.name = name
+
+    @overload
+    def __get__(self, node: None, owner: type) -> _RemoteRead[_T]: ...
+    @overload
+    def __get__(self, node: StepfocNode, owner: type) -> _Reading[_T]: ...
+    def __get__(self, node: StepfocNode | None, owner: type) -> _RemoteRead[_T] | _Reading[_T]:
+        if node is None:
+            return self
+        command = self.command
+
+        def read(timeout: float | None = None) -> _T:
+            return node._remote(command, timeout)
+
+        read.__name__ = read.__qualname__ = self.name
+        read.__doc__ = self.__doc__
+        return read
+
+
 class StepfocNode:
     """One MSG gripper (node 0..15) on a :class:`StepfocBus`. Values are the device's: bytes 0..255 and mA."""
 
@@ -844,26 +880,16 @@ class StepfocNode:
 
     # ------------------------------------------------------------------------------------------ driver
 
-    def device_info(self, timeout: float | None = None) -> DeviceInfo:
-        return self._remote(Cmd.DEVICE_INFO, timeout)
-
-    def temperature(self, timeout: float | None = None) -> int:
-        """Driver temperature in °C."""
-        return self._remote(Cmd.TEMPERATURE, timeout)
-
-    def bus_voltage(self, timeout: float | None = None) -> int:
-        """Supply voltage in mV."""
-        return self._remote(Cmd.BUS_VOLTAGE, timeout)
-
-    def error_state(self, timeout: float | None = None) -> ErrorState:
-        return self._remote(Cmd.ERROR_STATE, timeout)
-
-    def iq(self, timeout: float | None = None) -> int:
-        """Measured motor current (Iq) in mA."""
-        return self._remote(Cmd.IQ, timeout)
-
-    def encoder(self, timeout: float | None = None) -> EncoderData:
-        return self._remote(Cmd.ENCODER, timeout)
+    device_info = _RemoteRead[DeviceInfo](
+        Cmd.DEVICE_INFO, "Remote frame 25: hardware, batch date, software version, serial."
+    )
+    temperature = _RemoteRead[int](Cmd.TEMPERATURE, "Driver temperature in °C.")
+    bus_voltage = _RemoteRead[int](Cmd.BUS_VOLTAGE, "Supply voltage in mV.")
+    error_state = _RemoteRead[ErrorState](Cmd.ERROR_STATE, "Remote frame 26: the error and state flags.")
+    iq = _RemoteRead[int](Cmd.IQ, "Measured motor current (Iq) in mA.")
+    encoder = _RemoteRead[EncoderData](
+        Cmd.ENCODER, "Remote frame 28: encoder position (ticks) and velocity (ticks/s)."
+    )
 
     def ping(self, timeout: float | None = None) -> bool:
         """Remote frame 10; True when the node answers in time, False when it does not."""

@@ -10,10 +10,11 @@ from collections.abc import Iterator
 
 import pytest
 
-from grippers.drivers.simkit import SimClock
 from grippers.drivers.stepfoc.can_protocol import Cmd, Watchdog, WatchdogAction, encode_frame
 from grippers.drivers.stepfoc.sim import MsgModel, serve_uart, uart_server
 from grippers.drivers.stepfoc.sim.uart_server import UartSimServer
+
+from ..rawmodel import SteppedClock
 
 KEPT_REQUESTS = getattr(uart_server, "KEPT_REQUESTS", 256)
 
@@ -130,17 +131,6 @@ def test_a_driver_error_forces_idle_and_error_prints_it(port) -> None:
     raw.ask(b"#Clear\n")
     assert raw.ask(b"#Gripcal\n") == ["Gripper calibration! "]
     assert raw.ask(b"#Mode\n") == ["Gripper calib mode"]
-
-
-class SteppedClock(SimClock):
-    """Simulated time that moves only when the test says so: the watchdog's period is then exact."""
-
-    def __init__(self, start: float) -> None:
-        super().__init__(1.0, start=start)
-        self.t = start
-
-    def now(self) -> float:
-        return self.t
 
 
 def test_uart_lines_do_not_feed_the_can_watchdog() -> None:
