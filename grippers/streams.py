@@ -11,8 +11,9 @@ import queue
 import threading
 import time
 from collections.abc import Callable, Iterator
-from typing import Any, Self
+from typing import Any
 
+from grippers.drivers.closing import Closing
 from grippers.drivers.numbers import finite
 
 from .errors import GripperTimeout, LimitError
@@ -41,7 +42,7 @@ def put_dropping_oldest(q: queue.Queue[Any], item: Any) -> int:
                 pass
 
 
-class QueuedStream:
+class QueuedStream(Closing):
     """What the polled stream here and the remote client's subscribed stream (grippers/remote/stream.py)
     share: the bounded queue that keeps the newest, ``get()`` with its default wait, iteration and ``with``.
 
@@ -82,15 +83,6 @@ class QueuedStream:
                 self.close()
             raise item
         return item
-
-    def close(self) -> None:
-        raise NotImplementedError
-
-    def __enter__(self) -> Self:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
 
 class StateStream(QueuedStream):

@@ -19,6 +19,7 @@ from typing import Any
 import can
 
 from ...canlink import is_link_failure
+from ...closing import Closing
 from ...errors import ConnectionLost
 from ...simkit import FaultHooks, SimClock, apply_fault, first_half, flip_last_byte
 from ..can_protocol import DEFAULT_BITRATE, MAX_NODE, CanFrame, parse_can_url
@@ -29,7 +30,7 @@ __all__ = ["CanSimServer", "parse_can_url", "serve_can"]
 _POLL_S = 0.02  # longest wall time the reader blocks, so heartbeats and close() stay prompt
 
 
-class CanSimServer:
+class CanSimServer(Closing):
     """A running CAN simulator. ``models`` share one bus; ``url`` names the first node for a client."""
 
     def __init__(
@@ -168,12 +169,6 @@ class CanSimServer:
             t.cancel()
         if self._own_bus:
             self.bus.shutdown()
-
-    def __enter__(self) -> CanSimServer:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
 
 def serve_can(
