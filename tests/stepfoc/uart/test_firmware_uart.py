@@ -76,12 +76,17 @@ def test_mode_tells_calibration_and_gripper_mode(port) -> None:
     assert raw.ask(b"#Mode\n", wait=0.3, quiet=0.25) == []  # gripper mode (11) prints nothing
 
 
-def test_recalibration_keeps_the_calibrated_bit(port) -> None:
-    server, raw = port
+def _calibrate(raw) -> None:
+    """#Gripcal, then ask #Mode until the driver is idle again (5 s at most): the calibration has ended."""
     raw.ask(b"#Gripcal\n")
     deadline = time.monotonic() + 5
     while raw.ask(b"#Mode\n") != ["Idle mode "]:
         assert time.monotonic() < deadline
+
+
+def test_recalibration_keeps_the_calibrated_bit(port) -> None:
+    server, raw = port
+    _calibrate(raw)
     raw.ask(b"#Grippos 100\n")
     time.sleep(0.2)
     raw.ask(b"#Gripcal\n")
@@ -91,10 +96,7 @@ def test_recalibration_keeps_the_calibrated_bit(port) -> None:
 
 def test_clear_idles_the_driver(port) -> None:
     server, raw = port
-    raw.ask(b"#Gripcal\n")
-    deadline = time.monotonic() + 5
-    while raw.ask(b"#Mode\n") != ["Idle mode "]:
-        assert time.monotonic() < deadline
+    _calibrate(raw)
     raw.ask(b"#Gripvel 0\n")
     raw.ask(b"#Grippos 0\n")  # slow: ~40 simulated s
     time.sleep(0.05)
