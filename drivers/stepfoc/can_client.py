@@ -35,7 +35,7 @@ from typing import Any, Generic, Protocol, TypeVar, overload
 
 import can
 
-from ..canlink import describe_failure
+from ..canlink import describe_failure, standard_message
 from ..closing import Closing
 from ..errors import (
     CommandFailed,
@@ -372,12 +372,7 @@ class StepfocBus(Closing):
         """Put one frame on the bus; python-can failures become ConnectionLost (the frame was not sent)."""
         device = device or self.device
         self._check_open(device, command)
-        msg = can.Message(
-            arbitration_id=frame.arbitration_id,
-            data=frame.data,
-            is_extended_id=False,
-            is_remote_frame=frame.remote,
-        )
+        msg = standard_message(frame.arbitration_id, frame.data, frame.remote)
         try:
             self.bus.send(msg, timeout=timeout)
         except can.CanError as exc:

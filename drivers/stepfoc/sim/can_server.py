@@ -18,7 +18,7 @@ from typing import Any
 
 import can
 
-from ...canlink import is_link_failure
+from ...canlink import is_link_failure, standard_message
 from ...closing import Closing
 from ...errors import ConnectionLost
 from ...simkit import FaultHooks, SimClock, apply_fault, first_half, flip_last_byte
@@ -144,12 +144,7 @@ class CanSimServer(Closing):
             return
         if not 0 <= frame.arbitration_id <= 0x7FF:  # the simulator speaks standard frames only
             raise ValueError(f"identifier 0x{frame.arbitration_id:X} does not fit an 11-bit standard frame")
-        msg = can.Message(
-            arbitration_id=frame.arbitration_id,
-            data=frame.data,
-            is_extended_id=False,
-            is_remote_frame=frame.remote,
-        )
+        msg = standard_message(frame.arbitration_id, frame.data, frame.remote)
         try:
             self.bus.send(msg, timeout=0.5)
         except can.CanError as exc:
