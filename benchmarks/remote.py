@@ -212,17 +212,7 @@ def publish_load(quick: bool) -> Result:
     )
 
 
-CONTROLLER = textwrap.dedent(
-    """
-    import sys, time, grippers
-    g = grippers.open(sys.argv[1])
-    g.home()
-    g.move(g.limits.min_width + 0.001, g.limits.min_speed, wait=False)
-    time.sleep(0.3)
-    print("moving", flush=True)
-    time.sleep(60)
-    """
-)
+CONTROLLER = str(Path(__file__).resolve().parent / "moving_controller.py")
 
 
 def lease_failover(quick: bool) -> Result:
@@ -239,7 +229,7 @@ def lease_failover(quick: bool) -> Result:
         url = server.urls[0]
         with grippers.open(url) as watcher:
             for sig in kinds:
-                cmd = [sys.executable, "-c", CONTROLLER, url]
+                cmd = [sys.executable, CONTROLLER, url, "0.3"]
                 proc = subprocess.Popen(cmd, cwd=REPO, stdout=subprocess.PIPE)
                 assert proc.stdout is not None and proc.stdout.readline().strip() == b"moving"
                 with watcher.stream(rate_hz=1000) as states:

@@ -19,7 +19,9 @@ from __future__ import annotations
 
 import errno
 
-__all__ = ["LINK_ERRNOS", "describe_failure", "is_link_failure"]
+import can  # every module that imports this one speaks CAN through python-can already
+
+__all__ = ["LINK_ERRNOS", "describe_failure", "is_link_failure", "standard_message"]
 
 # errno values that mean "the interface itself is gone or down", not "this one frame failed"
 LINK_ERRNOS = frozenset({errno.ENETDOWN, errno.ENODEV, errno.ENXIO, errno.ENETUNREACH})
@@ -47,3 +49,9 @@ def describe_failure(exc: BaseException, channel: object, what: str) -> str:
     else:  # one frame failed (a full queue, a bus-off controller): the device named in the error says where
         return f"{what} failed: {exc}"
     return f"{what} failed: {cause}: {exc}"
+
+
+def standard_message(arbitration_id: int, data: bytes, remote: bool) -> can.Message:
+    """A python-can message of an 11-bit identifier: the only frame format the STEPFOC firmware speaks
+    (its client and its simulator build their frames here)."""
+    return can.Message(arbitration_id=arbitration_id, data=data, is_extended_id=False, is_remote_frame=remote)

@@ -13,13 +13,14 @@ import time
 from collections.abc import Callable, Iterator
 from typing import Any
 
+from grippers.drivers.closing import Closing
 from grippers.drivers.numbers import finite
 
 from .errors import GripperTimeout, LimitError
 from .motions import wait_seconds
 from .states import GripperState
 
-__all__ = ["StateStream", "put_dropping_oldest"]
+__all__ = ["QueuedStream", "StateStream", "put_dropping_oldest"]
 
 log = logging.getLogger(__name__)
 
@@ -41,7 +42,50 @@ def put_dropping_oldest(q: queue.Queue[Any], item: Any) -> int:
                 pass
 
 
-class StateStream:
+class QueuedStream(Closing):
+    """What the polled stream here and the remote client's subscribed stream (grippers/remote/stream.py)
+    share: the bounded queue that keeps the newest, ``get()`` with its default wait, iteration and ``with``.
+
+    They differ only in what an error taken from the queue means (:meth:`_ends_stream`) and in how they stop.
+    """
+
+    def __init__(self, period: float, maxsize: int) -> None:
+        self.period = period
+        self._queue: queue.Queue[GripperState | BaseException] = queue.Queue(maxsize)
+        self._stop = threading.Event()
+        self.dropped = 0
+
+    def _ends_stream(self, error: BaseException) -> bool:
+        """Whether ``error``, read from the queue, ended the stream (``get()`` closes it before raising)."""
+        return True
+
+    def _put(self, item: GripperState | BaseException) -> None:
+        self.dropped += put_dropping_oldest(self._queue, item)
+
+    def __iter__(self) -> Iterator[GripperState]:
+        return self
+
+    def __next__(self) -> GripperState:
+        return self.get()
+
+    def get(self, timeout: float | None = None) -> GripperState:
+        """The next state; GripperTimeout when none comes within ``timeout`` (default: ten periods + 2 s)."""
+        if self._stop.is_set() and self._queue.empty():
+            raise StopIteration
+        chosen = wait_seconds(timeout, "stream")  # no overflow, no NaN (issue 13)
+        wait = chosen if chosen is not None else 10 * self.period + 2.0
+        try:
+            item = self._queue.get(timeout=wait)
+        except queue.Empty:
+            raise GripperTimeout(f"no state within {wait:g} s", command="stream") from None
+        if isinstance(item, BaseException):
+            if self._ends_stream(item):
+                self.close()
+            raise item
+        return item
+
+
+class StateStream(QueuedStream):
     """States at ``rate_hz``: iterate over it, or pass a callback. Bounded: a slow reader drops the oldest."""
 
     def __init__(
@@ -55,13 +99,10 @@ class StateStream:
         rate = finite(rate_hz, "rate_hz", command="stream")
         if rate <= 0:
             raise LimitError(f"rate_hz must be a positive number, not {rate_hz!r}", command="stream")
-        self.period = 1.0 / rate
+        super().__init__(1.0 / rate, maxsize)
         self._read = read
         self._callback = callback
         self._on_close = on_close
-        self._queue: queue.Queue[GripperState | BaseException] = queue.Queue(maxsize)
-        self._stop = threading.Event()
-        self.dropped = 0
         self._thread = threading.Thread(target=self._run, name="grippers-stream", daemon=True)
         self._thread.start()
 
@@ -88,31 +129,8 @@ class StateStream:
                 delay = 0
             self._stop.wait(delay)
 
-    def _put(self, item: GripperState | BaseException) -> None:
-        self.dropped += put_dropping_oldest(self._queue, item)
-
-    def __iter__(self) -> Iterator[GripperState]:
-        return self
-
-    def __next__(self) -> GripperState:
-        return self.get()
-
-    def get(self, timeout: float | None = None) -> GripperState:
-        """The next state; GripperTimeout when none comes within ``timeout`` (default: ten periods + 2 s)."""
-        if self._stop.is_set() and self._queue.empty():
-            raise StopIteration
-        chosen = wait_seconds(timeout, "stream")
-        wait = chosen if chosen is not None else 10 * self.period + 2.0
-        try:
-            item = self._queue.get(timeout=wait)
-        except queue.Empty:
-            raise GripperTimeout(f"no state within {wait:g} s", command="stream") from None
-        if isinstance(item, BaseException):
-            # A timeout is one missed reading (the stream thread goes on); anything else ended the stream.
-            if not isinstance(item, GripperTimeout):
-                self.close()
-            raise item
-        return item
+    def _ends_stream(self, error: BaseException) -> bool:
+        return not isinstance(error, GripperTimeout)  # one missed reading: the stream thread goes on
 
     def close(self) -> None:
         """Stop the stream (its thread, if it has one); idempotent."""
@@ -122,9 +140,3 @@ class StateStream:
         if self._on_close is not None:
             self._on_close(self)
             self._on_close = None
-
-    def __enter__(self) -> StateStream:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()

@@ -18,6 +18,8 @@ from typing import Any
 import pytest
 from hypothesis import HealthCheck, settings
 
+from .closing import closed_after
+
 settings.register_profile(
     "ci",
     max_examples=150,
@@ -129,16 +131,8 @@ class SimProcess:
 @pytest.fixture
 def sim_process() -> Iterator[Callable[..., SimProcess]]:
     """``sim_process("wsg", "--listen", "tcp://127.0.0.1:0")``: started now, stopped after the test."""
-    started: list[SimProcess] = []
-
-    def start(*args: str) -> SimProcess:
-        sim = SimProcess(*args)
-        started.append(sim)
-        return sim
-
-    yield start
-    for sim in started:
-        sim.close()
+    with closed_after(SimProcess) as start:
+        yield start
 
 
 @pytest.fixture
@@ -149,14 +143,8 @@ def wsg_sim() -> Iterator[Callable[..., Any]]:
     (grippers/testing.py) instead."""
     from grippers.drivers.wsg.sim import WsgModel, serve
 
-    servers: list[Any] = []
-
     def start(listen: str = "tcp://127.0.0.1:0", *, time_scale: float = 50.0, **model_kw: Any) -> Any:
-        server = serve(WsgModel(**model_kw), listen, time_scale=time_scale)
-        servers.append(server)
-        return server
+        return serve(WsgModel(**model_kw), listen, time_scale=time_scale)
 
-    yield start
-    for s in servers:
-        s.close()
-        assert s.error is None, f"simulator thread died: {s.error!r}"
+    with closed_after(start, simulator=True) as started:
+        yield started

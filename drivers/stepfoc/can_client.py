@@ -31,11 +31,12 @@ import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Generic, Protocol, TypeVar, overload
 
 import can
 
-from ..canlink import describe_failure
+from ..canlink import describe_failure, standard_message
+from ..closing import Closing
 from ..errors import (
     CommandFailed,
     ConnectionLost,
@@ -166,7 +167,7 @@ class _NodeState:
     heartbeat_cond: threading.Condition = field(default_factory=threading.Condition)
 
 
-class StepfocBus:
+class StepfocBus(Closing):
     """One python-can bus shared by any number of :class:`StepfocNode` handles."""
 
     def __init__(
@@ -371,12 +372,7 @@ class StepfocBus:
         """Put one frame on the bus; python-can failures become ConnectionLost (the frame was not sent)."""
         device = device or self.device
         self._check_open(device, command)
-        msg = can.Message(
-            arbitration_id=frame.arbitration_id,
-            data=frame.data,
-            is_extended_id=False,
-            is_remote_frame=frame.remote,
-        )
+        msg = standard_message(frame.arbitration_id, frame.data, frame.remote)
         try:
             self.bus.send(msg, timeout=timeout)
         except can.CanError as exc:
@@ -490,14 +486,44 @@ class StepfocBus:
             if self._own_bus:
                 self.bus.shutdown()
 
-    def __enter__(self) -> StepfocBus:
-        return self
 
-    def __exit__(self, *exc: object) -> None:
-        self.close()
+_T = TypeVar("_T")
+_T_co = TypeVar("_T_co", covariant=True)
 
 
-class StepfocNode:
+class _Reading(Protocol[_T_co]):
+    def __call__(self, timeout: float | None = None) -> _T_co: ...
+
+
+class _RemoteRead(Generic[_T]):
+    """A read that is one remote frame and its answer, decoded by the command table: each read of
+    :class:`StepfocNode` is one line naming its command instead of one more copy of the same method body."""
+
+    def __init__(self, command: Cmd, doc: str) -> None:
+        self.command = command
+        self.__doc__ = doc
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self.name = name
+
+    @overload
+    def __get__(self, node: None, owner: type) -> _RemoteRead[_T]: ...
+    @overload
+    def __get__(self, node: StepfocNode, owner: type) -> _Reading[_T]: ...
+    def __get__(self, node: StepfocNode | None, owner: type) -> _RemoteRead[_T] | _Reading[_T]:
+        if node is None:
+            return self
+        command = self.command
+
+        def read(timeout: float | None = None) -> _T:
+            return node._remote(command, timeout)
+
+        read.__name__ = read.__qualname__ = self.name
+        read.__doc__ = self.__doc__
+        return read
+
+
+class StepfocNode(Closing):
     """One MSG gripper (node 0..15) on a :class:`StepfocBus`. Values are the device's: bytes 0..255 and mA."""
 
     def __init__(
@@ -555,6 +581,33 @@ class StepfocNode:
         return self.bus.request(
             self._node, command, frame, self._timeout(timeout), device=self.device, name=name
         ).value
+
+    def _failed(self, message: str, status: str, command: str) -> CommandFailed:
+        """The CommandFailed of a refused or ended command, naming this node (``raise self._failed(...)``)."""
+        return CommandFailed(message, status_name=status, device=self.device, command=command)
+
+    def _poll_until(
+        self,
+        ended: Callable[[GripperStatus, str | None], bool],
+        timeout: float,
+        poll_interval: float,
+        late: str,
+        command: str,
+    ) -> GripperStatus:
+        """Poll until ``ended(status, fault)`` is true (it raises for an end that is a failure); after
+        ``timeout`` wall seconds, GripperTimeout saying ``late``. Every poll waits within the deadline."""
+        deadline = time.monotonic() + timeout
+        while True:
+            st = self.poll(timeout=min(self.timeout, max(0.01, deadline - time.monotonic())))
+            if ended(st, self.fault(st)):
+                return st
+            if time.monotonic() >= deadline:
+                raise GripperTimeout(
+                    f"{late} after {timeout:g} s (position {st.position})",
+                    device=self.device,
+                    command=command,
+                )
+            time.sleep(poll_interval)
 
     def _status_request(self, data: bytes, timeout: float | None, name: str) -> GripperStatus:
         frame = CanFrame(pack_id(self._node, Cmd.GRIPPER_COMMAND), data, False)
@@ -680,33 +733,19 @@ class StepfocNode:
     def wait_motion(self, *, timeout: float = 10.0, poll_interval: float = 0.01) -> GripperStatus:
         """Poll until detection is not MOVING. Call after :meth:`command`: the poll that follows a command
         already reflects it (only the command's own reply carries the stale detection value)."""
-        deadline = time.monotonic() + timeout
-        while True:
-            st = self.poll(timeout=min(self.timeout, max(0.01, deadline - time.monotonic())))
-            cause = self.fault(st)
+
+        def ended(st: GripperStatus, cause: str | None) -> bool:
             if cause is not None:
-                raise CommandFailed(
-                    f"motion aborted by a device error: {cause}",
-                    status_name=cause,
-                    device=self.device,
-                    command="move",
-                )
+                raise self._failed(f"motion aborted by a device error: {cause}", cause, "move")
             if not (st.activated and st.action):
-                raise CommandFailed(
+                raise self._failed(
                     "motion aborted: the action bit was cleared (a stop, maybe from another host)",
-                    status_name="aborted",
-                    device=self.device,
-                    command="move",
+                    "aborted",
+                    "move",
                 )
-            if st.detection is not Detection.MOVING:
-                return st
-            if time.monotonic() >= deadline:
-                raise GripperTimeout(
-                    f"still moving after {timeout:g} s (position {st.position})",
-                    device=self.device,
-                    command="move",
-                )
-            time.sleep(poll_interval)
+            return st.detection is not Detection.MOVING
+
+        return self._poll_until(ended, timeout, poll_interval, "still moving", "move")
 
     def move(
         self,
@@ -722,17 +761,12 @@ class StepfocNode:
         at position (3) or object found (1 closing / 2 opening)."""
         st = self.command(position, speed, current_ma)
         if not st.calibrated:
-            raise CommandFailed(
-                "the gripper is not calibrated (calibrate after every power-up)",
-                status_name="not calibrated",
-                device=self.device,
-                command="move",
+            raise self._failed(
+                "the gripper is not calibrated (calibrate after every power-up)", "not calibrated", "move"
             )
         cause = self.fault(st)
         if cause is not None:
-            raise CommandFailed(
-                f"error active: {cause}", status_name=cause, device=self.device, command="move"
-            )
+            raise self._failed(f"error active: {cause}", cause, "move")
         return self.wait_motion(timeout=timeout, poll_interval=poll_interval) if wait else st
 
     def calibrate(
@@ -748,34 +782,16 @@ class StepfocNode:
         watch = CalibrationWatch(tracker.was_calibrated)
         if not wait:
             return None
-        deadline = time.monotonic() + timeout
-        while True:
-            st = self.poll(timeout=min(self.timeout, max(0.01, deadline - time.monotonic())))
-            cause = self.fault(st)
+
+        def ended(st: GripperStatus, cause: str | None) -> bool:
             if cause is not None:
-                raise CommandFailed(
-                    f"calibration refused or stopped: {cause}",
-                    status_name=cause,
-                    device=self.device,
-                    command="calibrate",
-                )
+                raise self._failed(f"calibration refused or stopped: {cause}", cause, "calibrate")
             done = watch.update(st)
             if isinstance(done, str):
-                raise CommandFailed(
-                    f"calibration failed: {done}",
-                    status_name="failed",
-                    device=self.device,
-                    command="calibrate",
-                )
-            if done:
-                return st
-            if time.monotonic() >= deadline:
-                raise GripperTimeout(
-                    f"calibration not finished after {timeout:g} s (position {st.position})",
-                    device=self.device,
-                    command="calibrate",
-                )
-            time.sleep(poll_interval)
+                raise self._failed(f"calibration failed: {done}", "failed", "calibrate")
+            return done
+
+        return self._poll_until(ended, timeout, poll_interval, "calibration not finished", "calibrate")
 
     def start_calibration(
         self, timeout: float | None = None, *, command: str = "calibrate"
@@ -788,11 +804,8 @@ class StepfocNode:
         before = self.poll(timeout)
         cause = self.fault(before, timeout)
         if cause is not None:
-            raise CommandFailed(
-                f"cannot calibrate: driver error active ({cause}); acknowledge it first",
-                status_name=cause,
-                device=self.device,
-                command=command,
+            raise self._failed(
+                f"cannot calibrate: driver error active ({cause}); acknowledge it first", cause, command
             )
         self.send(Cmd.GRIPPER_CALIBRATE)
         return CalibrationTracker(before.calibrated, time.monotonic())
@@ -822,12 +835,7 @@ class StepfocNode:
         st = self.poll(timeout)
         cause = self.fault(st, timeout)
         if cause is not None:
-            raise CommandFailed(
-                f"error still active after clearing: {cause}",
-                status_name=cause,
-                device=self.device,
-                command="clear_error",
-            )
+            raise self._failed(f"error still active after clearing: {cause}", cause, "clear_error")
         if resume and last is not None and last.action:
             self.send_command(
                 GripperCommand(
@@ -844,26 +852,16 @@ class StepfocNode:
 
     # ------------------------------------------------------------------------------------------ driver
 
-    def device_info(self, timeout: float | None = None) -> DeviceInfo:
-        return self._remote(Cmd.DEVICE_INFO, timeout)
-
-    def temperature(self, timeout: float | None = None) -> int:
-        """Driver temperature in °C."""
-        return self._remote(Cmd.TEMPERATURE, timeout)
-
-    def bus_voltage(self, timeout: float | None = None) -> int:
-        """Supply voltage in mV."""
-        return self._remote(Cmd.BUS_VOLTAGE, timeout)
-
-    def error_state(self, timeout: float | None = None) -> ErrorState:
-        return self._remote(Cmd.ERROR_STATE, timeout)
-
-    def iq(self, timeout: float | None = None) -> int:
-        """Measured motor current (Iq) in mA."""
-        return self._remote(Cmd.IQ, timeout)
-
-    def encoder(self, timeout: float | None = None) -> EncoderData:
-        return self._remote(Cmd.ENCODER, timeout)
+    device_info = _RemoteRead[DeviceInfo](
+        Cmd.DEVICE_INFO, "Remote frame 25: hardware, batch date, software version, serial."
+    )
+    temperature = _RemoteRead[int](Cmd.TEMPERATURE, "Driver temperature in °C.")
+    bus_voltage = _RemoteRead[int](Cmd.BUS_VOLTAGE, "Supply voltage in mV.")
+    error_state = _RemoteRead[ErrorState](Cmd.ERROR_STATE, "Remote frame 26: the error and state flags.")
+    iq = _RemoteRead[int](Cmd.IQ, "Measured motor current (Iq) in mA.")
+    encoder = _RemoteRead[EncoderData](
+        Cmd.ENCODER, "Remote frame 28: encoder position (ticks) and velocity (ticks/s)."
+    )
 
     def ping(self, timeout: float | None = None) -> bool:
         """Remote frame 10; True when the node answers in time, False when it does not."""
@@ -932,12 +930,6 @@ class StepfocNode:
         """Close the bus if this handle opened it (see :func:`open_node`); otherwise nothing."""
         if self._owns_bus:
             self.bus.close()
-
-    def __enter__(self) -> StepfocNode:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
 
 def open_node(

@@ -22,6 +22,7 @@ from typing import TypeVar
 
 import serial
 
+from ..closing import Closing
 from ..errors import (
     CommandFailed,
     ConnectionLost,
@@ -79,7 +80,7 @@ def _mode_line(line: str) -> int | _Pending:
     return _PENDING if mode is None else mode
 
 
-class StepfocUart:
+class StepfocUart(Closing):
     """One MSG gripper on a serial port, speaking the STEPFOC UART text protocol.
 
     ``port`` is anything :func:`serial.serial_for_url` opens (``/dev/ttyACM0``, ``COM3``, ``loop://``,
@@ -139,12 +140,6 @@ class StepfocUart:
                 self._ser.close()
             except _PORT_ERRORS:
                 pass
-
-    def __enter__(self) -> StepfocUart:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
     def __repr__(self) -> str:
         return f"StepfocUart({self.port!r}{', closed' if self._closed else ''})"

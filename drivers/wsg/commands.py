@@ -501,6 +501,14 @@ def _finger(base: int, n: int) -> list[CommandSpec]:
 # Firmware 2.2.0 has neither 46h nor the finger commands (docs/protocols.md §1); 4.0.x documents them.
 # The 3.x manuals are not among our sources, so 3.x is assumed to have them: a device that lacks one answers
 # E_CMD_UNKNOWN, which is harmless, while refusing a command a device has would not be.
+def _auto_update(command: Cmd, title: str, section: str, reply: Field) -> CommandSpec:
+    """A state query that can also update automatically (manual §3.4): the same request fields for all of
+    them, a reply of one field."""
+    return CommandSpec(
+        command, command.name, title, section, Layout(*_AUTO_UPDATE_FIELDS), Layout(reply), auto_update=True
+    )
+
+
 _SPECS: list[CommandSpec] = [
     CommandSpec(
         Cmd.LOOP,
@@ -638,24 +646,8 @@ _SPECS: list[CommandSpec] = [
         Layout(),
     ),
     CommandSpec(Cmd.TARE, "TARE", "Tare Force Sensor", "3.3.9", Layout(), Layout()),
-    CommandSpec(
-        Cmd.GET_SYSTEM_STATE,
-        "GET_SYSTEM_STATE",
-        "Get System State",
-        "3.4.1",
-        Layout(*_AUTO_UPDATE_FIELDS),
-        Layout(_SYSTEM_FLAGS),
-        auto_update=True,
-    ),
-    CommandSpec(
-        Cmd.GET_GRASPING_STATE,
-        "GET_GRASPING_STATE",
-        "Get Gripper State",
-        "3.4.2",
-        Layout(*_AUTO_UPDATE_FIELDS),
-        Layout(_GRASPING_STATE),
-        auto_update=True,
-    ),
+    _auto_update(Cmd.GET_SYSTEM_STATE, "Get System State", "3.4.1", _SYSTEM_FLAGS),
+    _auto_update(Cmd.GET_GRASPING_STATE, "Get Gripper State", "3.4.2", _GRASPING_STATE),
     # docs/protocols.md §1 erratum: the id is 42h (both manuals print "Command ID: 40h").
     CommandSpec(
         Cmd.GET_GRASPING_STATISTICS,
@@ -666,33 +658,9 @@ _SPECS: list[CommandSpec] = [
         Layout(Field("total", "I"), Field("no_part", "H"), Field("lost_part", "H")),
         result=GraspingStatistics,
     ),
-    CommandSpec(
-        Cmd.GET_WIDTH,
-        "GET_WIDTH",
-        "Get Opening Width",
-        "3.4.4",
-        Layout(*_AUTO_UPDATE_FIELDS),
-        Layout(_f32("width", "mm")),
-        auto_update=True,
-    ),
-    CommandSpec(
-        Cmd.GET_SPEED,
-        "GET_SPEED",
-        "Get Speed",
-        "3.4.5",
-        Layout(*_AUTO_UPDATE_FIELDS),
-        Layout(_f32("speed", "mm/s")),
-        auto_update=True,
-    ),
-    CommandSpec(
-        Cmd.GET_FORCE,
-        "GET_FORCE",
-        "Get Force",
-        "3.4.6",
-        Layout(*_AUTO_UPDATE_FIELDS),
-        Layout(_f32("force", "N")),
-        auto_update=True,
-    ),
+    _auto_update(Cmd.GET_WIDTH, "Get Opening Width", "3.4.4", _f32("width", "mm")),
+    _auto_update(Cmd.GET_SPEED, "Get Speed", "3.4.5", _f32("speed", "mm/s")),
+    _auto_update(Cmd.GET_FORCE, "Get Force", "3.4.6", _f32("force", "N")),
     # docs/protocols.md §1: i16 in 0.1 °C; decoded to °C as a float.
     CommandSpec(
         Cmd.GET_TEMPERATURE,

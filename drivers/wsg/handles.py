@@ -9,6 +9,7 @@ from collections import deque
 from collections.abc import Callable, Iterator
 from typing import TYPE_CHECKING, Any
 
+from ..closing import Closing
 from ..errors import ConnectionLost, GripperError, GripperTimeout
 from .commands import command_name
 from .exchanges import POLL
@@ -64,7 +65,7 @@ class Pending:
         return f"<Pending {command_name(self.command)} {self._exchange.state.value}>"
 
 
-class Subscription:
+class Subscription(Closing):
     """Auto updates of one state command, as callbacks and as an iterator of decoded values.
 
     Values go to a bounded queue (``maxsize``); when it is full the OLDEST value is dropped (a consumer that
@@ -175,9 +176,3 @@ class Subscription:
             return
         self._end()
         self._client._unsubscribe(self, timeout)
-
-    def __enter__(self) -> Subscription:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()

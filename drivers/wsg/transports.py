@@ -95,7 +95,24 @@ class Transport(Protocol):
 _DRAIN_READS = 64  # recv_nowait reads at most this many datagrams or frames: bounded under a flood
 
 
-class TcpTransport:
+class _SocketTransport:
+    """What the TCP and UDP transports share: a blocking socket whose receive timeout is set only when it
+    changes (one thread at a time reads, so the timeout is the reader's), and failures as ConnectionLost."""
+
+    name: str
+    _sock: socket.socket
+    _timeout: float | None = None
+
+    def _receive_within(self, timeout: float) -> None:
+        if timeout != self._timeout:
+            self._sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVTIMEO, _timeval(timeout))
+            self._timeout = timeout
+
+    def _lost(self, action: str, exc: OSError) -> ConnectionLost:
+        return ConnectionLost(f"{action} failed: {exc}", device=self.name)
+
+
+class TcpTransport(_SocketTransport):
     ordered = True
     connection_oriented = True
     silent_gap = False
@@ -112,7 +129,6 @@ class TcpTransport:
             raise ConnectionLost(f"cannot connect: {exc}", device=self.name) from None
         self._sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         _blocking_with_timeouts(self._sock)
-        self._timeout: float | None = None
         self._send_lock = threading.Lock()
         self._poll = self.ready = _poller(self._sock)
 
@@ -121,32 +137,25 @@ class TcpTransport:
             with self._send_lock:
                 self._sock.sendall(data)
         except OSError as exc:
-            raise ConnectionLost(f"send failed: {exc}", device=self.name) from None
+            raise self._lost("send", exc) from None
 
     def recv(self, timeout: float) -> bytes:
-        # One thread at a time reads, so the receive timeout is the reader's; set only when it changes.
-        if timeout != self._timeout:
-            self._sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVTIMEO, _timeval(timeout))
-            self._timeout = timeout
-        try:
-            data = self._sock.recv(65536)
-        except BlockingIOError:  # SO_RCVTIMEO expired
-            return b""
-        except OSError as exc:
-            raise ConnectionLost(f"receive failed: {exc}", device=self.name) from None
-        if not data:
-            raise ConnectionLost("connection closed by the gripper", device=self.name)
-        return data
+        self._receive_within(timeout)
+        return self._read(0)
 
     def recv_nowait(self) -> bytes:
         if not self._poll(0):  # the usual answer, and 4x cheaper than a recv that raises EAGAIN
             return b""
+        return self._read(socket.MSG_DONTWAIT)
+
+    def _read(self, flags: int) -> bytes:
+        """One ``recv``; b"" when nothing came (EAGAIN: SO_RCVTIMEO expired, or nothing for MSG_DONTWAIT)."""
         try:
-            data = self._sock.recv(65536, socket.MSG_DONTWAIT)
+            data = self._sock.recv(65536, flags)
         except BlockingIOError:
             return b""
         except OSError as exc:
-            raise ConnectionLost(f"receive failed: {exc}", device=self.name) from None
+            raise self._lost("receive", exc) from None
         if not data:
             raise ConnectionLost("connection closed by the gripper", device=self.name)
         return data
@@ -159,7 +168,7 @@ class TcpTransport:
         self._sock.close()
 
 
-class UdpTransport:
+class UdpTransport(_SocketTransport):
     """One datagram per packet; replies are accepted from the gripper's address only (any source port).
 
     The socket binds the local address that reaches the gripper (the kernel's route to it: loopback for a
@@ -197,18 +206,15 @@ class UdpTransport:
             ) from None
         self.local_port = self._sock.getsockname()[1]
         self.name = f"udp://{host}:{port}"
-        self._timeout: float | None = None
 
     def send(self, data: bytes) -> None:
         try:
             self._sock.sendto(data, self._peer)
         except OSError as exc:
-            raise ConnectionLost(f"send failed: {exc}", device=self.name) from None
+            raise self._lost("send", exc) from None
 
     def recv(self, timeout: float) -> bytes:
-        if timeout != self._timeout:
-            self._sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVTIMEO, _timeval(timeout))
-            self._timeout = timeout
+        self._receive_within(timeout)
         try:
             data, source = self._sock.recvfrom(65536)
         except BlockingIOError:  # SO_RCVTIMEO expired
@@ -216,7 +222,7 @@ class UdpTransport:
         except ConnectionRefusedError:
             return b""  # ICMP port unreachable from an earlier send: not a broken link for a datagram socket
         except OSError as exc:
-            raise ConnectionLost(f"receive failed: {exc}", device=self.name) from None
+            raise self._lost("receive", exc) from None
         return data if source[0] == self._peer[0] else b""
 
     def recv_nowait(self) -> bytes:
@@ -229,7 +235,7 @@ class UdpTransport:
             except (BlockingIOError, ConnectionRefusedError):
                 break
             except OSError as exc:
-                raise ConnectionLost(f"receive failed: {exc}", device=self.name) from None
+                raise self._lost("receive", exc) from None
             if source[0] == self._peer[0]:
                 chunks.append(data)
         return b"".join(chunks)

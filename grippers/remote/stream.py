@@ -13,17 +13,17 @@ import math
 import queue
 import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from typing import Any
 
-from ..errors import GripperError, GripperTimeout
-from ..gripper import GripperState, put_dropping_oldest
-from ..motions import wait_seconds
+from ..errors import GripperError
+from ..states import GripperState
+from ..streams import QueuedStream
 
 log = logging.getLogger(__name__)
 
 
-class SubscribedStream:
+class SubscribedStream(QueuedStream):
     def __init__(
         self,
         decode: Callable[[bytes], tuple[int, GripperState]],
@@ -34,17 +34,14 @@ class SubscribedStream:
     ) -> None:
         if not (math.isfinite(rate_hz) and rate_hz > 0):
             raise ValueError(f"rate_hz must be a positive number, not {rate_hz!r}")
-        self.period = 1.0 / rate_hz
+        super().__init__(1.0 / rate_hz, maxsize)
         self._decode = decode
         self._callback = callback
         self._on_close = on_close
-        self._queue: queue.Queue[GripperState | BaseException] = queue.Queue(maxsize)
-        self._stop = threading.Event()
         self._lock = threading.Lock()
         self._last_at = -math.inf
         self._last_seq: int | None = None
         self._sub: Any = None
-        self.dropped = 0
         self.missed = 0  # publications never seen (sequence gaps)
         self.out_of_order = 0
         self.error: BaseException | None = None  # what ended the stream (ConnectionLost), once it has
@@ -93,9 +90,6 @@ class SubscribedStream:
             log.warning("state stream ended: %s", exc)
         self._put(exc)
 
-    def _put(self, item: GripperState | BaseException) -> None:
-        self.dropped += put_dropping_oldest(self._queue, item)
-
     def _deliver(self) -> None:
         while not self._stop.is_set():
             try:
@@ -111,27 +105,6 @@ class SubscribedStream:
             except Exception:  # a bug in the user's callback must not end the stream silently
                 log.exception("state stream callback raised; the stream goes on")
 
-    def __iter__(self) -> Iterator[GripperState]:
-        return self
-
-    def __next__(self) -> GripperState:
-        return self.get()
-
-    def get(self, timeout: float | None = None) -> GripperState:
-        """The next state; GripperTimeout when none comes within ``timeout`` (default: ten periods + 2 s)."""
-        if self._stop.is_set() and self._queue.empty():
-            raise StopIteration
-        chosen = wait_seconds(timeout, "stream")  # the local stream's rule: no overflow, no NaN (issue 13)
-        wait = chosen if chosen is not None else 10 * self.period + 2.0
-        try:
-            item = self._queue.get(timeout=wait)
-        except queue.Empty:
-            raise GripperTimeout(f"no state within {wait:g} s", command="stream") from None
-        if isinstance(item, BaseException):
-            self.close()
-            raise item
-        return item
-
     def close(self) -> None:
         self._stop.set()
         sub, self._sub = self._sub, None
@@ -145,9 +118,3 @@ class SubscribedStream:
         if self._on_close is not None:
             on_close, self._on_close = self._on_close, None
             on_close(self)
-
-    def __enter__(self) -> SubscribedStream:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()

@@ -7,11 +7,15 @@ process, socket and pty is closed by its fixture. Helpers are fixtures (pytest r
 
 from __future__ import annotations
 
+import contextlib
+import functools
 import itertools
 import json
 import os
 import random
+import re
 import select
+import signal
 import socket
 import subprocess
 import sys
@@ -139,20 +143,6 @@ class _TcpServer:
         self.sock.close()
 
 
-@pytest.fixture
-def silent_tcp() -> Iterator[_TcpServer]:
-    server = _TcpServer(garbage=False)
-    yield server
-    server.close()
-
-
-@pytest.fixture
-def garbage_tcp() -> Iterator[_TcpServer]:
-    server = _TcpServer(garbage=True)
-    yield server
-    server.close()
-
-
 class _Pty:
     """A pseudo-terminal whose far end is silent or sends random bytes; ``path`` is the port to probe."""
 
@@ -182,18 +172,50 @@ class _Pty:
         os.close(self.slave)
 
 
-@pytest.fixture
-def silent_pty() -> Iterator[_Pty]:
-    pty = _Pty(garbage=False)
-    yield pty
-    pty.close()
+def _closed_after_the_test(name: str, make: Callable[[], Any]) -> Any:
+    """A fixture named ``name`` handing out ``make()``, closed after the test."""
+
+    def fixture() -> Iterator[Any]:
+        with contextlib.closing(make()) as thing:
+            yield thing
+
+    return pytest.fixture(name=name)(fixture)
 
 
-@pytest.fixture
-def garbage_pty() -> Iterator[_Pty]:
-    pty = _Pty(garbage=True)
-    yield pty
-    pty.close()
+silent_tcp = _closed_after_the_test("silent_tcp", functools.partial(_TcpServer, garbage=False))
+garbage_tcp = _closed_after_the_test("garbage_tcp", functools.partial(_TcpServer, garbage=True))
+silent_pty = _closed_after_the_test("silent_pty", functools.partial(_Pty, garbage=False))
+garbage_pty = _closed_after_the_test("garbage_pty", functools.partial(_Pty, garbage=True))
+
+
+class MonitorProxy:
+    """What :func:`monitor_proxy` yields: the port it listens on; after the block, its standard output."""
+
+    port = 0
+    out = ""
+
+
+@contextlib.contextmanager
+def monitor_proxy(*args: str, stop_timeout: float) -> Iterator[MonitorProxy]:
+    """``grippers monitor ARGS`` as a relay, from the moment it listens until Ctrl-C as the block ends."""
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "grippers", "monitor", *args],
+        cwd=ROOT,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    proxy = MonitorProxy()
+    try:
+        assert proc.stderr is not None
+        line = proc.stderr.readline()  # "proxy listening on HOST:PORT, ..."
+        port = re.search(r"listening on [^:]+:(\d+)", line)
+        assert port, line
+        proxy.port = int(port.group(1))
+        yield proxy
+    finally:
+        proc.send_signal(signal.SIGINT)
+        proxy.out, _ = proc.communicate(timeout=stop_timeout)
 
 
 _groups = itertools.count(1)

@@ -90,30 +90,31 @@ def test_sim_msg_accepts_udp_multicast_port_and_prints_it_in_the_url() -> None:
         proc.communicate(timeout=10)
 
 
-def test_sim_ctrl_c_exits_130_with_one_line() -> None:
-    proc = _sim("wsg", "--listen", "tcp://127.0.0.1:0")
+def _signal_once_running(proc: subprocess.Popen[str], sig: int, expect: str = "") -> tuple[str, float]:
+    """Wait for ``proc``'s first line (``expect`` in it), send ``sig``; returns its standard error and the
+    seconds from the signal to its exit (10 s at most). A process still running at the end is killed."""
     try:
-        assert "serving at" in _first_line(proc)
-        proc.send_signal(signal.SIGINT)
+        line = _first_line(proc)
+        assert line and expect in line, line
+        start = time.monotonic()
+        proc.send_signal(sig)
         _, err = proc.communicate(timeout=10)
+        return err, time.monotonic() - start
     finally:
         if proc.poll() is None:
             proc.kill()
+
+
+def test_sim_ctrl_c_exits_130_with_one_line() -> None:
+    proc = _sim("wsg", "--listen", "tcp://127.0.0.1:0")
+    err, _ = _signal_once_running(proc, signal.SIGINT, "serving at")
     assert proc.returncode == 130
     assert "Traceback" not in err and err.strip().splitlines()[-1] == "grippers sim: interrupted"
 
 
 def test_sim_stops_promptly_on_sigterm() -> None:
     proc = _sim("wsg", "--listen", "tcp://127.0.0.1:0")
-    try:
-        assert "serving at" in _first_line(proc)
-        start = time.monotonic()
-        proc.send_signal(signal.SIGTERM)
-        proc.communicate(timeout=10)
-        took = time.monotonic() - start
-    finally:
-        if proc.poll() is None:
-            proc.kill()
+    _, took = _signal_once_running(proc, signal.SIGTERM, "serving at")
     assert proc.returncode == 0
     # The old loop looked at a flag every 0.5 s; the handler now ends the wait at once. Generous bound for a
     # loaded 2-core machine, still below what the old polling loop plus close could take at its worst.
@@ -129,13 +130,7 @@ def test_ctrl_c_in_a_command_exits_130_with_one_line() -> None:
         text=True,
         env={**os.environ, "PYTHONUNBUFFERED": "1"},
     )
-    try:
-        assert _first_line(proc)  # it is watching
-        proc.send_signal(signal.SIGINT)
-        _, err = proc.communicate(timeout=10)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
+    err, _ = _signal_once_running(proc, signal.SIGINT)  # once its first line says it is watching
     assert proc.returncode == 130
     assert err.strip().splitlines() == ["grippers state: interrupted"]
 

@@ -8,9 +8,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import re
 import shutil
-import signal
 import socket
 import subprocess
 import sys
@@ -24,6 +22,8 @@ import grippers
 from grippers.cli import SUBCOMMANDS, build_parser
 from grippers.cli.monitor import apply_url
 from grippers.cli.schemas import validate
+
+from .conftest import monitor_proxy
 
 ROOT = Path(__file__).resolve().parents[2]
 GLASS = """
@@ -255,22 +255,10 @@ def test_monitor_of_a_serial_url_is_a_usage_error(cli) -> None:
 
 
 def test_monitor_of_a_wsg_tcp_url_relays_and_decodes(wsg_tcp_url: str) -> None:
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "grippers", "monitor", wsg_tcp_url, "--json"],
-        cwd=ROOT,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
-    try:
-        assert proc.stderr is not None
-        line = proc.stderr.readline()  # "proxy listening on HOST:PORT, ..."
-        port = re.search(r"listening on [^:]+:(\d+)", line)
-        assert port, line
-        with grippers.open(f"wsg+tcp://127.0.0.1:{port.group(1)}") as g:
-            g.home()
-    finally:
-        proc.send_signal(signal.SIGINT)
-        out, _ = proc.communicate(timeout=30)
-    commands = {json.loads(x)["command"] for x in out.splitlines()}
+    with (
+        monitor_proxy(wsg_tcp_url, "--json", stop_timeout=30) as proxy,
+        grippers.open(f"wsg+tcp://127.0.0.1:{proxy.port}") as g,
+    ):
+        g.home()
+    commands = {json.loads(x)["command"] for x in proxy.out.splitlines()}
     assert "HOMING (20h)" in commands

@@ -4,7 +4,6 @@ traffic (a WSG TCP session through --proxy, a CAN bus)."""
 from __future__ import annotations
 
 import json
-import re
 import signal
 import subprocess
 import sys
@@ -12,6 +11,8 @@ import time
 from pathlib import Path
 
 import pytest
+
+from .conftest import monitor_proxy
 
 VECTORS = Path("/work/shared/spec/wsg-vectors.json")
 ROOT = Path(__file__).resolve().parents[2]
@@ -148,25 +149,11 @@ def test_stdin_capture(cli) -> None:
 
 def test_proxy_decodes_a_live_wsg_tcp_session(start_sim, cli) -> None:
     target = start_sim("wsg", "--listen", "tcp://127.0.0.1:0").url.split("://", 1)[1]
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "grippers", "monitor", "--proxy", "127.0.0.1:0", "--to", target, "--json"],
-        cwd=ROOT,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
-    try:
-        assert proc.stderr is not None
-        line = proc.stderr.readline()  # "proxy listening on HOST:PORT, ..."
-        port = re.search(r"listening on [^:]+:(\d+)", line)
-        assert port, line
+    with monitor_proxy("--proxy", "127.0.0.1:0", "--to", target, "--json", stop_timeout=10) as proxy:
         for command in (("home",), ("move", "50")):
-            r = cli(command[0], f"wsg+tcp://127.0.0.1:{port.group(1)}", *command[1:], "--timeout", "2")
+            r = cli(command[0], f"wsg+tcp://127.0.0.1:{proxy.port}", *command[1:], "--timeout", "2")
             assert r.returncode == 0, r.stderr
-    finally:
-        proc.send_signal(signal.SIGINT)
-        out, _ = proc.communicate(timeout=10)
-    docs = [json.loads(x) for x in out.splitlines()]
+    docs = [json.loads(x) for x in proxy.out.splitlines()]
     commands = [(d["direction"], d["command"], d["status"]) for d in docs]
     assert ("host->gripper", "PREPOSITION (21h)", None) in commands
     assert ("gripper->host", "PREPOSITION (21h)", "E_CMD_PENDING") in commands

@@ -7,6 +7,7 @@ from collections.abc import Callable, Iterator
 
 import pytest
 
+from ..closing import closed_after
 from ..conftest import SimProcess
 
 FAST = "heartbeat_s=0.05&reconnect_backoff_s=0.02&reconnect_backoff_max_s=0.1"
@@ -45,16 +46,8 @@ class Restartable:
 
 @pytest.fixture
 def restartable() -> Iterator[Callable[..., Restartable]]:
-    started: list[Restartable] = []
-
-    def start(*args: str) -> Restartable:
-        r = Restartable(*args)
-        started.append(r)
-        return r
-
-    yield start
-    for r in started:
-        r.close()
+    with closed_after(Restartable) as start:
+        yield start
 
 
 @pytest.fixture

@@ -25,12 +25,19 @@ def _point(link: Path, sim: Restartable) -> None:
     os.replace(tmp, link)
 
 
+def _behind_a_link(
+    restartable: Callable[..., Restartable], link: Path, family: str, time_scale: str
+) -> tuple[Path, Restartable]:
+    """A restartable simulator on a pty that ``link`` points at (the stable path a udev rule would give)."""
+    sim = restartable(family, "--listen", "pty", "--time-scale", time_scale)
+    _point(link, sim)
+    return link, sim
+
+
 def test_msg_uart_killed_and_restarted_behind_a_stable_path(
     restartable: Callable[..., Restartable], tmp_path: Path
 ) -> None:
-    link = tmp_path / "ttyMSG"
-    sim = restartable("msg", "--listen", "pty", "--time-scale", "50")
-    _point(link, sim)
+    link, sim = _behind_a_link(restartable, tmp_path / "ttyMSG", "msg", "50")
     events: list[bool] = []
     with grippers.open(f"stepfoc+serial://{link}?reconnect=true&{FAST}", timeout=0.2) as g:
         g.on_connection(events.append)
@@ -56,9 +63,7 @@ def test_msg_uart_killed_and_restarted_behind_a_stable_path(
 def test_wsg_serial_killed_and_restarted_behind_a_stable_path(
     restartable: Callable[..., Restartable], tmp_path: Path
 ) -> None:
-    link = tmp_path / "ttyWSG"
-    sim = restartable("wsg", "--listen", "pty", "--time-scale", "20")
-    _point(link, sim)
+    link, sim = _behind_a_link(restartable, tmp_path / "ttyWSG", "wsg", "20")
     with grippers.open(f"wsg+serial://{link}?reconnect=true&{FAST}", timeout=0.2) as g:
         g.home()
         sim.kill()

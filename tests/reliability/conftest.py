@@ -21,6 +21,8 @@ import pytest
 from grippers.drivers.stepfoc.sim import MsgModel, serve_can, serve_uart
 from grippers.drivers.wsg.client import WsgClient
 
+from ..closing import closed_after
+
 WSG_TIME_SCALE = 50.0
 MSG_TIME_SCALE = 200.0  # an MSG calibration (~8 s simulated) then takes ~40 ms
 
@@ -95,17 +97,13 @@ def snapshot() -> Callable[[], ResourceSnapshot]:
 @pytest.fixture
 def wsg_connect() -> Iterator[Callable[..., WsgClient]]:
     """``WsgClient.from_url(url, **kw)``; every client is closed after the test."""
-    clients: list[WsgClient] = []
 
     def connect(url: str, **kw: Any) -> WsgClient:
         kw.setdefault("timeout", 1.0)
-        client = WsgClient.from_url(url, **kw)
-        clients.append(client)
-        return client
+        return WsgClient.from_url(url, **kw)
 
-    yield connect
-    for c in clients:
-        c.close()
+    with closed_after(connect) as started:
+        yield started
 
 
 # ------------------------------------------------------------------------------------------------- MSG
@@ -119,29 +117,19 @@ def can_channel() -> str:
 @pytest.fixture
 def msg_can_sim(can_channel: str) -> Iterator[Callable[..., Any]]:
     """Serve MSG models on this test's virtual CAN channel; closed after the test."""
-    servers: list[Any] = []
 
     def start(*models: MsgModel, time_scale: float = MSG_TIME_SCALE) -> Any:
         listen = f"can://virtual/{can_channel}"
-        server = serve_can(list(models) or [MsgModel()], listen, time_scale=time_scale)
-        servers.append(server)
-        return server
+        return serve_can(list(models) or [MsgModel()], listen, time_scale=time_scale)
 
-    yield start
-    for s in servers:
-        s.close()
-        assert s.error is None, f"simulator thread died: {s.error!r}"
+    with closed_after(start, simulator=True) as started:
+        yield started
 
 
 @pytest.fixture
 def msg_uart_sim() -> Iterator[Callable[..., Any]]:
-    servers: list[Any] = []
-
     def start(model: MsgModel | None = None, *, time_scale: float = MSG_TIME_SCALE) -> Any:
-        server = serve_uart(model or MsgModel(), "pty", time_scale=time_scale)
-        servers.append(server)
-        return server
+        return serve_uart(model or MsgModel(), "pty", time_scale=time_scale)
 
-    yield start
-    for s in servers:
-        s.close()
+    with closed_after(start) as started:
+        yield started

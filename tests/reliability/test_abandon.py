@@ -113,21 +113,28 @@ def test_wsg_abandon_of_a_thread_that_waits_for_nothing_changes_nothing(wsg_sim,
 # ------------------------------------------------------------------------------------------------- MSG
 
 
+def _abandoned_read_frees_the_link(server: Any, handle: Any, read: Callable[[], int]) -> None:
+    """A caller of ``read`` (a position) waiting on the silent simulator is given up and leaves at once; once
+    the simulator answers again, the next ``read`` goes out at once (half the timeout: nothing waited)."""
+    assert read() >= 0
+    server.faults.silent = True
+    caller = _Caller(read)
+    time.sleep(0.1)
+    handle.abandon(caller.ident)
+    _given_up_at_once(caller)
+    server.faults.silent = False
+    began = time.monotonic()
+    assert read() >= 0
+    assert time.monotonic() - began < TIMEOUT / 2
+    handle.resume(caller.ident)
+
+
 def test_msg_can_abandoned_poll_frees_its_key(msg_can_sim, can_channel) -> None:
     server = msg_can_sim(MsgModel(node=5))
     with StepfocBus(interface="virtual", channel=can_channel) as bus:
         n = bus.node(5, timeout=TIMEOUT)
-        assert n.poll().position >= 0
-        server.faults.silent = True
-        caller = _Caller(n.poll)
-        time.sleep(0.1)
-        n.abandon(caller.ident)
-        _given_up_at_once(caller)
-        server.faults.silent = False
-        began = time.monotonic()
-        assert n.poll().position >= 0  # the (node, 61) key is free: no "another poll ... did not finish"
-        assert time.monotonic() - began < TIMEOUT / 2
-        n.resume(caller.ident)
+        # the (node, 61) key is free afterwards: no "another poll ... did not finish"
+        _abandoned_read_frees_the_link(server, n, lambda: n.poll().position)
 
 
 def test_msg_can_abandon_reaches_a_caller_waiting_for_the_key(msg_can_sim, can_channel) -> None:
@@ -152,14 +159,4 @@ def test_msg_can_abandon_reaches_a_caller_waiting_for_the_key(msg_can_sim, can_c
 def test_msg_uart_abandoned_exchange_frees_the_port(msg_uart_sim) -> None:
     server = msg_uart_sim()
     with StepfocUart(server.url, timeout=TIMEOUT) as u:
-        assert u.position() >= 0
-        server.faults.silent = True
-        caller = _Caller(u.position)
-        time.sleep(0.1)
-        u.abandon(caller.ident)
-        _given_up_at_once(caller)
-        server.faults.silent = False
-        began = time.monotonic()
-        assert u.position() >= 0
-        assert time.monotonic() - began < TIMEOUT / 2
-        u.resume(caller.ident)
+        _abandoned_read_frees_the_link(server, u, u.position)

@@ -95,20 +95,26 @@ value = st.none() | st.floats(0.0, 0.12) | st.floats(0.0, 0.12) | st.floats(-0.2
 force_value = st.none() | st.floats(0.0, 90.0) | st.floats(0.0, 90.0) | st.floats(-20, 200) | finite_or_not
 
 
-@pytest.fixture(scope="module")
-def wsg_tapped():
-    """A sim:// WSG 50 whose model records every request packet it receives."""
-    g = grippers.open("sim://wsg50?time_scale=1000")
+def tapped(url: str, method: str):
+    """A homed ``url`` whose simulator model records the first argument of every call of its ``method``."""
+    g = grippers.open(url)
     g.home()
     model = g.simulator.model
     seen: list = []
-    handle = model.handle
+    original = getattr(model, method)
 
-    def tap(packet, now, conn=0):
-        seen.append(packet)
-        return handle(packet, now, conn)
+    def tap(item, *args, **kw):
+        seen.append(item)
+        return original(item, *args, **kw)
 
-    model.handle = tap
+    setattr(model, method, tap)
+    return g, seen
+
+
+@pytest.fixture(scope="module")
+def wsg_tapped():
+    """A sim:// WSG 50 whose model records every request packet it receives."""
+    g, seen = tapped("sim://wsg50?time_scale=1000", "handle")
     yield g, seen
     g.close()
 
@@ -116,17 +122,7 @@ def wsg_tapped():
 @pytest.fixture(scope="module")
 def msg_tapped():
     """A sim:// MSG 150 whose model records every 61 command it receives."""
-    g = grippers.open("sim://msg-150?time_scale=1000")
-    g.home()
-    model = g.simulator.model
-    seen: list = []
-    on_command = model.on_command
-
-    def tap(cmd, now):
-        seen.append(cmd)
-        return on_command(cmd, now)
-
-    model.on_command = tap
+    g, seen = tapped("sim://msg-150?time_scale=1000", "on_command")
     yield g, seen
     g.close()
 

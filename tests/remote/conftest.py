@@ -17,6 +17,8 @@ from pathlib import Path
 
 import pytest
 
+from ..closing import closed_after
+
 pytest.importorskip("zenoh")
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -91,16 +93,8 @@ class ServeProcess:
 
 @pytest.fixture
 def serve() -> Iterator[Callable[..., ServeProcess]]:
-    started: list[ServeProcess] = []
-
-    def start(*args: str, **kwargs: str | None) -> ServeProcess:
-        s = ServeProcess(*args, **kwargs)
-        started.append(s)
-        return s
-
-    yield start
-    for s in started:
-        s.close()
+    with closed_after(ServeProcess) as start:
+        yield start
 
 
 def sim(profile: str, scale: float = TIME_SCALE, **params: object) -> str:

@@ -35,21 +35,11 @@ TIMED_OUT = textwrap.dedent(
     """
 )
 
-SILENT = textwrap.dedent(
-    """
-    import sys, time, grippers
-    g = grippers.open(sys.argv[1])
-    g.home()
-    g.move(g.limits.min_width + 0.001, g.limits.min_speed, wait=False)
-    time.sleep(0.2)
-    print("moving", flush=True)
-    time.sleep(60)
-    """
-)
+SILENT = str(ROOT / "benchmarks" / "moving_controller.py")  # shared with the lease benchmark
 
 
-def _controller(code: str, url: str, expect: str) -> subprocess.Popen[str]:
-    proc = subprocess.Popen([sys.executable, "-c", code, url], cwd=ROOT, stdout=subprocess.PIPE, text=True)
+def _controller(args: list[str], expect: str) -> subprocess.Popen[str]:
+    proc = subprocess.Popen([sys.executable, *args], cwd=ROOT, stdout=subprocess.PIPE, text=True)
     assert proc.stdout is not None
     line = proc.stdout.readline().strip()
     if line != expect:
@@ -76,7 +66,7 @@ def test_a_timed_out_motion_of_a_vanished_holder_is_stopped(serve, sig: int) -> 
     the holder dies. Before: nothing of the server's own waited on that motion, so nothing stopped it."""
     server: ServeProcess = serve(f"g={sim('wsg50', scale=1)}", "--lease-timeout", str(LEASE))
     url = server.urls["g"]
-    proc = _controller(TIMED_OUT, url, "timed out")
+    proc = _controller(["-c", TIMED_OUT, url], "timed out")
     try:
         with grippers.open(url) as watcher:
             assert watcher.state().moving  # the timeout did not stop the jaws
@@ -94,7 +84,7 @@ def test_the_servers_lease_timeout_bounds_a_frozen_holder_whatever_it_announced(
     the holder's heartbeats stop with it."""
     server: ServeProcess = serve(f"g={sim('wsg50', scale=1)}", "--lease-timeout", str(LEASE))
     url = server.urls["g"]
-    proc = _controller(SILENT, url + "&lease=30", "moving")
+    proc = _controller([SILENT, url + "&lease=30", "0.2"], "moving")
     try:
         with grippers.open(url) as watcher:
             assert watcher.state().moving

@@ -6,7 +6,6 @@ from __future__ import annotations
 import signal
 import subprocess
 import sys
-import textwrap
 import time
 
 import pytest
@@ -48,17 +47,7 @@ def test_two_clients_one_lease(serve) -> None:
         assert c.move(0.04).width == pytest.approx(0.04, abs=0.002)
 
 
-CONTROLLER = textwrap.dedent(
-    """
-    import sys, time, grippers
-    g = grippers.open(sys.argv[1])
-    g.home()
-    g.move(g.limits.min_width + 0.001, g.limits.min_speed, wait=False)
-    time.sleep(0.2)
-    print("moving", flush=True)
-    time.sleep(60)
-    """
-)
+CONTROLLER = str(ROOT / "benchmarks" / "moving_controller.py")  # shared with the lease benchmark
 
 
 @pytest.mark.parametrize("sig", [signal.SIGKILL, signal.SIGSTOP], ids=["killed", "frozen-silent-link"])
@@ -69,7 +58,7 @@ def test_controller_killed_mid_motion_is_stopped(serve, sig: int) -> None:
     server: ServeProcess = serve(f"g={sim('wsg50', scale=1)}", "--lease-timeout", str(lease_timeout))
     url = server.urls["g"]
     proc = subprocess.Popen(
-        [sys.executable, "-c", CONTROLLER, url], cwd=ROOT, stdout=subprocess.PIPE, text=True
+        [sys.executable, CONTROLLER, url, "0.2"], cwd=ROOT, stdout=subprocess.PIPE, text=True
     )
     try:
         assert proc.stdout is not None and proc.stdout.readline().strip() == "moving"

@@ -13,6 +13,7 @@ import signal
 import statistics
 import time
 from collections.abc import Iterator
+from typing import Any
 
 import pytest
 
@@ -155,15 +156,21 @@ def test_a_goal_outside_the_limits_is_rejected_and_nothing_moves(
     assert abs(js.position[0] - 0.08) <= TOL and abs(js.velocity[0]) < 1e-6
 
 
-def test_cancel_stops_the_jaws(wsg: Cell) -> None:
-    _open(wsg, 0.1)
-    feedback: list = []
-    handle = wsg.client.send(
+def _slow_close(cell: Cell, feedback: list) -> Any:
+    """From 0.1 m, a ParallelGripperCommand to 0.05 m at 5 mm/s: a goal of 10 s, still running when the test
+    acts on it; its feedback goes to ``feedback``."""
+    _open(cell, 0.1)
+    return cell.client.send(
         ParallelGripperCommand,
-        wsg.name("parallel_gripper_cmd"),
+        cell.name("parallel_gripper_cmd"),
         parallel_goal(0.05, velocity=0.005),
         feedback,
     )
+
+
+def test_cancel_stops_the_jaws(wsg: Cell) -> None:
+    feedback: list = []
+    handle = _slow_close(wsg, feedback)
     assert handle.accepted
     wait_until(lambda: any(f.state.position[0] < 0.1 - 2 * MM for f in feedback), what="the jaws moving")
     wsg.client.wait(handle.cancel_goal_async())
@@ -176,14 +183,8 @@ def test_cancel_stops_the_jaws(wsg: Cell) -> None:
 
 
 def test_a_new_goal_preempts_the_running_one(wsg: Cell) -> None:
-    _open(wsg, 0.1)
     feedback: list = []
-    slow = wsg.client.send(
-        ParallelGripperCommand,
-        wsg.name("parallel_gripper_cmd"),
-        parallel_goal(0.05, velocity=0.005),
-        feedback,
-    )
+    slow = _slow_close(wsg, feedback)
     assert slow.accepted
     wait_until(lambda: bool(feedback), what="feedback of the first goal")
     status, result = wsg.command(0.09)
@@ -241,14 +242,8 @@ def test_joint_states_carry_the_joint_at_the_rate(wsg: Cell) -> None:
 
 
 def test_stop_service_ends_a_running_goal(wsg: Cell) -> None:
-    _open(wsg, 0.1)
     feedback: list = []
-    handle = wsg.client.send(
-        ParallelGripperCommand,
-        wsg.name("parallel_gripper_cmd"),
-        parallel_goal(0.05, velocity=0.005),
-        feedback,
-    )
+    handle = _slow_close(wsg, feedback)
     wait_until(lambda: bool(feedback), what="feedback")
     answer = wsg.trigger("stop")
     assert answer.success, answer.message

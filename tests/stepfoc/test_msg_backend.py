@@ -4,18 +4,21 @@ calibrations that really end, first motions that really move, e-stops from anywh
 
 from __future__ import annotations
 
+import contextlib
 import threading
 import time
 import uuid
+from collections.abc import Iterator
 
 import can
 import pytest
 
 import grippers
 from grippers.drivers.errors import CommandFailed, ProtocolError
-from grippers.drivers.stepfoc.can_client import StepfocBus
+from grippers.drivers.stepfoc.can_client import StepfocBus, StepfocNode
 from grippers.drivers.stepfoc.can_protocol import Cmd, GripperCommand, encode_command, pack_id
 from grippers.drivers.stepfoc.sim import MsgModel, serve_can
+from grippers.drivers.stepfoc.sim.can_server import CanSimServer
 from grippers.drivers.stepfoc.sim.model import Phase
 from grippers.gripper import FastStopActive
 
@@ -38,6 +41,19 @@ def send_raw(g: grippers.Gripper, command: int, data: bytes = b"") -> None:
         bus.send(can.Message(arbitration_id=pack_id(0, command), data=data, is_extended_id=False))
     finally:
         bus.shutdown()
+
+
+@contextlib.contextmanager
+def calibrated_node() -> Iterator[tuple[CanSimServer, StepfocNode]]:
+    """Node 0 simulated on a fresh virtual bus at 50x, calibrated, with this test's client handle to it."""
+    channel = f"msg-backend-{uuid.uuid4().hex[:8]}"
+    with (
+        serve_can([MsgModel(node=0)], f"can://virtual/{channel}", time_scale=50.0) as server,
+        StepfocBus(interface="virtual", channel=channel) as bus,
+    ):
+        node = bus.node(0)
+        node.calibrate(timeout=5.0)
+        yield server, node
 
 
 # ------------------------------------------------------------------------------ calibration (§2)
@@ -86,13 +102,7 @@ def test_the_first_motion_after_a_calibration_really_moves(transport: str) -> No
 
 
 def test_calibration_watch_needs_the_jaws_to_leave_and_come_back() -> None:
-    channel = f"msg-backend-{uuid.uuid4().hex[:8]}"
-    with (
-        serve_can([MsgModel(node=0)], f"can://virtual/{channel}", time_scale=50.0) as server,
-        StepfocBus(interface="virtual", channel=channel) as bus,
-    ):
-        node = bus.node(0)
-        node.calibrate(timeout=5.0)
+    with calibrated_node() as (server, node):
         assert server.model.calibrated and not server.model.calibrating
         node.move(128, 255, timeout=5.0)
         node.calibrate(timeout=5.0)
@@ -100,13 +110,7 @@ def test_calibration_watch_needs_the_jaws_to_leave_and_come_back() -> None:
 
 
 def test_the_client_never_repeats_a_motion_61_byte_for_byte() -> None:
-    channel = f"msg-backend-{uuid.uuid4().hex[:8]}"
-    with (
-        serve_can([MsgModel(node=0)], f"can://virtual/{channel}", time_scale=50.0) as server,
-        StepfocBus(interface="virtual", channel=channel) as bus,
-    ):
-        node = bus.node(0)
-        node.calibrate(timeout=5.0)
+    with calibrated_node() as (server, node):
         node.move(100, 200, timeout=5.0)
         before = server.model._last_command
         node.calibrate(timeout=5.0)  # the node keeps those bytes over the calibration
@@ -146,13 +150,7 @@ def test_a_61_with_the_estop_bit_from_another_host_is_a_fast_stop() -> None:
 
 
 def test_clear_error_resume_resends_the_motion() -> None:
-    channel = f"msg-backend-{uuid.uuid4().hex[:8]}"
-    with (
-        serve_can([MsgModel(node=0)], f"can://virtual/{channel}", time_scale=50.0) as server,
-        StepfocBus(interface="virtual", channel=channel) as bus,
-    ):
-        node = bus.node(0)
-        node.calibrate(timeout=5.0)
+    with calibrated_node() as (server, node):
         node.command(0, 5)  # about 12 s of device time (0.25 s here): still running at the e-stop
         time.sleep(0.05)
         node.estop()

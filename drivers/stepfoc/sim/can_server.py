@@ -18,7 +18,8 @@ from typing import Any
 
 import can
 
-from ...canlink import is_link_failure
+from ...canlink import is_link_failure, standard_message
+from ...closing import Closing
 from ...errors import ConnectionLost
 from ...simkit import FaultHooks, SimClock, apply_fault, first_half, flip_last_byte
 from ..can_protocol import DEFAULT_BITRATE, MAX_NODE, CanFrame, parse_can_url
@@ -29,7 +30,7 @@ __all__ = ["CanSimServer", "parse_can_url", "serve_can"]
 _POLL_S = 0.02  # longest wall time the reader blocks, so heartbeats and close() stay prompt
 
 
-class CanSimServer:
+class CanSimServer(Closing):
     """A running CAN simulator. ``models`` share one bus; ``url`` names the first node for a client."""
 
     def __init__(
@@ -143,12 +144,7 @@ class CanSimServer:
             return
         if not 0 <= frame.arbitration_id <= 0x7FF:  # the simulator speaks standard frames only
             raise ValueError(f"identifier 0x{frame.arbitration_id:X} does not fit an 11-bit standard frame")
-        msg = can.Message(
-            arbitration_id=frame.arbitration_id,
-            data=frame.data,
-            is_extended_id=False,
-            is_remote_frame=frame.remote,
-        )
+        msg = standard_message(frame.arbitration_id, frame.data, frame.remote)
         try:
             self.bus.send(msg, timeout=0.5)
         except can.CanError as exc:
@@ -168,12 +164,6 @@ class CanSimServer:
             t.cancel()
         if self._own_bus:
             self.bus.shutdown()
-
-    def __enter__(self) -> CanSimServer:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
 
 def serve_can(

@@ -19,6 +19,7 @@ from collections import deque
 from collections.abc import Sequence
 from typing import Any
 
+from ...closing import Closing
 from ...simkit import FaultHooks, SimClock, apply_fault, first_half
 from ..uart_protocol import (
     COMMANDS,
@@ -60,7 +61,7 @@ def _corrupt_text(data: bytes) -> bytes:
     return bytes(bad)
 
 
-class UartSimServer:
+class UartSimServer(Closing):
     """One simulated MSG gripper answering on a pty; see :func:`serve_uart`.
 
     ``lock`` guards the model: hold it when a test changes the model (``place_part``) while the server runs.
@@ -125,12 +126,6 @@ class UartSimServer:
                 os.close(fd)
             except OSError:
                 pass
-
-    def __enter__(self) -> UartSimServer:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
     def __repr__(self) -> str:
         return f"UartSimServer({self.url!r})"

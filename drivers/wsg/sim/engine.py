@@ -15,6 +15,7 @@ import threading
 import time
 from collections.abc import Callable
 
+from ...closing import Closing
 from ...simkit import FaultHooks, SimClock, apply_fault, first_half, flip_last_byte
 from ..protocol import ChecksumError, Packet, PacketParser
 from .model import WsgModel
@@ -47,7 +48,7 @@ class Link:
         self.last_rx = time.monotonic()
 
 
-class SimServer:
+class SimServer(Closing):
     """A running simulator: ``.url`` to connect to, ``.model``, ``.faults``, ``.clock``; ``close()`` stops it.
 
     Tests that poke the model directly (``server.model.…``) hold ``server.lock`` meanwhile, or use the
@@ -92,12 +93,6 @@ class SimServer:
             self._links.clear()
             self._delayed.clear()
             self._close_transport()
-
-    def __enter__(self) -> SimServer:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
     @property
     def closed(self) -> bool:

@@ -15,6 +15,8 @@ from grippers.drivers.stepfoc.can_client import StepfocBus
 from grippers.drivers.stepfoc.sim import MsgModel, serve_can
 from grippers.drivers.stepfoc.sim.can_server import CanSimServer
 
+from ...closing import closed_after
+
 TIME_SCALE = 200.0  # simulated seconds per wall second: calibration (~8 s simulated) takes ~40 ms
 
 
@@ -26,16 +28,12 @@ def channel() -> str:
 @pytest.fixture
 def start_sim(channel: str) -> Iterator[Callable[..., CanSimServer]]:
     """Start a simulator serving the given models on this test's virtual channel; closed after the test."""
-    servers: list[CanSimServer] = []
 
     def start(*models: MsgModel, time_scale: float = TIME_SCALE) -> CanSimServer:
-        server = serve_can(list(models) or [MsgModel()], f"can://virtual/{channel}", time_scale=time_scale)
-        servers.append(server)
-        return server
+        return serve_can(list(models) or [MsgModel()], f"can://virtual/{channel}", time_scale=time_scale)
 
-    yield start
-    for s in servers:
-        s.close()
+    with closed_after(start) as started:
+        yield started
 
 
 @pytest.fixture

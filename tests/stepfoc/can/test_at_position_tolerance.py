@@ -14,7 +14,6 @@ from collections.abc import Iterator
 import can
 import pytest
 
-from grippers.drivers.simkit import SimClock
 from grippers.drivers.stepfoc.can_protocol import (
     Cmd,
     Detection,
@@ -25,20 +24,11 @@ from grippers.drivers.stepfoc.can_protocol import (
 from grippers.drivers.stepfoc.sim import MsgModel, serve_can
 from grippers.drivers.stepfoc.sim.can_server import CanSimServer
 
+from ..rawmodel import SteppedClock
+
 NODE = 0  # a virtual channel of its own: no other test sees these frames
 TICKS_PER_MM = 11.0  # 105 mm of travel: 1155 ticks over 255 setpoint steps, 4 or 5 ticks a step
 REPLY_S = 5.0  # wall seconds a reply may take on a busy machine (it comes at once when nothing is wrong)
-
-
-class SteppedClock(SimClock):
-    """Simulated time that moves only when the test says so."""
-
-    def __init__(self) -> None:
-        super().__init__(1.0)
-        self.t = 0.0
-
-    def now(self) -> float:
-        return self.t
 
 
 class Raw:

@@ -32,6 +32,8 @@ from grippers.drivers.stepfoc.can_protocol import (
     unpack_id,
 )
 
+from ..strategies import STATUS_FIELDS
+
 commands = st.builds(
     GripperCommand,
     position=st.integers(0, 255),
@@ -42,19 +44,8 @@ commands = st.builds(
     estop=st.booleans(),
     release=st.booleans(),
 )
-statuses = st.builds(
-    GripperStatus,
-    position=st.integers(0, 255),
-    current_ma=st.integers(-32768, 32767),
-    activated=st.booleans(),
-    action=st.booleans(),
-    detection=st.sampled_from(Detection),
-    temperature_error=st.booleans(),
-    timeout_error=st.booleans(),
-    estop_error=st.booleans(),
-    calibrated=st.booleans(),
-    error_bit=st.booleans(),
-)
+
+statuses = st.builds(GripperStatus, **STATUS_FIELDS, error_bit=st.booleans())
 
 
 @given(st.integers(0, 15), st.integers(0, 63), st.booleans())

@@ -11,44 +11,20 @@ import pytest
 
 from grippers.drivers.stepfoc.sim import MsgModel, serve_can
 
+from ..rawmodel import RawModel, cmd61, ident
+
 NODE = 0
 ESTOP, CLEAR, IDLE, WATCHDOG, ERROR_STATE, CMD_61, STATUS_60, CALIBRATE = 0, 1, 12, 15, 26, 61, 60, 62
 ACTIVATE, ACTION, ESTOP_BIT = 0x80, 0x40, 0x20  # 61 flags (docs/protocols.md §2)
 F_ESTOP, F_CALIBRATED = 0x02, 0x01  # 60 flags
 
 
-def ident(command: int, node: int = NODE) -> int:
-    return node << 7 | command << 1
-
-
-def cmd61(position: int, speed: int = 255, current: int = 800, flags: int = ACTIVATE | ACTION) -> bytes:
-    return struct.pack(">BBhB", position, speed, current, flags)
-
-
-class Raw:
-    """A model fed raw frames at explicit simulated times; reads replies as raw bytes."""
-
+class Raw(RawModel):
     def __init__(self, model: MsgModel) -> None:
-        self.m = model
-        self.t = 0.0
-
-    def send(self, command: int, data: bytes = b"", *, remote: bool = False, dt: float = 0.01) -> list:
-        self.t += dt
-        return self.m.handle_frame(ident(command), data, remote, self.t)
-
-    def run(self, seconds: float, step: float = 0.02) -> None:
-        end = self.t + seconds
-        while self.t < end:
-            self.t += step
-            self.m.advance(self.t)
+        super().__init__(model, dt=0.01, step=0.02)
 
     def poll(self) -> tuple[int, int, int, int, bool]:
-        """(position, current, flags, detection, error bit) from the 60 reply to an empty 61."""
-        (reply,) = self.send(CMD_61)
-        assert reply.arbitration_id >> 1 & 0x3F == STATUS_60
-        position, current, flags = struct.unpack(">BhB", reply.data)
-        detection = (1 if flags & 0x20 else 0) | (2 if flags & 0x10 else 0)
-        return position, current, flags, detection, bool(reply.arbitration_id & 1)
+        return self.status()
 
     def error_state(self) -> tuple[int, int, bool]:
         (reply,) = self.send(ERROR_STATE, remote=True)

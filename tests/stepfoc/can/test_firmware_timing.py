@@ -13,45 +13,22 @@ from grippers.drivers.stepfoc.sim import MsgModel
 from grippers.drivers.stepfoc.sim.model import Phase
 from grippers.drivers.stepfoc.speed import SPECTRAL_MICRO, STEPFOC, ticks_per_s
 
+from ..rawmodel import RawModel, cmd61, ident
+
 ESTOP, IDLE, SAVE, RESET, WATCHDOG, HEARTBEAT, IQ, ENCODER = 0, 12, 13, 14, 15, 9, 27, 28
 HEARTBEAT_SETUP, CMD_61, STATUS_60, CALIBRATE = 30, 61, 60, 62
 ACTIVATE, ACTION = 0x80, 0x40
 F_CALIBRATED, F_TIMEOUT = 0x01, 0x04
 
 
-def ident(command: int, node: int = 0) -> int:
-    return node << 7 | command << 1
-
-
-def cmd61(position: int, speed: int = 255, current: int = 800, flags: int = ACTIVATE | ACTION) -> bytes:
-    return struct.pack(">BBhB", position, speed, current, flags)
-
-
-class Raw:
-    """A model fed raw frames at explicit simulated times."""
-
+class Raw(RawModel):
     def __init__(self, model: MsgModel) -> None:
-        self.m = model
-        self.t = 0.0
+        super().__init__(model, dt=0.001, step=0.01)
         model.advance(0.0)
-
-    def send(self, command: int, data: bytes = b"", *, remote: bool = False, dt: float = 0.001) -> list:
-        self.t += dt
-        return self.m.handle_frame(ident(command), data, remote, self.t)
-
-    def run(self, seconds: float, step: float = 0.01) -> None:
-        end = self.t + seconds
-        while self.t < end:
-            self.t += step
-            self.m.advance(self.t)
 
     def poll(self, dt: float = 0.001) -> tuple[int, int, int, int]:
         """(position, current, flags, detection) of the 60 reply to an empty 61."""
-        (reply,) = self.send(CMD_61, dt=dt)
-        assert reply.arbitration_id >> 1 & 0x3F == STATUS_60
-        position, current, flags = struct.unpack(">BhB", reply.data)
-        detection = (1 if flags & 0x20 else 0) | (2 if flags & 0x10 else 0)
-        return position, current, flags, detection
+        return self.status(dt)[:4]
 
     def encoder(self) -> tuple[int, int]:
         (reply,) = self.send(ENCODER, remote=True)

@@ -29,6 +29,8 @@ from grippers.drivers.stepfoc.can_protocol import (
 from grippers.drivers.stepfoc.sim import MsgModel
 from grippers.drivers.stepfoc.sim.can_server import CanSimServer
 
+from ..strategies import STATUS_FIELDS
+
 Spectral_BLDC = pytest.importorskip("Spectral_BLDC")
 from Spectral_BLDC import CAN_utils, CanCommunication, SpectralCAN  # noqa: E402
 
@@ -112,20 +114,7 @@ def test_vendor_command_bytes_decode_to_the_same_fields(
     assert decode_command(data) == GripperCommand(position, speed, current, activate, action, estop, release)
 
 
-@given(
-    st.builds(
-        GripperStatus,
-        position=st.integers(0, 255),
-        current_ma=st.integers(-32768, 32767),
-        activated=st.booleans(),
-        action=st.booleans(),
-        detection=st.sampled_from(Detection),
-        temperature_error=st.booleans(),
-        timeout_error=st.booleans(),
-        estop_error=st.booleans(),
-        calibrated=st.booleans(),
-    )
-)
+@given(st.builds(GripperStatus, **STATUS_FIELDS))
 def test_our_status_bytes_read_by_vendor(status: GripperStatus) -> None:
     vendor = SpectralCAN(0, None)
     msg = can.Message(arbitration_id=pack_id(0, 60), data=encode_status(status), is_extended_id=False)

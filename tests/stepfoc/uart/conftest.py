@@ -16,6 +16,8 @@ from collections.abc import Callable, Iterator
 
 import pytest
 
+from ...closing import closed_after
+
 Script = Callable[[bytes], bytes | None]
 
 
@@ -70,16 +72,8 @@ class ScriptedPty:
 
 @pytest.fixture
 def scripted_pty() -> Iterator[Callable[[Script], ScriptedPty]]:
-    made: list[ScriptedPty] = []
-
-    def make(script: Script) -> ScriptedPty:
-        p = ScriptedPty(script)
-        made.append(p)
-        return p
-
-    yield make
-    for p in made:
-        p.close()
+    with closed_after(ScriptedPty) as make:
+        yield make
 
 
 @pytest.fixture
@@ -88,14 +82,9 @@ def msg_sim():
     from grippers.drivers.stepfoc.sim.model import MsgModel
     from grippers.drivers.stepfoc.sim.uart_server import serve_uart
 
-    servers = []
-
     def make(model: MsgModel | None = None, **kw):
         kw.setdefault("time_scale", 200.0)
-        srv = serve_uart(model or MsgModel(), "pty", **kw)
-        servers.append(srv)
-        return srv
+        return serve_uart(model or MsgModel(), "pty", **kw)
 
-    yield make
-    for srv in servers:
-        srv.close()
+    with closed_after(make) as started:
+        yield started

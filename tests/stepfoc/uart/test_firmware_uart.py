@@ -10,10 +10,11 @@ from collections.abc import Iterator
 
 import pytest
 
-from grippers.drivers.simkit import SimClock
 from grippers.drivers.stepfoc.can_protocol import Cmd, Watchdog, WatchdogAction, encode_frame
 from grippers.drivers.stepfoc.sim import MsgModel, serve_uart, uart_server
 from grippers.drivers.stepfoc.sim.uart_server import UartSimServer
+
+from ..rawmodel import SteppedClock
 
 KEPT_REQUESTS = getattr(uart_server, "KEPT_REQUESTS", 256)
 
@@ -75,12 +76,17 @@ def test_mode_tells_calibration_and_gripper_mode(port) -> None:
     assert raw.ask(b"#Mode\n", wait=0.3, quiet=0.25) == []  # gripper mode (11) prints nothing
 
 
-def test_recalibration_keeps_the_calibrated_bit(port) -> None:
-    server, raw = port
+def _calibrate(raw) -> None:
+    """#Gripcal, then ask #Mode until the driver is idle again (5 s at most): the calibration has ended."""
     raw.ask(b"#Gripcal\n")
     deadline = time.monotonic() + 5
     while raw.ask(b"#Mode\n") != ["Idle mode "]:
         assert time.monotonic() < deadline
+
+
+def test_recalibration_keeps_the_calibrated_bit(port) -> None:
+    server, raw = port
+    _calibrate(raw)
     raw.ask(b"#Grippos 100\n")
     time.sleep(0.2)
     raw.ask(b"#Gripcal\n")
@@ -90,10 +96,7 @@ def test_recalibration_keeps_the_calibrated_bit(port) -> None:
 
 def test_clear_idles_the_driver(port) -> None:
     server, raw = port
-    raw.ask(b"#Gripcal\n")
-    deadline = time.monotonic() + 5
-    while raw.ask(b"#Mode\n") != ["Idle mode "]:
-        assert time.monotonic() < deadline
+    _calibrate(raw)
     raw.ask(b"#Gripvel 0\n")
     raw.ask(b"#Grippos 0\n")  # slow: ~40 simulated s
     time.sleep(0.05)
@@ -130,17 +133,6 @@ def test_a_driver_error_forces_idle_and_error_prints_it(port) -> None:
     raw.ask(b"#Clear\n")
     assert raw.ask(b"#Gripcal\n") == ["Gripper calibration! "]
     assert raw.ask(b"#Mode\n") == ["Gripper calib mode"]
-
-
-class SteppedClock(SimClock):
-    """Simulated time that moves only when the test says so: the watchdog's period is then exact."""
-
-    def __init__(self, start: float) -> None:
-        super().__init__(1.0, start=start)
-        self.t = start
-
-    def now(self) -> float:
-        return self.t
 
 
 def test_uart_lines_do_not_feed_the_can_watchdog() -> None:

@@ -10,6 +10,8 @@ from pathlib import Path
 
 import pytest
 
+from ...closing import closed_after
+
 # Every example packet printed in the WSG manuals (a copy of /work/shared/spec/wsg-vectors.json, so the tests
 # also run where that folder is absent; test_wsg_protocol checks the copy against the file when it is there).
 WSG_VECTORS: list[dict[str, str]] = [
@@ -57,13 +59,5 @@ def wsg_client_factory() -> Iterator[Callable[..., object]]:
     """Open WsgClients from URLs; every client is closed at teardown."""
     from grippers.drivers.wsg.client import WsgClient
 
-    clients: list[WsgClient] = []
-
-    def open_client(url: str, **kw: object) -> WsgClient:
-        client = WsgClient.from_url(url, **kw)
-        clients.append(client)
-        return client
-
-    yield open_client
-    for client in clients:
-        client.close()
+    with closed_after(WsgClient.from_url) as open_client:
+        yield open_client

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import random
 import re
+from typing import Any
 
 import pytest
 from hypothesis import given
@@ -270,16 +271,22 @@ packet_st = st.builds(
 )
 
 
+def _feed_in_chunks(parser: PacketParser, stream: bytes, rnd: Any, largest: int) -> list:
+    """Feed ``stream`` in random chunks of 1..``largest`` bytes; returns what the parser gave back."""
+    out: list = []
+    pos = 0
+    while pos < len(stream):
+        step = rnd.randint(1, largest)
+        out += parser.feed(stream[pos : pos + step])
+        pos += step
+    return out
+
+
 @given(st.lists(packet_st, min_size=1, max_size=8), st.randoms(use_true_random=False))
 def test_fuzz_random_chunking_yields_every_packet(packets, rnd) -> None:
     stream = b"".join(packets)
     parser = PacketParser()
-    out = []
-    pos = 0
-    while pos < len(stream):
-        step = rnd.randint(1, 20)
-        out += parser.feed(stream[pos : pos + step])
-        pos += step
+    out = _feed_in_chunks(parser, stream, rnd, 20)
     assert out == [decode_packet(p) for p in packets]
 
 
@@ -298,12 +305,7 @@ def test_fuzz_noise_between_packets_never_loses_a_packet(items, rnd) -> None:
         expected.append(decode_packet(packet))
     stream += b"\x00" * 300  # flush: lets any false preamble in the noise fail its checksum
     parser = PacketParser()
-    out = []
-    pos = 0
-    while pos < len(stream):
-        step = rnd.randint(1, 64)
-        out += parser.feed(stream[pos : pos + step])
-        pos += step
+    out = _feed_in_chunks(parser, stream, rnd, 64)
     while parser.buffered:  # silent gaps: a false preamble claiming a long payload is given up
         parser.reset()
         out += parser.feed(b"")
@@ -316,11 +318,7 @@ def test_fuzz_noise_between_packets_never_loses_a_packet(items, rnd) -> None:
 @given(st.binary(max_size=400), st.randoms(use_true_random=False))
 def test_fuzz_parser_never_raises_on_garbage(data, rnd) -> None:
     parser = PacketParser(max_payload=64)
-    pos = 0
-    while pos < len(data):
-        step = rnd.randint(1, 50)
-        parser.feed(data[pos : pos + step])
-        pos += step
+    _feed_in_chunks(parser, data, rnd, 50)
     parser.reset()
     parser.feed(b"")
     assert parser.buffered <= len(data)

@@ -21,6 +21,8 @@ from grippers.drivers.wsg.commands import Reply, decode_reply, encode_request
 from grippers.drivers.wsg.protocol import Packet, PacketParser, can_frames, encode_packet
 from grippers.drivers.wsg.sim import SimServer, WsgModel, serve
 
+from ...closing import closed_after
+
 TIME_SCALE = 50.0
 _channels = itertools.count()
 
@@ -96,16 +98,12 @@ def decode() -> Callable[[list[bytes]], list[Reply]]:
 @pytest.fixture
 def start_server() -> Iterator[Callable[..., SimServer]]:
     """serve() with a large time scale; every server is closed after the test."""
-    servers: list[SimServer] = []
 
     def start(listen: str, *, time_scale: float = TIME_SCALE, **params: object) -> SimServer:
-        server = serve(WsgModel(**params), listen, time_scale=time_scale)
-        servers.append(server)
-        return server
+        return serve(WsgModel(**params), listen, time_scale=time_scale)
 
-    yield start
-    for server in servers:
-        server.close()
+    with closed_after(start) as started:
+        yield started
 
 
 @pytest.fixture

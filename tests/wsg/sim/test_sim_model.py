@@ -158,15 +158,20 @@ def test_soft_limits(homed) -> None:
     assert d.one(Cmd.PREPOSITION, width=5.0, speed=50).status == S.E_CMD_PENDING
 
 
-def test_stop_aborts_the_pending_motion(homed) -> None:
-    d = homed
+def abort_a_motion_with(d, command: int, *, after: float) -> None:
+    """A preposition to 0 at 50 mm/s, ``after`` simulated seconds, then ``command``, which aborts it."""
     assert d.one(Cmd.PREPOSITION, width=0.0, speed=50.0).pending
-    d.advance(0.3)
-    replies = d.call(Cmd.STOP)
+    d.advance(after)
+    replies = d.call(command)
     assert [(r.command, r.status) for r in replies] == [
         (Cmd.PREPOSITION, S.E_CMD_ABORTED),
-        (Cmd.STOP, S.E_SUCCESS),
+        (command, S.E_SUCCESS),
     ]
+
+
+def test_stop_aborts_the_pending_motion(homed) -> None:
+    d = homed
+    abort_a_motion_with(d, Cmd.STOP, after=0.3)
     stopped_at = width(d)
     assert 0.0 < stopped_at < 110.0
     d.advance(1.0)
@@ -195,13 +200,7 @@ def test_new_motion_while_one_is_pending_is_already_running(homed, second: int) 
 
 def test_fast_stop_and_acknowledge(homed) -> None:
     d = homed
-    assert d.one(Cmd.PREPOSITION, width=0.0, speed=50.0).pending
-    d.advance(0.2)
-    replies = d.call(Cmd.FAST_STOP)
-    assert [(r.command, r.status) for r in replies] == [
-        (Cmd.PREPOSITION, S.E_CMD_ABORTED),
-        (Cmd.FAST_STOP, S.E_SUCCESS),
-    ]
+    abort_a_motion_with(d, Cmd.FAST_STOP, after=0.2)
     assert flags(d) & F.SF_FAST_STOP
     assert gstate(d) == G.ERROR
     for cmd, fields in [
