@@ -9,6 +9,7 @@ from __future__ import annotations
 import os
 import re
 import select
+import signal
 import subprocess
 import sys
 from collections.abc import Callable, Iterator
@@ -72,6 +73,13 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
         if group:
             item.add_marker(pytest.mark.xdist_group(group))
 
+
+# A suite started in the background by a non-interactive shell (`cmd &` in a CI script, nohup) inherits SIGINT
+# ignored, and Python then never raises KeyboardInterrupt, here or in the `grippers` processes the tests start
+# (an ignored signal stays ignored across exec). The Ctrl-C tests need Ctrl-C delivered as a terminal does:
+# Python's own handler here, and so the default disposition in every child.
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 ROOT = Path(__file__).resolve().parents[1]
 START_TIMEOUT = 20.0  # seconds for a simulator subprocess to print its URL
