@@ -7,7 +7,6 @@ import errno
 import re
 import signal
 import sys
-import threading
 from collections.abc import Callable
 from typing import Any
 
@@ -107,6 +106,29 @@ def warn_private_bus(listen: str) -> None:
         )
 
 
+def _wait_for_a_signal() -> None:
+    """Block until a signal's Python handler raises (SIGTERM, Ctrl-C).
+
+    A process-directed signal may be taken by any thread (the servers' threads here); the main thread, blocked
+    in a lock as ``threading.Event().wait()`` blocks it, is then never woken to run the handler, and the
+    simulator ignored SIGTERM for good (seen under load in CI). The wakeup fd is written by whichever thread
+    takes the signal, so the main thread's ``select`` returns and Python runs the handler."""
+    import os
+    import select
+
+    read_fd, write_fd = os.pipe()
+    os.set_blocking(write_fd, False)
+    previous = signal.set_wakeup_fd(write_fd, warn_on_full_buffer=False)
+    try:
+        while True:
+            select.select([read_fd], [], [])
+            os.read(read_fd, 512)  # a signal without a raising handler: drain and wait on
+    finally:
+        signal.set_wakeup_fd(previous)
+        os.close(read_fd)
+        os.close(write_fd)
+
+
 def serve_forever(server: Any, what: str, urls: list[str] | None = None, *, as_json: bool = False) -> int:
     """Print where to connect (first line, for people and for scripts; one line per extra node; with --json
     one document ``{"schema": "grippers.sim/1", "what": ..., "urls": [...]}``), then serve until Ctrl-C (exit
@@ -126,7 +148,7 @@ def serve_forever(server: Any, what: str, urls: list[str] | None = None, *, as_j
             print(f"{what} serving at {urls[0]}", flush=True)
             for url in urls[1:]:
                 print(f"  also at {url}", flush=True)
-        threading.Event().wait()  # forever; the signal handlers end it
+        _wait_for_a_signal()  # forever; the signal handlers end it
     except _Terminated:
         return 0
     finally:

@@ -154,3 +154,31 @@ def test_sim_msg_on_a_private_udp_multicast_port(sim_process, mcast_channel: str
         assert not other.node(11, timeout=0.3).ping(timeout=0.3)
     finally:
         other.close()
+
+
+def _tgkill(pid: int, tid: int, sig: int) -> None:
+    """A signal to one thread of another process (Linux ``tgkill``), as the kernel may pick any thread for a
+    process-directed one."""
+    import ctypes
+
+    libc = ctypes.CDLL(None, use_errno=True)
+    if libc.syscall(234, pid, tid, sig) != 0:  # SYS_tgkill on x86_64
+        raise OSError(ctypes.get_errno(), "tgkill")
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux") or os.uname().machine != "x86_64", reason="tgkill")
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT], ids=["sigterm", "sigint"])
+def test_sim_ends_on_a_signal_taken_by_another_of_its_threads(sig: int) -> None:
+    """SIGTERM or Ctrl-C taken by one of the servers' threads: the main thread, blocked in a lock, was never
+    woken to run the handler and the simulator served on (found under load in CI)."""
+    proc = _sim("wsg", "--listen", "tcp://127.0.0.1:0")
+    try:
+        assert "serving at" in _first_line(proc)
+        others = [int(t) for t in os.listdir(f"/proc/{proc.pid}/task") if int(t) != proc.pid]
+        assert others, "the simulator has no other thread"
+        _tgkill(proc.pid, others[0], sig)
+        _, err = proc.communicate(timeout=30)
+        assert proc.returncode == (0 if sig == signal.SIGTERM else 130), err
+    finally:
+        if proc.poll() is None:
+            proc.kill()

@@ -162,9 +162,12 @@ def test_api_connection_lost_mid_move_then_reconnect_reports_fast_stop() -> None
 
 
 def test_api_fast_stop_from_another_host_during_a_move(wsg_connect) -> None:
-    with grippers.open("sim://wsg50?time_scale=50") as g:
+    with grippers.open("sim://wsg50?time_scale=5") as g:  # a 4 s motion: the fast stop lands during it
         g.home()
         handle = g.move(0.001, 0.005, wait=False)
+        deadline = time.monotonic() + 10.0
+        while not g.state().moving:  # during the move (before it started, the device refuses it instead)
+            assert time.monotonic() < deadline, "the move did not start"
         wsg_connect(g.simulator.url).fast_stop()  # e.g. a safety PLC on a second connection
         with pytest.raises(CommandFailed) as info:
             handle.wait(5.0)
