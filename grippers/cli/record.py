@@ -131,6 +131,9 @@ def run(args: argparse.Namespace) -> int:
         row = {"t_s": round(state.timestamp - start, 6), "kind": "state", **state_dict(state)}
         with lock:
             rows.append(row)
+            first = len(rows) == 1
+        if first:  # -v: the gripper answers (a silent one shows as a recording that never says this)
+            log.info("first state sampled at %.3f s", row["t_s"])
 
     def event(text: str, phase: str, detail: str | None = None) -> None:
         with lock:
