@@ -34,7 +34,7 @@ from typing import Any, Generic, TypeVar
 from grippers.drivers.numbers import finite
 
 from .errors import CommandFailed, ConnectionLost, GripperError, GripperTimeout, LimitError
-from .gripper import DeviceInfo, GraspResult, Gripper, GripperState, MotionResult
+from .gripper import DeviceInfo, GraspResult, Gripper, GripperState, MotionResult, StartedRead
 from .motions import MotionHandle, wait_seconds
 
 __all__ = ["AsyncGripper", "AsyncMotionHandle", "open"]
@@ -165,6 +165,26 @@ def _deliver(
         loop.call_soon_threadsafe(settle)
     except RuntimeError:  # the loop is closed: nobody waits any more
         pass
+
+
+async def _awaited_read(
+    loop: asyncio.AbstractEventLoop, fut: asyncio.Future[T], started: StartedRead, device: str
+) -> T:
+    """Await a read the driver completes from its reader; give it up on cancel or at its timeout."""
+
+    def too_late() -> None:
+        if not fut.done():
+            text = f"no reply within {started.timeout:g} s"
+            fut.set_exception(GripperTimeout(text, device=device, command=started.command))
+
+    timer = loop.call_later(started.timeout, too_late)
+    try:
+        return await fut
+    except BaseException:
+        started.cancel()  # cancelled or timed out: the exchange is abandoned, the next call goes at once
+        raise
+    finally:
+        timer.cancel()
 
 
 class AsyncMotionHandle(Generic[T]):
@@ -380,7 +400,16 @@ class AsyncGripper:
         await self._call(self.sync.acknowledge, control=True)
 
     async def state(self) -> GripperState:
-        return await self._call(self.sync.state)
+        if self._closed:
+            raise GripperError("the gripper is closed", device=self.sync.name)
+        g = self.sync
+        g._check_open("state")
+        loop = asyncio.get_running_loop()
+        fut: asyncio.Future[GripperState] = loop.create_future()
+        started = g._start_state(lambda st, exc: _deliver(loop, fut, st, exc))
+        if started is None:  # this backend reads only by blocking: a worker runs it
+            return await self._call(g.state)
+        return g._took_state(await _awaited_read(loop, fut, started, g.name))
 
     async def info(self) -> DeviceInfo:
         return await self._call(self.sync.info)

@@ -12,6 +12,7 @@ import logging
 import threading
 from abc import ABC, abstractmethod
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, TypeVar
 
 from grippers.drivers.numbers import finite
@@ -47,6 +48,21 @@ __all__ = [
 T = TypeVar("T")
 
 log = logging.getLogger(__name__)
+
+StateCallback = Callable[["GripperState | None", "BaseException | None"], None]
+
+
+@dataclass(frozen=True)
+class StartedRead:
+    """A read a backend started without blocking (:meth:`Gripper._start_state`)."""
+
+    cancel: Callable[[], None]
+    """Give the read up (task cancelled, or :attr:`timeout` passed): its exchanges are abandoned as Ctrl-C
+    abandons them; ``done`` may still be called once, and is then ignored. Idempotent; never blocks."""
+    timeout: float
+    """Seconds after which the caller gives up with GripperTimeout (the driver itself keeps no timer)."""
+    command: str = "state"
+    """The device command named in that timeout's message."""
 
 
 class Gripper(OptionalFeatures, ConnectionHooks, ABC):
@@ -133,6 +149,18 @@ class Gripper(OptionalFeatures, ConnectionHooks, ABC):
 
     def _resume(self, thread_ident: int) -> None:
         """Thread ``thread_ident`` starts a new call: undo :meth:`_abandon`. Default: nothing."""
+
+    def _start_state(self, done: StateCallback) -> StartedRead | None:
+        """Start reading the state without blocking the caller; ``done(state, None)`` or ``done(None, error)``
+        is called once, from whichever thread completes it (the transport's reader, usually).
+
+        Why: the asyncio face awaits a read the driver completes from its reader, with no worker thread and
+        no thread hop on the way out (issue 20 §2). A backend that cannot returns None (the default), and
+        the asyncio face runs :meth:`_state` on a worker instead. The caller gives the read up with
+        :meth:`StartedRead.cancel` when its task is cancelled or :attr:`StartedRead.timeout` passed; the
+        driver then treats the exchange as timed out, as Ctrl-C leaves it, so the next call goes out at once.
+        """
+        return None
 
     def _default_release_width(self) -> float:
         """Where release() goes without a width: fully open, away from a part gripped from outside."""
@@ -360,7 +388,10 @@ class Gripper(OptionalFeatures, ConnectionHooks, ABC):
             GripperError: the gripper was closed.
         """
         self._check_open("state")
-        st = self._state()
+        return self._took_state(self._state())
+
+    def _took_state(self, st: GripperState) -> GripperState:
+        """What every face does with a state read (threaded, asyncio): one rule in one place."""
         # The device is the truth: a fast stop raised or acknowledged elsewhere (another program, the web
         # interface, the vendor extras in .driver) is taken over here.
         self._fast_stopped = st.fast_stopped
