@@ -15,13 +15,13 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, TypeVar
 
-from grippers.drivers.numbers import finite
-
 from .connection import ConnectionHooks
-from .errors import FastStopActive, GripperError, LimitError, NotSupported
+from .errors import FastStopActive, GripperError
 from .features import OptionalFeatures
+from .limit_checks import LimitChecks
 from .motions import MotionHandle, MotionSupervisor, wait_seconds
 from .profiles import ProfileBase
+from .servo_face import ServoFace
 
 # Re-exported: these lived here before they moved to their own modules; ``from grippers.gripper import
 # GripperState`` and the like keep working.
@@ -30,7 +30,7 @@ from .streams import StateStream, put_dropping_oldest
 
 if TYPE_CHECKING:
     from .reconnect import LinkWatch
-    from .servo import ServoLoop, ServoStats, ServoTarget
+    from .servo import ServoLoop
 
 __all__ = [
     "Capability",
@@ -65,7 +65,7 @@ class StartedRead:
     """The device command named in that timeout's message."""
 
 
-class Gripper(OptionalFeatures, ConnectionHooks, ABC):
+class Gripper(LimitChecks, ServoFace, OptionalFeatures, ConnectionHooks, ABC):
     """A gripper in SI units (m, m/s, N, A). Open one with :func:`grippers.open`.
 
     Every value is checked against the profile's limits before anything is sent (``LimitError``, also a
@@ -191,59 +191,6 @@ class Gripper(OptionalFeatures, ConnectionHooks, ABC):
             raise FastStopActive(
                 "fast stop is active: call acknowledge() before moving", device=self.name, command=command
             )
-
-    def _width(self, width: float, command: str) -> float:
-        w = finite(width, "width", device=self.name, command=command)
-        lo, hi = self.limits.min_width, self.limits.max_width
-        if not lo - 1e-9 <= w <= hi + 1e-9:
-            raise LimitError(
-                f"width {w * 1000:g} mm is outside {lo * 1000:g}..{hi * 1000:g} mm",
-                device=self.name,
-                command=command,
-            )
-        return min(max(w, lo), hi)
-
-    def _speed(self, speed: float | None, command: str) -> float:
-        if speed is None:
-            # The profile's default may lie above a safety limit or the device's own 53h limits (which narrow
-            # self.limits): sending it unchecked would bypass them, refusing it would break every call.
-            default = self.profile.mechanics.default_speed_mm_s / 1000
-            return min(max(default, self.limits.min_speed), self.limits.max_speed)
-        s = finite(speed, "speed", device=self.name, command=command)
-        lo, hi = self.limits.min_speed, self.limits.max_speed
-        if not lo - 1e-9 <= s <= hi + 1e-9 or s <= 0:
-            raise LimitError(
-                f"speed {s * 1000:g} mm/s is outside {lo * 1000:g}..{hi * 1000:g} mm/s",
-                device=self.name,
-                command=command,
-            )
-        return min(max(s, lo), hi)
-
-    def _force(self, force: float | None, command: str) -> float:
-        if force is None:
-            default = self.profile.mechanics.default_force_n  # clamped for the reason given in _speed
-            return min(max(default, self.limits.min_force), self.limits.max_force)
-        f = finite(force, "force", device=self.name, command=command)
-        lo, hi = self.limits.min_force, self.limits.max_force
-        if not lo - 1e-9 <= f <= hi + 1e-9:
-            raise LimitError(f"force {f:g} N is outside {lo:g}..{hi:g} N", device=self.name, command=command)
-        return min(max(f, lo), hi)
-
-    def check(
-        self,
-        width: float | None = None,
-        speed: float | None = None,
-        force: float | None = None,
-        *,
-        command: str = "check",
-    ) -> tuple[float | None, float | None, float | None]:
-        """Validate values against the limits without sending anything (LimitError naming ``command``);
-        returns them as they would be used (speed and force default from the profile when None)."""
-        return (
-            None if width is None else self._width(width, command),
-            self._speed(speed, command),
-            self._force(force, command),
-        )
 
     # -- motions: one at a time, the newest wins (grippers/motions.py states the rule) -------------------
 
@@ -435,57 +382,6 @@ class Gripper(OptionalFeatures, ConnectionHooks, ABC):
         with self._lock:
             if s in self._streams:
                 self._streams.remove(s)
-
-    # -- streamed targets (grippers/servo.py) ------------------------------------------------------------
-
-    def servo(self, width: float, speed: float | None = None, force: float | None = None) -> None:
-        """Head for ``width`` (m) now, without waiting: the latest target wins, targets that come faster than
-        the device takes them are coalesced. Limits are checked here, on every call; an error the device
-        reported for an earlier target is raised here too. stop() (or any motion command) ends servoing."""
-        from .servo import ServoLoop, ServoTarget
-
-        w, s = self._width(width, "servo"), self._speed(speed, "servo")
-        f = None if force is None else self._force(force, "servo")
-        self._check_motion("servo")
-        if self._servo_loop is None:  # servoing begins: it takes over from a running motion, which ends now
-            self._motions.supersede(f"servo to {w * 1000:g} mm")
-        with self._lock:
-            self._check_open("servo")
-            loop = self._servo_loop
-            if loop is None:
-                self._servo_begin()
-                loop = self._servo_loop = ServoLoop(self.name, self._servo)
-        loop.submit(ServoTarget(w, s, f))
-
-    @property
-    def servo_stats(self) -> ServoStats | None:
-        """Counts of the current (or last) servoing: received, sent, coalesced, unchanged, failed."""
-        loop = self._servo_loop or self._last_servo_loop
-        return None if loop is None else loop.stats
-
-    def _end_servo(self, *, stop_device: bool) -> None:
-        with self._lock:
-            loop, self._servo_loop = self._servo_loop, None
-        if loop is None:
-            return
-        self._last_servo_loop = loop
-        loop.end(self.timeout + 1.0)
-        if stop_device:
-            self._servo_end()
-
-    # Backends that can servo override these three (grippers/backends/wsg.py, stepfoc.py).
-    def _servo_begin(self) -> None:
-        """Called (under the lock) before the first target of a servoing; NotSupported by default."""
-        raise NotSupported("this backend cannot stream targets", device=self.name, command="servo")
-
-    def _servo(self, target: ServoTarget) -> bool | None:
-        """Put one target on the wire without waiting for the motion; False if nothing needed sending, None
-        to put it off (grippers/servo.py offers it again)."""
-        raise NotSupported("this backend cannot stream targets", device=self.name, command="servo")
-
-    def _servo_end(self) -> None:
-        """Servoing ended for another motion command: leave the device ready to take it."""
-        return None
 
     def close(self) -> None:
         """Stop streams, let running motions end (bounded), release the transport. Idempotent.
