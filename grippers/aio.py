@@ -1,27 +1,27 @@
 """The asyncio face: ``async with grippers.aio.open(url) as g: await g.move(0.05)``.
 
 Which way, and why: the awaitables sit on the same backends and sans-IO cores as the threaded
-:class:`grippers.Gripper`, never on a copy of them. ``state()``, the call a control loop makes most, is native:
-the backend starts the read (:meth:`grippers.Gripper._start_state`), the driver's reader completes it, and the
-reply reaches the event loop through one ``call_soon_threadsafe``: no worker thread and no thread hop on the
-way out (issue 20 §2; the WSG's exchange engine and the STEPFOC bus complete a callback from the reader that
-already owns the transport, as python-can's notifier does for a bus without a file descriptor). Motions and
-the other calls run the threaded gripper's own code on a small, fixed set of worker threads started at open
-(:data:`WORKERS`, plus one that runs only stop, fast stop and acknowledge): a motion lasts seconds, so a hop
-costs nothing there, while the backends are where units change and where the grasp outcome, the MSG's motion
-detection and the WSG's pending/final matching are decided, and a second asyncio-native copy of each would
-drift. Any number of concurrent awaits queue for the workers, so 100 concurrent calls leave the thread count
-where it was. Streams are plain coroutines (no thread), and cancelling a task that awaits a motion stops the
-motion on the device before ``CancelledError`` propagates.
+:class:`grippers.Gripper`, never on a copy of them. ``state()``, the call a control loop makes most, is
+native: the backend starts the read (:meth:`grippers.Gripper._start_state`), the driver's reader completes it,
+and the reply reaches the event loop through one ``call_soon_threadsafe``: no worker thread and no thread hop
+on the way out (issue 20 §2; the WSG's exchange engine and the STEPFOC bus complete a callback from the reader
+that already owns the transport, as python-can's notifier does for a bus without a file descriptor). Motions
+and the other calls run the threaded gripper's own code on a small, fixed set of worker threads started at
+open (:data:`WORKERS`, plus one that runs only stop, fast stop and acknowledge): a motion lasts seconds, so a
+hop costs nothing there, while the backends are where units change and where the grasp outcome, the MSG's
+motion detection and the WSG's pending/final matching are decided, and a second asyncio-native copy of each
+would drift. Any number of concurrent awaits queue for the workers, so 100 concurrent calls leave the thread
+count where it was. Streams are plain coroutines (no thread), and cancelling a task that awaits a motion stops
+the motion on the device before ``CancelledError`` propagates.
 
-Cancelling a task that awaits any other call (``wait_for(g.state(), 0.01)`` on a silent device) gives the
-call up in the driver (a native read's ``cancel``; :meth:`grippers.Gripper._abandon` on the worker thread that
-runs any other call), as Ctrl-C gives up a threaded call: its wait ends at once, so the worker is free and the command's slot with it, and the next
-call goes out at once instead of queueing behind the old exchange's timeout (issue 23 §3). The abandoned
-exchange is treated as a timed-out one (a late reply swallowed). What that costs the next call of the same
-command is the driver's business: on the WSG one LOOP barrier first over TCP, serial and CAN, which keep
-replies in order, but ``stale_ttl`` over UDP, which may reorder them (drivers/wsg/exchanges.py); on the MSG
-nothing (drivers/stepfoc/can_client.py, uart_client.py).
+Cancelling a task that awaits any other call (``wait_for(g.state(), 0.01)`` on a silent device) gives the call
+up in the driver (a native read's ``cancel``; :meth:`grippers.Gripper._abandon` on the worker thread that runs
+any other call), as Ctrl-C gives up a threaded call: its wait ends at once, so the worker is free and the
+command's slot with it, and the next call goes out at once instead of queueing behind the old exchange's
+timeout (issue 23 §3). The abandoned exchange is treated as a timed-out one (a late reply swallowed). What
+that costs the next call of the same command is the driver's business: on the WSG one LOOP barrier first over
+TCP, serial and CAN, which keep replies in order, but ``stale_ttl`` over UDP, which may reorder them
+(drivers/wsg/exchanges.py); on the MSG nothing (drivers/stepfoc/can_client.py, uart_client.py).
 """
 
 from __future__ import annotations

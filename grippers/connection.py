@@ -5,17 +5,17 @@ the core of :class:`~grippers.gripper.Gripper`, which it is a mixin of.
 
 from __future__ import annotations
 
-from abc import abstractmethod
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from .errors import DeviceMismatch, NotSupported
+from .parts import GripperPart
 
 if TYPE_CHECKING:
     from .reconnect import LinkWatch
 
 
-class ConnectionHooks:
+class ConnectionHooks(GripperPart):
     """Connection state for users, reconnection hooks for backends."""
 
     # Set by Gripper.__init__ (and by grippers/reconnect.py's attach for the last two).
@@ -23,10 +23,6 @@ class ConnectionHooks:
     _on_close: list[Callable[[], None]]
     _watch: LinkWatch | None
     _opened_identity: dict[str, str]
-
-    @property
-    @abstractmethod
-    def name(self) -> str: ...
 
     @property
     def connected(self) -> bool:

@@ -7,27 +7,15 @@ hooks as before and users call the same methods on the gripper.
 
 from __future__ import annotations
 
-from abc import abstractmethod
-
 from .errors import LimitError, NotSupported
+from .limit_checks import LimitChecks
 from .states import Capability
 
 
-class OptionalFeatures:
+class OptionalFeatures(LimitChecks):
     """Features a family may lack; ``capabilities`` says which it has."""
 
     capabilities: frozenset[Capability] = frozenset()
-
-    # What the gripper provides (grippers/gripper.py).
-    @property
-    @abstractmethod
-    def name(self) -> str: ...
-
-    @abstractmethod
-    def _check_open(self, command: str) -> None: ...
-
-    @abstractmethod
-    def _width(self, width: float, command: str) -> float: ...
 
     def require(self, capability: Capability, command: str) -> None:
         if capability not in self.capabilities:

@@ -18,7 +18,6 @@ from typing import TYPE_CHECKING, Any, TypeVar
 from .connection import ConnectionHooks
 from .errors import FastStopActive, GripperError
 from .features import OptionalFeatures
-from .limit_checks import LimitChecks
 from .motions import MotionHandle, MotionSupervisor, wait_seconds
 from .profiles import ProfileBase
 from .servo_face import ServoFace
@@ -65,7 +64,7 @@ class StartedRead:
     """The device command named in that timeout's message."""
 
 
-class Gripper(LimitChecks, ServoFace, OptionalFeatures, ConnectionHooks, ABC):
+class Gripper(ServoFace, OptionalFeatures, ConnectionHooks, ABC):
     """A gripper in SI units (m, m/s, N, A). Open one with :func:`grippers.open`.
 
     Every value is checked against the profile's limits before anything is sent (``LimitError``, also a

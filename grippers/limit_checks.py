@@ -7,24 +7,19 @@ behaviour of a gripper, not the arithmetic of its limits.
 
 from __future__ import annotations
 
-from abc import abstractmethod
-
 from grippers.drivers.numbers import finite
 
 from .errors import LimitError
+from .parts import GripperPart
 from .profiles import Limits, ProfileBase
 
 
-class LimitChecks:
+class LimitChecks(GripperPart):
     """Values in SI units against ``limits`` (the profile's, narrowed by the device's own); the defaults
     come from the profile."""
 
     limits: Limits
     profile: ProfileBase
-
-    @property
-    @abstractmethod
-    def name(self) -> str: ...
 
     def _width(self, width: float, command: str) -> float:
         w = finite(width, "width", device=self.name, command=command)

@@ -12,13 +12,14 @@ from abc import abstractmethod
 from typing import TYPE_CHECKING
 
 from .errors import NotSupported
+from .limit_checks import LimitChecks
 
 if TYPE_CHECKING:
     from .motions import MotionSupervisor
     from .servo import ServoLoop, ServoStats, ServoTarget
 
 
-class ServoFace:
+class ServoFace(LimitChecks):
     """servo(), its counters, and the hooks a backend implements to stream targets."""
 
     timeout: float
@@ -27,25 +28,8 @@ class ServoFace:
     _servo_loop: ServoLoop | None
     _last_servo_loop: ServoLoop | None
 
-    # What the gripper provides (grippers/gripper.py, grippers/limit_checks.py).
-    @property
-    @abstractmethod
-    def name(self) -> str: ...
-
-    @abstractmethod
-    def _check_open(self, command: str) -> None: ...
-
     @abstractmethod
     def _check_motion(self, command: str) -> None: ...
-
-    @abstractmethod
-    def _width(self, width: float, command: str) -> float: ...
-
-    @abstractmethod
-    def _speed(self, speed: float | None, command: str) -> float: ...
-
-    @abstractmethod
-    def _force(self, force: float | None, command: str) -> float: ...
 
     def servo(self, width: float, speed: float | None = None, force: float | None = None) -> None:
         """Head for ``width`` (m) now, without waiting: the latest target wins, targets that come faster than

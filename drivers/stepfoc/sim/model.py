@@ -501,7 +501,9 @@ class MsgModel:
         self.at_position = True
 
     def _blocked(self, when: float) -> None:
-        sign = 1.0 if self._velocity > 0 else -1.0
+        # The current pushes towards the commanded target (the firmware's position error), also when the jaws
+        # already stood on the part and travelled no distance (their velocity then says nothing of the way).
+        sign = 1.0 if float(self.target_ticks()) > self._ticks else -1.0
         v = float(ticks_per_s(self.speed_setpoint, self.driver))
         self.phase = Phase.PUSHING
         self._push(RAMP_MA_S_PER_TICK_S * v, self.current_setpoint, sign=sign)
