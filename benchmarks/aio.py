@@ -1,4 +1,4 @@
-"""Target 12 (issue 20 §2): ``await g.state()`` against the threaded ``g.state()`` of the same gripper.
+"""Target 13 (issue 20 §2): ``await g.state()`` against the threaded ``g.state()`` of the same gripper.
 
 Both faces drive one gripper, so the device, the transport and the backend are shared and the ratio is the
 cost of the asyncio face alone. Batches of each alternate (drift on a shared machine hits both alike); the
@@ -16,6 +16,125 @@ from benchmarks.common import Result, median, us
 from benchmarks.simproc import WsgSimProcess
 
 RATIO_LIMIT = 1.15
+
+# The WSG's state(): five queries, one after the other (grippers/backends/wsg.py). Request payloads of three
+# zero bytes ask each 4xh value once, with no auto update (docs/protocols.md §1).
+_STATE_QUERIES = (0x40, 0x41, 0x43, 0x44, 0x45)
+
+
+def _asyncio_floor_wsg(port: int, rounds: int, batch: int) -> tuple[float, float]:
+    """What asyncio itself costs, with no library: the same five exchanges over a bare blocking socket and
+    over a bare ``asyncio.Protocol`` (its ``data_received`` completes a future), alternating batches.
+
+    Why: the target's ratio can never be lower than this floor; the library's share is what lies above it."""
+    import socket
+
+    from grippers.drivers.wsg.protocol import Packet, PacketParser, encode_packet
+
+    requests = [encode_packet(cmd, b"\x00\x00\x00") for cmd in _STATE_QUERIES]
+
+    def replies(parser: PacketParser, data: bytes) -> int:
+        return sum(1 for ev in parser.feed(data) if isinstance(ev, Packet))
+
+    class _Reader(asyncio.Protocol):
+        def __init__(self) -> None:
+            self.parser = PacketParser()
+            self.reply: asyncio.Future[None] | None = None
+
+        def data_received(self, data: bytes) -> None:
+            if replies(self.parser, data) and self.reply is not None and not self.reply.done():
+                self.reply.set_result(None)
+
+    blocking: list[float] = []
+    awaited: list[float] = []
+
+    async def main() -> None:
+        loop = asyncio.get_running_loop()
+        sock = socket.create_connection(("127.0.0.1", port))
+        sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        parser = PacketParser()
+        transport, proto = await loop.create_connection(_Reader, "127.0.0.1", port)
+
+        def blocking_read() -> None:
+            for req in requests:
+                sock.sendall(req)
+                while not replies(parser, sock.recv(65536)):
+                    pass
+
+        async def awaited_read() -> None:
+            for req in requests:
+                proto.reply = loop.create_future()
+                transport.write(req)
+                await proto.reply
+
+        try:
+            for _ in range(20):
+                blocking_read()
+                await awaited_read()
+            for _ in range(rounds):
+                for _ in range(batch):
+                    t0 = time.perf_counter()
+                    blocking_read()
+                    blocking.append(time.perf_counter() - t0)
+                for _ in range(batch):
+                    t0 = time.perf_counter()
+                    await awaited_read()
+                    awaited.append(time.perf_counter() - t0)
+        finally:
+            transport.close()
+            sock.close()
+
+    asyncio.run(main())
+    return median(blocking), median(awaited)
+
+
+def _asyncio_floor_hop(rounds: int, batch: int) -> tuple[float, float]:
+    """The MSG's floor: a reply handed over by a reader thread, as the STEPFOC bus hands it over, to a
+    thread blocked on a lock (the threaded call) or to a task through ``call_soon_threadsafe``."""
+    import queue
+    import threading
+
+    jobs: queue.SimpleQueue[Any] = queue.SimpleQueue()
+
+    def reader() -> None:
+        while (job := jobs.get()) is not None:
+            job()
+
+    thread = threading.Thread(target=reader, daemon=True)
+    thread.start()
+    blocking: list[float] = []
+    awaited: list[float] = []
+
+    async def main() -> None:
+        loop = asyncio.get_running_loop()
+
+        def locked() -> None:
+            signal = threading.Lock()
+            signal.acquire()
+            jobs.put(signal.release)
+            signal.acquire()
+
+        async def future() -> None:
+            fut: asyncio.Future[None] = loop.create_future()
+            jobs.put(lambda: loop.call_soon_threadsafe(fut.set_result, None))
+            await fut
+
+        for _ in range(rounds):
+            for _ in range(batch):
+                t0 = time.perf_counter()
+                locked()
+                blocking.append(time.perf_counter() - t0)
+            for _ in range(batch):
+                t0 = time.perf_counter()
+                await future()
+                awaited.append(time.perf_counter() - t0)
+
+    try:
+        asyncio.run(main())
+    finally:
+        jobs.put(None)
+        thread.join(5)
+    return median(blocking), median(awaited)
 
 
 def _compare(url: str, rounds: int, batch: int) -> tuple[float, float]:
@@ -59,8 +178,19 @@ def run(quick: bool) -> list[Result]:
         if url is None:
             with WsgSimProcess() as sim:
                 threaded, awaited = _compare(sim.url, rounds, batch)
+                bare, bare_async = _asyncio_floor_wsg(sim.port, rounds, batch)
+            floor = (
+                f"asyncio's own floor, same run: the five queries over a bare asyncio.Protocol "
+                f"{us(bare_async)} against a bare blocking socket {us(bare)} = {bare_async / bare:.2f}x"
+            )
         else:
             threaded, awaited = _compare(url, rounds, batch)
+            bare, bare_async = _asyncio_floor_hop(rounds, batch)
+            floor = (
+                f"asyncio's own floor, same run: a reply handed from a reader thread to a task "
+                f"(call_soon_threadsafe) {us(bare_async)} against one to a thread blocked on a lock "
+                f"{us(bare)}: +{us(bare_async - bare)} per call"
+            )
         ratio = awaited / threaded
         results.append(
             Result(
@@ -70,7 +200,10 @@ def run(quick: bool) -> list[Result]:
                 f"{ratio:.2f}x",
                 f"<= {RATIO_LIMIT}x threaded",
                 ratio <= RATIO_LIMIT,
-                [f"{rounds * batch} calls of each, alternating batches of {batch}; one gripper, both faces"],
+                [
+                    f"{rounds * batch} calls of each, alternating batches of {batch}; one gripper, two faces",
+                    floor,
+                ],
             )
         )
     return results
