@@ -8,6 +8,7 @@ recovery) lives in :mod:`.connection` and :mod:`.exchanges`; the matching rules 
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from typing import Any
 
 from ..errors import GripperError, LimitError, ProtocolError
@@ -28,10 +29,10 @@ from .commands import (
     reply_value,
 )
 from .connection import WsgConnection
-from .handles import Pending, Subscription
-from .protocol import Status
+from .handles import Pending, Queries, Subscription
+from .protocol import Packet, Status
 
-__all__ = ["Pending", "Subscription", "WsgClient"]
+__all__ = ["Pending", "Queries", "Subscription", "WsgClient"]
 
 _MAX_TAG = 64  # WSG manual 4.0.x §3.5.2
 _MAX_LOOP = 256  # WSG manual 4.0.x §3.1.1
@@ -194,14 +195,20 @@ class WsgClient(WsgConnection):
 
     def _query(self, cmd: int, timeout: float | None) -> Any:
         """The value of a state query (40h-45h: all firmware has them, so no firmware check)."""
+        packet = self._exchange(cmd, self._query_payload(cmd), self.timeout if timeout is None else timeout)
+        return self._query_value(cmd, packet)
+
+    def _query_payload(self, cmd: int) -> bytes:
+        """A state query's request: plain, or repeating a running subscription's parameters."""
         # A plain query (auto update off) would switch a running subscription off on the device, so while one
         # is active the query repeats its parameters.
         params = self._sub_params.get(cmd)  # one dict read: atomic, no lock needed
         if params is None:
-            payload = _PLAIN_QUERY[cmd]
-        else:
-            payload = encode_request(cmd, auto_update=True, changes_only=params[1], period_ms=params[0])
-        packet = self._exchange(cmd, payload, self.timeout if timeout is None else timeout)
+            return _PLAIN_QUERY[cmd]
+        return encode_request(cmd, auto_update=True, changes_only=params[1], period_ms=params[0])
+
+    def _query_value(self, cmd: int, packet: Packet) -> Any:
+        """A state query's reply decoded; CommandFailed or ProtocolError naming the device and command."""
         data = packet.payload  # a completed exchange's reply has its status (session)
         if not (data[0] | data[1]):  # E_SUCCESS
             try:
@@ -209,6 +216,21 @@ class WsgClient(WsgConnection):
             except ProtocolError:
                 pass  # _check raises it with the device's name
         return self._check(cmd, packet).value
+
+    def queries(self, cmds: Sequence[int], *, timeout: float | None = None) -> list[Any]:
+        """The values of state queries (40h-45h), one after another: what :meth:`start_queries` reads,
+        with this thread waiting (and reading its own replies, the cheapest way for a thread)."""
+        return [self._query(cmd, timeout) for cmd in cmds]
+
+    def start_queries(
+        self, cmds: Sequence[int], done: Callable[[list[Any] | None, GripperError | None], None]
+    ) -> Queries:
+        """:meth:`queries` with no thread waiting: each query is sent when the previous one's reply came,
+        from the reader thread, which then calls ``done(values, None)`` or ``done(None, error)`` (once,
+        unless :meth:`Queries.cancel` came first). The caller applies the bound (:attr:`Queries.timeout`)."""
+        reads = Queries(self, cmds, done)
+        reads._next()
+        return reads
 
     def system_state(self, *, timeout: float | None = None) -> SystemFlags:
         return self._query(Cmd.GET_SYSTEM_STATE, timeout)

@@ -1,8 +1,10 @@
 """A WSG connection: the exchange engine over one transport, its reader thread, its lifetime, subscriptions.
 
 The background reader reads only when nobody waits but bytes may still come: subscriptions (their callbacks
-always run on it), a pending motion's final reply, a half-received packet, or a late reply to swallow (see
-:mod:`.exchanges` for who reads when). The command methods sit on top (:class:`~.client.WsgClient`).
+always run on it), a pending motion's final reply, a half-received packet, a late reply to swallow, or the
+reply of a callback exchange, which it hands back by a call and which may submit the next (see
+:mod:`.exchanges` for who reads when, :mod:`.callbacks` for exchanges nobody waits for). The command methods
+sit on top (:class:`~.client.WsgClient`).
 """
 
 from __future__ import annotations
@@ -17,8 +19,9 @@ from can import BusABC
 
 from ..errors import ConnectionLost, GripperError, LimitError, NotSupported
 from ..urls import TRANSPORTS, parse_url, refuse_unknown, shown, to_bool, to_float, to_int
+from .callbacks import CallbackEngine, Submitted
 from .commands import AUTO_UPDATE_COMMANDS, Cmd, command_name, encode_request
-from .exchanges import POLL, SILENT_GAP, ExchangeEngine
+from .exchanges import POLL, SILENT_GAP
 from .handles import Subscription
 from .transports import (
     DEFAULT_BAUDRATE,
@@ -49,7 +52,7 @@ _FROM_URL_PARAMETERS: dict[str, tuple[str, ...]] = {
 _MIN_PERIOD_MS = 10  # docs/protocols.md §1: auto-update period minimum
 
 
-class WsgConnection(ExchangeEngine):
+class WsgConnection(CallbackEngine):
     """One connection to a WSG: requests from any thread, a reader thread for what nobody waits for."""
 
     def __init__(
@@ -217,12 +220,15 @@ class WsgConnection(ExchangeEngine):
         with self._lock:
             self._closed = True
             self._session.fail_all(error)
+            orphans = self._orphans(error)
             subs = [s for lst in self._subs.values() for s in lst]
             self._subs.clear()
             self._sub_params.clear()
             self._cond.notify_all()
         for sub in subs:
             sub._end()
+        for fail, exc in orphans:
+            fail(exc)
 
     @property
     def closed(self) -> bool:
@@ -244,20 +250,58 @@ class WsgConnection(ExchangeEngine):
     # ------------------------------------------------------------------------------------------- reader
 
     def _read_loop(self) -> None:
+        """Read when nobody else does but bytes may come; make the deferred calls (subscription values,
+        callback replies) and send queued callback requests whose slot came free (:mod:`.callbacks`).
+
+        The calls and sends happen outside the lock and before the next read, and they do not wait for the
+        reading role: a callback that submits the next request has it on the line at once."""
         lock = self._lock
+        me = get_ident()
+        stop = self._stop
         while True:
+            sends: list[tuple[Submitted, bytes]] = []
+            deliveries: list[tuple[Callable[[Any], None], Any]] = []
+            answered = None
             with lock:
-                while not self._stop.is_set() and (self._reading or not self._background_needed()):
-                    self._bg.wait(POLL)
-                if self._stop.is_set() or self._lost is not None:
-                    return
-                self._reading = get_ident()
-                deliveries, self._deferred = self._deferred, []
-            for sub, value in deliveries:
-                sub._deliver(value)
-            with lock:
-                self._read_line(POLL)
-                self._settle_read()  # updates read here go to _deferred: delivered at the top of the loop
+                # The usual turn while callback exchanges run: one is out, nobody else reads, nothing else
+                # to do: straight to the line (each check below costs a callback round trip time).
+                quick = (
+                    self._notify
+                    and not (self._reading or self._deferred or self._queued or self._callers or self._subs)
+                    and self._lost is None
+                    and not stop.is_set()
+                )
+                if not quick:
+                    while not stop.is_set():
+                        if self._queued and not self._closing:
+                            sends = self._start_queued()  # a slot came free (or a barrier is due)
+                        if sends or self._deferred or (not self._reading and self._background_needed()):
+                            break
+                        self._bg.wait(POLL)  # (queued requests: checked again at least every POLL)
+                    if stop.is_set() or self._lost is not None:
+                        return  # what was opened here fails with the line (close(), _connection_lost)
+                    if self._deferred:
+                        deliveries, self._deferred = self._deferred, []
+                if not (sends or deliveries or self._reading):
+                    self._reading = me
+                    self._read_line(POLL)
+                    answered = self._take_callback_reply()  # else matched as usual: calls go to _deferred
+            # Outside the lock, before the next read; a delivery does not wait for the reading role.
+            for sub, raw in sends:
+                self._call_back(self._send, sub, raw)
+            for call, value in deliveries:
+                self._call_back(call, value)
+            if answered is not None:
+                # (it may submit the next request: read at once, above)
+                self._call_back(answered[0].reply, answered[1])
+
+    def _call_back(self, call: Callable[..., None], *args: Any) -> None:
+        """A call the reader thread makes for others: a bug in it is logged, never the end of the reading
+        (whoever waited for it runs into its own timeout)."""
+        try:
+            call(*args)
+        except Exception:  # noqa: BLE001 - see the docstring
+            log.exception("%s: a callback raised on the reader thread", self.device)
 
     # ------------------------------------------------------------------------------------ subscriptions
 

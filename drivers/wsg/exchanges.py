@@ -8,7 +8,8 @@ the same id take turns (see the session's docstring for why).
 Who reads (leader/follower): at most one thread is inside ``transport.recv`` at a time. A caller waiting for
 its reply reads the line itself when nobody else does, so a plain request costs no thread hand-over (the
 round-trip benchmark, docs/performance.md); other waiters are woken when their reply goes by. The connection's
-background thread (:mod:`.connection`) reads only when nobody waits but bytes may still come.
+background thread (:mod:`.connection`) reads only when nobody waits but bytes may still come, among them the
+replies of exchanges nobody waits for (:mod:`.callbacks`: the same session, slots and stale markers).
 
 Ctrl-C (issue 13 item 1, issue 23 §3): a KeyboardInterrupt can arrive at any line of an exchange, also inside
 the wait for the lock or for a reply. Every step therefore leaves a trace the handler can finish from: the
@@ -282,6 +283,8 @@ class ExchangeEngine(LineReader):
                     self._reading = 0  # (no _last_rx: it matters only while the parser holds bytes)
                     self._cond.notify_all()  # the reading role is free
                     self._callers.pop(get_ident(), None)
+                    if self._queued:
+                        self._bg.notify()  # a callback request may wait for this slot (.callbacks)
                     return packet
             self._settle_read()
             if interrupt is not None:
@@ -352,8 +355,10 @@ class ExchangeEngine(LineReader):
     def _leave(self) -> None:
         """A caller is done with its exchange (lock held)."""
         self._callers.pop(get_ident(), None)
-        if not self._callers and self._background_needed():
-            self._bg.notify()  # e.g. a pending motion's final reply: nobody waits to read it
+        if self._queued or (not self._callers and self._background_needed()):
+            # e.g. a pending motion's final reply: nobody waits to read it; or a callback request waits for
+            # the slot this exchange held (.callbacks)
+            self._bg.notify()
 
     def _rescue(self, abandon: bool = True) -> None:
         """Ctrl-C (any BaseException but a GripperError) reached a caller between its steps: whatever step it
@@ -368,12 +373,7 @@ class ExchangeEngine(LineReader):
                 self._bg.notify()  # the late reply: the reader thread reads it when nobody else does
 
     def _raise_failed(self, exchange: Exchange) -> NoReturn:
-        name = command_name(exchange.command)
-        if exchange.state is ExchangeState.ABANDONED:
-            raise GripperTimeout("abandoned after a timeout", device=self.device, command=name)
-        err = exchange.error
-        cls = type(err) if isinstance(err, ConnectionLost | ProtocolError) else GripperError
-        raise cls(err.message if err else "failed", device=self.device, command=name)
+        raise self._failure(exchange)
 
     def _timed_out(self, exchange: Exchange, now: float, abandon: bool, waited: float | None) -> NoReturn:
         state = exchange.state

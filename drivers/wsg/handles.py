@@ -1,4 +1,5 @@
-"""What a WSG call hands back when it does not wait: a pending motion, a subscription's stream of values."""
+"""What a WSG call hands back when it does not wait: a pending motion, a subscription's stream of values,
+state queries answered by callback."""
 
 from __future__ import annotations
 
@@ -6,21 +7,23 @@ import logging
 import threading
 import time
 from collections import deque
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from typing import TYPE_CHECKING, Any
 
 from ..closing import Closing
 from ..errors import ConnectionLost, GripperError, GripperTimeout
+from .callbacks import Submitted
 from .commands import command_name
 from .exchanges import POLL
 from .interrupts import Waiters
+from .protocol import Packet
 from .session import Exchange
 
 if TYPE_CHECKING:
     from .client import WsgClient
     from .connection import WsgConnection
 
-__all__ = ["Pending", "Subscription"]
+__all__ = ["Pending", "Queries", "Subscription"]
 
 log = logging.getLogger(__name__)
 
@@ -63,6 +66,69 @@ class Pending:
 
     def __repr__(self) -> str:
         return f"<Pending {command_name(self.command)} {self._exchange.state.value}>"
+
+
+class Queries:
+    """State queries sent one after another by callback (:meth:`WsgClient.start_queries`), no thread waiting.
+
+    Sequential, not pipelined: the threaded :meth:`WsgClient.queries` reads the same commands in the same
+    order, one exchange at a time, and both decode through ``WsgClient._query_value``.
+    """
+
+    def __init__(
+        self,
+        client: WsgClient,
+        cmds: Sequence[int],
+        done: Callable[[list[Any] | None, GripperError | None], None],
+    ) -> None:
+        self._client = client
+        self._cmds = cmds
+        self._done = done
+        self._values: list[Any] = []
+        self._current: Submitted | None = None
+        self._cancelled = False
+        self._over = False
+        #: The caller's bound (the driver keeps no timer): the client's timeout for each query in turn.
+        self.timeout = client.timeout * len(cmds)
+
+    def _next(self) -> None:
+        cmd = self._cmds[len(self._values)]
+        sub = Submitted(cmd, self._client._query_payload(cmd), self._step)
+        # Set before the request goes out (its reply may come back on the reader at once), and checked after:
+        # a cancel() in between sees this request or withdraws it here.
+        self._current = sub
+        self._client.submit(sub)
+        if self._cancelled:
+            self._client.withdraw(sub)
+
+    def _step(self, packet: Packet | None, error: GripperError | None) -> None:
+        if self._cancelled:
+            return
+        if packet is not None:
+            try:
+                self._values.append(self._client._query_value(self._cmds[len(self._values)], packet))
+            except GripperError as exc:
+                error = exc
+        if error is not None:
+            self._finish(None, error)
+        elif len(self._values) == len(self._cmds):
+            self._finish(self._values, None)
+        else:
+            self._next()
+
+    def _finish(self, values: list[Any] | None, error: GripperError | None) -> None:
+        if self._over:
+            return
+        self._over = True
+        self._done(values, error)
+
+    def cancel(self) -> None:
+        """Give the queries up (idempotent, never blocks): the one outstanding is abandoned (its late reply
+        swallowed), no further one is sent, ``done`` is not called any more."""
+        self._cancelled = True
+        sub = self._current
+        if sub is not None:
+            self._client.withdraw(sub)
 
 
 class Subscription(Closing):

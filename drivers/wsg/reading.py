@@ -11,17 +11,30 @@ from __future__ import annotations
 import logging
 import threading
 import time
+from collections import deque
 from collections.abc import Callable
 from threading import get_ident
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from ..errors import ConnectionLost, ProtocolError
-from .commands import decode_reply
+from ..errors import ConnectionLost, GripperError, GripperTimeout, ProtocolError
+from .commands import command_name, decode_reply
 from .dissect import wire_tap
 from .interrupts import Waiters, hold
 from .protocol import BadLength, ChecksumError, Discarded
-from .session import AutoUpdate, Completed, Exchange, Session, StaleReply, Unsolicited
+from .session import (
+    AutoUpdate,
+    Completed,
+    Exchange,
+    ExchangeFailed,
+    ExchangeState,
+    Session,
+    StaleReply,
+    Unsolicited,
+)
 from .transports import Transport
+
+if TYPE_CHECKING:
+    from .callbacks import Submitted
 
 __all__ = ["POLL", "SILENT_GAP", "LineReader"]
 
@@ -103,8 +116,13 @@ class LineReader:
         # and a handler finds the exchange even when Ctrl-C landed before the caller saw it returned.
         self._callers: dict[int, Exchange] = {}
         self._last_rx = time.monotonic()
-        # Updates a caller happened to read, handed to the reader thread that runs subscription callbacks.
-        self._deferred: list[tuple[Any, Any]] = []
+        # Calls for the reader thread to make outside the lock: subscription values a caller happened to read,
+        # replies of callback exchanges (:mod:`.callbacks`), as (function, argument).
+        self._deferred: list[tuple[Callable[[Any], None], Any]] = []
+        # Callback exchanges (:mod:`.callbacks`): the sent ones by their exchange, and those waiting for their
+        # command's slot, per command in order of submission. Kept here: matching completes them.
+        self._notify: dict[Exchange, Submitted] = {}
+        self._queued: dict[int, deque[Submitted]] = {}
         self._reader_ident: int | None = None
 
     # ----------------------------------------------------------------------------------- matching input
@@ -142,8 +160,15 @@ class LineReader:
     def _dispatch(self, events: list[Any]) -> list[tuple[Any, Any]]:
         deliveries: list[tuple[Any, Any]] = []
         stats = self.stats
+        notify = self._notify
         for ev in events:
             if type(ev) is Completed:  # the common case: the waiter picks its reply from the exchange
+                if notify and (sub := notify.pop(ev.exchange, None)) is not None:
+                    deliveries.append((sub.reply, ev.packet))  # nobody waits: the reader calls it back
+                continue
+            if isinstance(ev, ExchangeFailed):
+                if notify and (sub := notify.pop(ev.exchange, None)) is not None:
+                    deliveries.append((sub.fail, self._failure(ev.exchange)))
                 continue
             if isinstance(ev, AutoUpdate):
                 stats["updates"] += 1
@@ -156,7 +181,7 @@ class LineReader:
                     log.debug("%s: undecodable update %r", self.device, ev.packet)
                     continue
                 if reply.ok:
-                    deliveries.extend((sub, reply.value) for sub in subs)
+                    deliveries.extend((sub._deliver, reply.value) for sub in subs)
             elif isinstance(ev, StaleReply):
                 stats["stale_replies"] += 1
                 log.debug("%s: late reply swallowed: %r", self.device, ev.packet)
@@ -170,6 +195,26 @@ class LineReader:
             elif isinstance(ev, Discarded):
                 stats["discarded_bytes"] += len(ev.raw)
         return deliveries
+
+    def _failure(self, exchange: Exchange) -> GripperError:
+        """The error a failed or abandoned exchange ends with, naming the device and the command."""
+        name = command_name(exchange.command)
+        if exchange.state is ExchangeState.ABANDONED:
+            return GripperTimeout("abandoned after a timeout", device=self.device, command=name)
+        err = exchange.error
+        cls = type(err) if isinstance(err, ConnectionLost | ProtocolError) else GripperError
+        return cls(err.message if err else "failed", device=self.device, command=name)
+
+    def _orphans(self, error: ConnectionLost) -> list[tuple[Callable[[Any], None], Any]]:
+        """The line is gone (lock held): every callback exchange, sent or waiting for its slot, fails with
+        ``error`` naming its command. The calls are made by the caller once the lock is released."""
+        subs = [*self._notify.values(), *(sub for queue in self._queued.values() for sub in queue)]
+        self._notify.clear()
+        self._queued.clear()
+        return [
+            (sub.fail, ConnectionLost(error.message, device=self.device, command=command_name(sub.command)))
+            for sub in subs
+        ]
 
     def _absorb(self, data: bytes | None) -> None:
         """Match bytes a caller read (lock held); updates among them go to the reader thread's callbacks."""
@@ -231,10 +276,13 @@ class LineReader:
             if self._lost is None:
                 self._lost = error
             self._session.fail_all(error)
+            orphans = self._orphans(error)
             subs = [s for lst in self._subs.values() for s in lst]
             self._cond.notify_all()
         for sub in subs:
             sub._end(error)
+        for fail, exc in orphans:
+            fail(exc)
 
     def _drain_line(self) -> None:
         """Match what already arrived before a new request is registered (lock held, nobody reading).

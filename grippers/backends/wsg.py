@@ -14,7 +14,7 @@ import uuid
 from collections.abc import Callable
 from typing import Any
 
-from grippers.drivers.errors import CommandFailed
+from grippers.drivers.errors import CommandFailed, GripperError
 from grippers.drivers.wsg.client import WsgClient
 from grippers.drivers.wsg.commands import (
     Cmd,
@@ -27,7 +27,17 @@ from grippers.drivers.wsg.commands import (
 from grippers.drivers.wsg.protocol import Status
 
 from ..errors import URLError
-from ..gripper import Capability, DeviceInfo, GraspResult, GraspState, Gripper, GripperState, MotionResult
+from ..gripper import (
+    Capability,
+    DeviceInfo,
+    GraspResult,
+    GraspState,
+    Gripper,
+    GripperState,
+    MotionResult,
+    StartedRead,
+    StateCallback,
+)
 from ..profiles import (
     Limits,
     ProfileBase,
@@ -65,6 +75,34 @@ log = logging.getLogger(__name__)
 
 def _fault_names(flags: int) -> tuple[str, ...]:
     return tuple(f.name.removeprefix("SF_").lower() for f in _FAULT_FLAGS if flags & f and f.name)
+
+
+# What a state is read from, in this order (threaded and asyncio alike): system state, grasping state, width,
+# speed, force (WSG manual 4.0.x §3.4).
+_STATE_READS = (
+    Cmd.GET_SYSTEM_STATE,
+    Cmd.GET_GRASPING_STATE,
+    Cmd.GET_WIDTH,
+    Cmd.GET_SPEED,
+    Cmd.GET_FORCE,
+)
+
+
+def _state_of(values: list[Any]) -> GripperState:
+    """The state from the values of :data:`_STATE_READS` (mm, mm/s, N in; SI out)."""
+    system, grasping, width, speed, force = values
+    flags = int(system)
+    return GripperState(
+        width=width / 1000,
+        speed=speed / 1000,
+        force=force,
+        current=None,
+        grasp=_GRASP.get(grasping, GraspState.ERROR),
+        moving=bool(flags & SystemFlags.SF_MOVING),
+        referenced=bool(flags & SystemFlags.SF_REFERENCED),
+        faults=_fault_names(flags),
+        timestamp=time.time(),
+    )
 
 
 class WsgGripper(Gripper):
@@ -159,20 +197,25 @@ class WsgGripper(Gripper):
         self._client.acknowledge_fast_stop()
 
     def _state(self) -> GripperState:
-        c = self._client
-        flags = int(c.system_state())
-        grasp = _GRASP.get(c.grasping_state(), GraspState.ERROR)
-        return GripperState(
-            width=c.width() / 1000,
-            speed=c.speed() / 1000,
-            force=c.force(),
-            current=None,
-            grasp=grasp,
-            moving=bool(flags & SystemFlags.SF_MOVING),
-            referenced=bool(flags & SystemFlags.SF_REFERENCED),
-            faults=_fault_names(flags),
-            timestamp=time.time(),
-        )
+        return _state_of(self._client.queries(_STATE_READS))
+
+    def _start_state(self, done: StateCallback) -> StartedRead:
+        """The same reads as :meth:`_state`, sent by callback from the driver's reader thread (no thread
+        waits; every transport: the driver's callback exchanges do not depend on it)."""
+
+        def finished(values: list[Any] | None, error: GripperError | None) -> None:
+            if values is None:
+                done(None, error)
+                return
+            try:
+                st = _state_of(values)
+            except Exception as exc:  # noqa: BLE001 - handed to the awaiting caller, never lost on the reader
+                done(None, exc)
+                return
+            done(st, None)
+
+        reads = self._client.start_queries(_STATE_READS, finished)
+        return StartedRead(cancel=reads.cancel, timeout=reads.timeout)
 
     def _info(self) -> DeviceInfo:
         si = self._system_info

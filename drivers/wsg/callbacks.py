@@ -1,0 +1,190 @@
+"""Exchanges nobody waits for: send a request, and the reply (or the error) goes to a callback (issue 20 §2).
+
+Why: the asyncio face reads the state with no thread blocked on it. A blocking exchange
+(:mod:`.exchanges`) parks its caller until the reply comes; here the reply is matched by whoever reads the
+line (the connection's reader thread, usually: the session holds the exchange as outstanding, which is what
+sends the reader to the line) and handed back by a call, made by the reader thread outside the lock. The
+matching, the slots and the stale markers are the session's, exactly as for a blocking exchange, so both
+kinds can run at once on one connection; nothing here depends on the transport.
+
+A request whose command's slot is held (another exchange of that id, or a stale marker left by an abandoned
+one) waits in a queue, never a thread: the reader thread sends it once the slot is free, and where only a
+proof can free it (:meth:`Session.needs_barrier`) it sends the same LOOP barrier a blocking caller would.
+
+There is no timer: the caller gives a request up with :meth:`CallbackEngine.withdraw` (its own deadline, a
+cancelled task), which abandons the exchange as a cancelled blocking call is abandoned (its late reply
+swallowed; where the line keeps replies in order no reorder margin, see ``ExchangeEngine.abandon``). A lost
+or closed line fails every such request with ConnectionLost.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from threading import get_ident
+
+from ..errors import ConnectionLost, GripperError
+from .commands import Cmd, command_name
+from .exchanges import ExchangeEngine
+from .protocol import Packet
+from .session import Exchange
+
+__all__ = ["CallbackEngine", "Submitted"]
+
+Done = Callable[[Packet | None, GripperError | None], None]
+
+
+def _ignore(_packet: Packet | None, _error: GripperError | None) -> None:
+    pass
+
+
+@dataclass(eq=False)
+class Submitted:
+    """One request whose final reply goes to ``done(packet, None)``, or its error to ``done(None, error)``:
+    once, unless it was withdrawn first. Made by the caller, so it is known before a fast reply can come."""
+
+    command: int
+    payload: bytes
+    done: Done
+    exchange: Exchange | None = field(default=None, repr=False)  # once its slot was taken
+    barrier: Submitted | None = field(default=None, repr=False)  # the LOOP proving a stale reply lost
+    over: bool = False  # answered, failed or withdrawn: ``done`` is not called (again)
+
+    def reply(self, packet: Packet) -> None:
+        if not self.over:
+            self.over = True
+            self.done(packet, None)
+
+    def fail(self, error: GripperError) -> None:
+        if not self.over:
+            self.over = True
+            self.done(None, error)
+
+
+class CallbackEngine(ExchangeEngine):
+    """:class:`ExchangeEngine` plus requests answered by callback (see the module docstring)."""
+
+    def submit(self, sub: Submitted) -> None:
+        """Send ``sub``'s request now, or queue it for its command's slot; never blocks on the device.
+
+        From any thread, the reader's included (a callback submitting the next request). A line already lost
+        or closed calls ``sub.done`` with ConnectionLost before returning."""
+        cmd = sub.command
+        with self._lock:
+            if self._lost is not None or self._closing or self._closed:
+                error = self._lost or ConnectionLost("client is closed", device=self.device)
+                sub.over = True
+                lost = ConnectionLost(error.message, device=self.device, command=command_name(cmd))
+            else:
+                lost = None
+                if not self._reading and not self._subs and self._ready(0):
+                    self._drain_line()  # what already arrived is not this request's reply (_begin does it)
+                raw = None if cmd in self._queued else self._open(sub, time.monotonic())
+                if raw is None:
+                    self._queued.setdefault(cmd, deque()).append(sub)
+                    self._bg.notify()  # the reader sends it once the slot is free (or the barrier)
+        if lost is not None:
+            sub.done(None, lost)
+        elif raw is not None:
+            self._send(sub, raw)
+            if self._bg.waiting:
+                # The reader reads the reply: woken once the request is out, so that on a busy machine the
+                # woken thread does not run first and delay the send. (A reader about to sleep saw the
+                # exchange opened above, under the lock, and reads without being woken.)
+                with self._lock:
+                    self._bg.notify()
+
+    def withdraw(self, sub: Submitted) -> None:
+        """Give ``sub`` up (idempotent, never blocks): dropped from the queue, or its exchange abandoned as a
+        cancelled blocking call's is (late reply swallowed); ``done`` is no longer called."""
+        with self._lock:
+            sub.over = True
+            exchange = sub.exchange
+            if exchange is None:
+                queue = self._queued.get(sub.command)
+                if queue is not None and sub in queue:
+                    queue.remove(sub)
+                    if not queue:
+                        del self._queued[sub.command]
+            elif self._notify.pop(exchange, None) is not None and not exchange.finished:
+                self._session.abandon(exchange, time.monotonic(), margin=0.0 if self._ordered else None)
+                self._cond.notify_all()
+                self._bg.notify()  # the late reply: read by the reader thread when nobody else reads
+            barrier, sub.barrier = sub.barrier, None
+        if barrier is not None:
+            self.withdraw(barrier)
+
+    def _open(self, sub: Submitted, now: float) -> bytes | None:
+        """Take ``sub``'s slot and register it (lock held): the bytes to send; None while the slot is held."""
+        opened = self._session.open(sub.command, sub.payload, now)
+        if opened is None:
+            return None
+        exchange, raw = opened
+        sub.exchange = exchange
+        self._notify[exchange] = sub
+        self.stats["lost_replies"] = self._session.lost_replies  # open() may have dropped a proved marker
+        return raw
+
+    def _send(self, sub: Submitted, raw: bytes) -> None:
+        """Write an opened request (lock not held, as in ``_begin``); a failing line fails it."""
+        try:
+            self._transport.send(raw)
+        except ConnectionLost as exc:
+            self._connection_lost(exc)  # fails this exchange too, with every other
+        except GripperError as exc:
+            # Whether the bytes left is unknown: the slot is held like a timed-out request's.
+            with self._lock:
+                found = self._notify.pop(sub.exchange, None) if sub.exchange is not None else None
+                if found is not None and sub.exchange is not None:
+                    self._session.abandon(sub.exchange, time.monotonic())
+            sub.fail(type(exc)(exc.message, device=self.device, command=command_name(sub.command)))
+
+    def _start_queued(self) -> list[tuple[Submitted, bytes]]:
+        """Open every queued request whose slot is free now, or send the barrier that proves a stale reply
+        lost (lock held; the reader thread calls it). Returns what to send once the lock is released."""
+        session = self._session
+        out: list[tuple[Submitted, bytes]] = []
+        now = time.monotonic()
+        for cmd, queue in list(self._queued.items()):
+            head = queue[0]
+            if session.needs_barrier(cmd, now):
+                if head.barrier is None or head.barrier.over:
+                    self.stats["barriers"] += 1
+                    head.barrier = Submitted(int(Cmd.LOOP), session.barrier_payload(), _ignore)
+                    raw = self._open(head.barrier, now)
+                    if raw is None:  # another LOOP is out: the barrier waits its turn
+                        self._queued.setdefault(int(Cmd.LOOP), deque()).append(head.barrier)
+                    else:
+                        out.append((head.barrier, raw))
+                continue
+            raw = self._open(head, now)
+            if raw is None:
+                continue
+            queue.popleft()
+            if not queue:
+                del self._queued[cmd]
+            out.append((head, raw))
+        return out
+
+    def _take_callback_reply(self) -> tuple[Submitted, Packet] | None:
+        """After the reader thread's read (lock held): when the bytes are exactly the final reply of the one
+        callback exchange out, which they nearly always are, complete it here and return it to be called
+        back at once; otherwise match them as usual (:meth:`_settle_read`) and return None.
+
+        Why: the same shortcut a blocking caller takes for its own reply (``_read_own_reply``): the general
+        matching and a turn of the reader's loop per reply would cost the callback path what it saves."""
+        held = self._held_read
+        notify = self._notify
+        if held is not None and held[1] and len(notify) == 1 and held[0] == get_ident():
+            exchange, sub = next(iter(notify.items()))
+            packet = self._session.take_reply(exchange, held[1])
+            if packet is not None:
+                del notify[exchange]
+                self._held_read = None
+                self._reading = 0
+                self._cond.notify_all()  # the reading role is free
+                return sub, packet
+        self._settle_read()
+        return None
