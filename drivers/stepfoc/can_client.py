@@ -106,6 +106,26 @@ class CalibrationWatch:
         return verdict is Verdict.ENDED
 
 
+def _status_fault(st: GripperStatus) -> tuple[str | None, list[str] | None]:
+    """What a 60 alone says of the node's faults: (the answer, None), or (None, the names so far) when the
+    identifier's error bit or a flag means frame 26 must be asked for the cause (StepfocNode.fault)."""
+    if st.estop_error:
+        return "estop", None
+    names = [n for n, on in (("watchdog", st.timeout_error), ("temperature", st.temperature_error)) if on]
+    if not st.error_bit and not names:
+        return None, None
+    return None, names
+
+
+def _named_fault(names: list[str], es: ErrorState | None) -> str:
+    """The fault names once frame 26 answered (``es``), or did not in time (None)."""
+    if es is not None:
+        if es.estop:
+            return "estop"
+        names = names + [n for n in es.active() if n not in names]
+    return ",".join(names) or "error"
+
+
 def parse_url(url: str) -> tuple[str, str, dict[str, str]]:
     """``stepfoc+can://INTERFACE/CHANNEL?node=N&bitrate=B`` -> (interface, channel, query)."""
     return parse_can_url(url)  # the one parser, shared with the simulator
@@ -608,6 +628,83 @@ class _RemoteRead(Generic[_T]):
         return read
 
 
+StatusCallback = Callable[["GripperStatus | None", "str | None", "GripperError | None"], None]
+
+
+class StatusRead:
+    """:meth:`StepfocNode.start_status`: a poll and, when its status asks for it, frame 26 (the cause of
+    the error), both as started requests (:meth:`StepfocBus.start_request`); the second starts from the
+    reader thread when the first is answered. The same steps as ``poll()`` then ``fault()``, and the same
+    rules (:func:`_status_fault`, :func:`_named_fault`): frame 26 not answered in time means no cause, but
+    here the caller's timer decides "in time", as no timer runs in the driver."""
+
+    def __init__(self, node: StepfocNode, done: StatusCallback) -> None:
+        self._node = node
+        self._done = done
+        self._lock = threading.Lock()  # orders cancel() against the start of the second request
+        self._current: PendingRequest | None = None
+        self._cancelled = False
+        self._status: GripperStatus | None = None
+        self._names: list[str] = []
+        self.timeout = node.timeout  # of each request (the caller's timer)
+
+    def start(self) -> None:
+        node = self._node
+        frame = CanFrame(pack_id(node.node, Cmd.GRIPPER_COMMAND), b"", False)
+        with self._lock:  # a reply arriving at once waits here, so _current ends as the newest request
+            req = node.bus.start_request(
+                node.node,
+                Cmd.GRIPPER_COMMAND,
+                frame,
+                self.timeout,
+                device=node.device,
+                name="poll",
+                reply=self._polled,
+            )
+            if self._current is None:
+                self._current = req
+
+    def _polled(self, msg: Message | None, error: GripperError | None) -> None:
+        if msg is None:
+            self._done(None, None, error)
+            return
+        st: GripperStatus = msg.value
+        cause, names = _status_fault(st)
+        if names is None:
+            self._done(st, cause, None)
+            return
+        node = self._node
+        with self._lock:
+            if self._cancelled:
+                return
+            self._status, self._names = st, names
+            self._current = node.bus.start_request(
+                node.node,
+                Cmd.ERROR_STATE,
+                CanFrame(pack_id(node.node, Cmd.ERROR_STATE), b"", True),
+                self.timeout,
+                device=node.device,
+                name=COMMANDS[Cmd.ERROR_STATE].name,
+                reply=self._error_state,
+            )
+
+    def _error_state(self, msg: Message | None, error: GripperError | None) -> None:
+        if error is not None and not isinstance(error, GripperTimeout):
+            self._done(None, None, error)  # as fault() lets every error but a timeout through
+            return
+        assert self._status is not None
+        self._done(self._status, _named_fault(self._names, None if msg is None else msg.value), None)
+
+    def cancel(self) -> None:
+        """Give the read up: the request in flight is cancelled (its key free at once); nothing is called.
+        Idempotent; never blocks on the device."""
+        with self._lock:
+            self._cancelled = True
+            req = self._current
+        if req is not None:
+            req.cancel()
+
+
 class StepfocNode(Closing):
     """One MSG gripper (node 0..15) on a :class:`StepfocBus`. Values are the device's: bytes 0..255 and mA."""
 
@@ -800,20 +897,24 @@ class StepfocNode(Closing):
         bit, so frame 26 is asked for the driver's cause (docs/protocols.md §2). Names: ``estop`` for either
         e-stop, ``watchdog``, ``temperature``, ``encoder``, ``vbus``, ``driver``, ``velocity``, ``current``;
         ``error`` when the driver names no cause."""
-        if st.estop_error:
-            return "estop"
-        names = [n for n, on in (("watchdog", st.timeout_error), ("temperature", st.temperature_error)) if on]
-        if not st.error_bit and not names:
-            return None
+        cause, names = _status_fault(st)
+        if names is None:
+            return cause
         try:
             es = self.error_state(timeout)
         except GripperTimeout:
             es = None
-        if es is not None:
-            if es.estop:
-                return "estop"
-            names += [n for n in es.active() if n not in names]
-        return ",".join(names) or "error"
+        return _named_fault(names, es)
+
+    def start_status(self, done: StatusCallback) -> StatusRead | None:
+        """:meth:`poll`, then :meth:`fault`, without blocking: ``done(status, fault, None)`` or
+        ``done(None, None, error)`` from the reader thread; ``cancel()`` on the result gives it up. None
+        while a poll would have to wait out :data:`LATCH_GUARD_S` (the caller then polls by blocking)."""
+        if self._commanded_at + LATCH_GUARD_S > time.monotonic():
+            return None
+        read = StatusRead(self, done)
+        read.start()
+        return read
 
     def wait_motion(self, *, timeout: float = 10.0, poll_interval: float = 0.01) -> GripperStatus:
         """Poll until detection is not MOVING. Call after :meth:`command`: the poll that follows a command
