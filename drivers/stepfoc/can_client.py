@@ -201,8 +201,9 @@ class PendingRequest:
         self._reply = reply
         self.owner = owner  # the waiting thread's ident (StepfocBus.abandon finds its request by it)
         self._claim = threading.Lock()
-        self._signal = threading.Lock()
-        self._signal.acquire()
+        if reply is None:  # a thread will wait: the signal it wakes on, taken until settled
+            self._signal = threading.Lock()
+            self._signal.acquire()
         self.done = False  # settled: later frames of this key do not overwrite the outcome
         self.queued = False  # waits for its key behind another request
         self.sent = False  # its frame went out (or was about to): a reply is expected
