@@ -609,8 +609,13 @@ class MsgGripper(Gripper):
         def finished(st: _Status | None, error: BaseException | None) -> None:
             if st is None:
                 done(None, error)
-            else:
-                done(self._state_of(st), None)
+                return
+            try:
+                state = self._state_of(st)
+            except Exception as exc:  # noqa: BLE001 - handed to the caller: done is called once, always
+                done(None, exc)
+                return
+            done(state, None)
 
         return self._link.start_status(finished)
 
