@@ -18,6 +18,7 @@ SANS_IO = [
     "drivers/wsg/commands.py",
     "drivers/wsg/session.py",
     "drivers/stepfoc/can_protocol.py",
+    "drivers/stepfoc/can_session.py",
     "drivers/stepfoc/uart_protocol.py",
     "drivers/wsg/sim/model.py",
     "drivers/stepfoc/sim/model.py",

@@ -1,26 +1,28 @@
 """MSG grippers on STEPFOC drivers over any python-can bus: one reader per bus, one handle per node.
 
-Several grippers share one CAN bus, so :class:`StepfocBus` owns the bus and ONE reader thread that decodes
-every frame and hands it to whoever waits for it, keyed by (node, command). :class:`StepfocNode` is the
-per-gripper API. The protocol has no sequence numbers: a reply is matched by (node, command) only, so at most
-one request per (node, command) is outstanding at a time (a lock per key); different nodes, or different
-commands of one node, run concurrently from different threads.
+Several grippers share one CAN bus, so :class:`StepfocBus` owns the bus and ONE reader thread that reads
+every frame and hands it to whoever waits for it. What a frame means (which request it answers, another
+host's traffic, a heartbeat, a second device on one node id) is decided by the sans-IO
+:class:`~grippers.drivers.stepfoc.can_session.CanSession`, which the bus calls under its lock; the bus keeps
+the threads, the locks, the requests in flight and the python-can bus. :class:`StepfocNode` is the
+per-gripper API.
 
-Known limit of the protocol, not of this client: a status reply that arrives after its request timed out is
-indistinguishable from the reply to the next request with the same key. For 60 that is harmless (any 60 is a
-fresh status of the node); for remote requests it returns the same kind of value.
+A reply is matched by (node, command) only (the protocol has no sequence numbers), so at most one request per
+(node, command) is on the wire at a time: a second one queues and goes out when the first ends. Different
+nodes, or different commands of one node, run concurrently from different threads. A request either blocks
+its thread (:meth:`StepfocBus.request`) or reports to a callback from the reader
+(:meth:`StepfocBus.start_request`, which the asyncio face awaits with no thread); both are one
+:class:`PendingRequest`, started, matched and ended the same way.
 
 A caller that stops waiting from another thread (an asyncio task cancelled: grippers/aio.py) gives its thread
-up with :meth:`StepfocBus.abandon`: the request it waits for ends at once with GripperTimeout and its
-(node, command) key is free for the next request, which goes out at once. Nothing more is needed: with no
-sequence number there is nothing to prove lost, and a late reply to the abandoned request is, by the rule
-above, a reply of the same kind as the next one's.
+up with :meth:`StepfocBus.abandon` (a started request: :meth:`PendingRequest.cancel`): the request ends at
+once with GripperTimeout and its (node, command) key is free for the next request, which goes out at once.
+Nothing more is needed: with no sequence number there is nothing to prove lost, and a late reply to the
+abandoned request is a reply of the same kind as the next one's (drivers/stepfoc/can_session.py).
 
-Two devices with one node id answer every request twice. The reader counts, per (node, command), the requests
-seen on the bus (its own and other hosts') against the replies; a reply nobody asked for that arrives within
-:data:`DUPLICATE_WINDOW_S` of the reply to one of this client's requests marks the node as duplicated, and
-every later request to it raises :class:`ProtocolError` naming the node, instead of returning the states of
-two devices in turn. (An unsolicited frame at any other time is only ignored: a bus tool may send anything.)
+Two devices with one node id answer every request twice: the session notices (can_session.py), and every
+later request to that node raises :class:`ProtocolError` naming it, instead of returning the states of two
+devices in turn.
 """
 
 from __future__ import annotations
@@ -29,8 +31,8 @@ import logging
 import operator
 import threading
 import time
+from collections import deque
 from collections.abc import Callable
-from dataclasses import dataclass, field
 from typing import Any, Generic, Protocol, TypeVar, overload
 
 import can
@@ -53,7 +55,6 @@ from .can_protocol import (
     Cmd,
     Detection,
     DeviceInfo,
-    Direction,
     EncoderData,
     ErrorState,
     GripperCommand,
@@ -61,13 +62,12 @@ from .can_protocol import (
     Message,
     Watchdog,
     WatchdogAction,
-    decode_frame,
     encode_command,
     encode_frame,
     pack_id,
     parse_can_url,
-    unpack_id,
 )
+from .can_session import CanSession, Delivery, DuplicateFound, Heartbeat, Key, NodeFacts, is_stepfoc_frame
 from .dissect import log_can_frame
 from .motion import CalibrationTracker, Reading, Verdict
 
@@ -76,7 +76,7 @@ __all__ = ["CalibrationWatch", "StepfocBus", "StepfocNode", "open_node", "parse_
 log = logging.getLogger(__name__)
 
 _READ_POLL_S = 0.05  # the reader's longest block, so close() returns promptly
-DUPLICATE_WINDOW_S = 0.05  # two nodes with one id answer one request within microseconds of each other
+_SETTLE_S = 5.0  # bound on a wait for an outcome another thread is storing (microseconds in practice)
 
 # After a 5-byte 61 the firmware resets its at-position latch at the next control tick (160 us on STEPFOC,
 # 200 us on Spectral Micro); a poll that reaches the node before that tick cancels the reset and the motion
@@ -106,6 +106,26 @@ class CalibrationWatch:
         return verdict is Verdict.ENDED
 
 
+def _status_fault(st: GripperStatus) -> tuple[str | None, list[str] | None]:
+    """What a 60 alone says of the node's faults: (the answer, None), or (None, the names so far) when the
+    identifier's error bit or a flag means frame 26 must be asked for the cause (StepfocNode.fault)."""
+    if st.estop_error:
+        return "estop", None
+    names = [n for n, on in (("watchdog", st.timeout_error), ("temperature", st.temperature_error)) if on]
+    if not st.error_bit and not names:
+        return None, None
+    return None, names
+
+
+def _named_fault(names: list[str], es: ErrorState | None) -> str:
+    """The fault names once frame 26 answered (``es``), or did not in time (None)."""
+    if es is not None:
+        if es.estop:
+            return "estop"
+        names = names + [n for n in es.active() if n not in names]
+    return ",".join(names) or "error"
+
+
 def parse_url(url: str) -> tuple[str, str, dict[str, str]]:
     """``stepfoc+can://INTERFACE/CHANNEL?node=N&bitrate=B`` -> (interface, channel, query)."""
     return parse_can_url(url)  # the one parser, shared with the simulator
@@ -127,44 +147,101 @@ def _given_up(device: str, name: str) -> GripperTimeout:
     return GripperTimeout("abandoned: the caller stopped waiting", device=device, command=name)
 
 
-class _Waiter:
-    """One request's reply slot, filled once by the reader thread (or by a failing bus).
+ReplyCallback = Callable[["Message | None", "GripperError | None"], None]
 
-    The signal is a plain lock taken at creation: ``set`` releases it, ``wait`` acquires it. Why not a
-    ``threading.Event``: an Event is a Condition around a lock and its ``wait`` allocates another lock, about
-    4 us per request against 0.7 us, paid on every poll of every node (docs/performance.md, target 5).
+
+class PendingRequest:
+    """One request to a (node, command) key, from start to its settling: the reply (from the reader thread),
+    a failure (an unsendable frame, a failing bus, a duplicate node id, an abandoned thread) or
+    :meth:`cancel`, whichever comes first; the others are ignored. Then the key goes to the next request
+    queued for it. The outcome goes to ``reply`` (:meth:`StepfocBus.start_request`) or, without one, wakes
+    the thread waiting in :meth:`StepfocBus.request`.
+
+    The signals are plain locks: ``_claim`` is taken by whoever settles, ``_signal`` (taken at creation) is
+    released for the waiting thread. Why not a ``threading.Event``: an Event is a Condition around a lock and
+    its ``wait`` allocates another lock, about 4 us per request against 0.7 us, paid on every poll of every
+    node (docs/performance.md, target 5).
     """
 
-    __slots__ = ("_signal", "done", "error", "message", "owner")
+    __slots__ = (
+        "_bus",
+        "_claim",
+        "_reply",
+        "_signal",
+        "device",
+        "done",
+        "error",
+        "frame",
+        "key",
+        "message",
+        "name",
+        "owner",
+        "queued",
+        "send_timeout",
+        "sent",
+    )
 
-    def __init__(self, owner: int = 0) -> None:
-        self.owner = owner  # the waiting thread's ident (StepfocBus.abandon finds its waiter by it)
-        self._signal = threading.Lock()
-        self._signal.acquire()
-        self.done = False  # set() was called: later frames of this key do not overwrite the reply
+    def __init__(
+        self,
+        bus: StepfocBus,
+        key: Key,
+        frame: CanFrame,
+        send_timeout: float,
+        device: str,
+        name: str,
+        reply: ReplyCallback | None = None,
+        owner: int = 0,
+    ) -> None:
+        self._bus = bus
+        self.key = key
+        self.frame = frame
+        self.send_timeout = send_timeout
+        self.device = device  # who and what an error names
+        self.name = name
+        self._reply = reply
+        self.owner = owner  # the waiting thread's ident (StepfocBus.abandon finds its request by it)
+        self._claim = threading.Lock()
+        if reply is None:  # a thread will wait: the signal it wakes on, taken until settled
+            self._signal = threading.Lock()
+            self._signal.acquire()
+        self.done = False  # settled: later frames of this key do not overwrite the outcome
+        self.queued = False  # waits for its key behind another request
+        self.sent = False  # its frame went out (or was about to): a reply is expected
         self.message: Message | None = None
         self.error: GripperError | None = None
 
-    def set(self) -> None:
-        self.done = True
-        try:
+    def settle(self, message: Message | None, error: GripperError | None) -> None:
+        """The outcome, once: frees the key, then tells the waiting thread or the callback, then starts the
+        next request of the key (so its frame does not delay this outcome)."""
+        if not self._claim.acquire(False):
+            return  # settled already: answered, failed or cancelled
+        self.message, self.error, self.done = message, error, True
+        nxt = self._bus._finish(self)
+        if self._reply is None:
             self._signal.release()
-        except RuntimeError:  # set twice (a reply and a failing bus at once): the first one woke the waiter
-            pass
+        else:
+            try:
+                self._reply(message, error)
+            except Exception:  # noqa: BLE001 - a callback must not kill the reader
+                log.exception("%s: the reply callback of %s raised", self.device, self.name)
+        if nxt is not None:
+            self._bus._start(nxt)
+
+    def cancel(self) -> bool:
+        """Give the request up, as :meth:`StepfocBus.abandon` gives a thread's up: its key is free at once,
+        a late reply goes to nobody (module docstring), nobody is told. Idempotent; never waits for the
+        device. True if this call settled it (False: it was settled already)."""
+        if not self._claim.acquire(False):
+            return False
+        self.done = True
+        nxt = self._bus._finish(self)
+        if nxt is not None:
+            self._bus._start(nxt)
+        return True
 
     def wait(self, timeout: float) -> bool:
+        """Block until settled (a request without a callback); False after ``timeout`` seconds."""
         return self._signal.acquire(timeout=timeout)
-
-
-@dataclass
-class _NodeState:
-    """What the reader learned about one node id from every frame it sent."""
-
-    error_bit: bool = False
-    status: GripperStatus | None = None
-    duplicate: str | None = None  # why this node id is taken to be answered by two devices
-    heartbeat: float | None = None  # time.monotonic() of the last heartbeat
-    heartbeat_cond: threading.Condition = field(default_factory=threading.Condition)
 
 
 class StepfocBus(Closing):
@@ -194,13 +271,12 @@ class StepfocBus(Closing):
             bus = self._open_bus()
         self.bus = bus
         self._reopen_lock = threading.Lock()
-        self._lock = threading.Lock()
-        self._waiters: dict[tuple[int, int], _Waiter] = {}
-        self._expected: dict[tuple[int, int], int] = {}  # requests seen minus replies seen, per key
-        self._answered: dict[tuple[int, int], float] = {}  # monotonic time of the last expected reply
-        self._request_locks: dict[tuple[int, int], threading.Lock] = {}
+        self._lock = threading.Lock()  # guards the session and the tables below
+        self._session = CanSession(self.device)  # the protocol: which frame answers which request
+        self._waiters: dict[Key, PendingRequest] = {}  # the request that holds each key
+        self._queued: dict[Key, deque[PendingRequest]] = {}  # requests waiting for their key, in order
         self._abandoned: set[int] = set()  # threads whose caller gave up (abandon(), the module docstring)
-        self._states: dict[int, _NodeState] = {}
+        self._heartbeats: dict[int, threading.Condition] = {}
         self._listeners: list[Callable[[can.Message], None]] = []
         self._stop = threading.Event()
         self._error: ConnectionLost | None = None  # why the bus failed (reader or close); reopen() clears it
@@ -243,8 +319,7 @@ class StepfocBus(Closing):
                 pass  # the old socket may be unusable already; the new one is what matters
             self.bus = self._open_bus()
             with self._lock:
-                self._expected.clear()  # requests counted before the outage will never be answered
-                self._answered.clear()
+                self._session.reset()
             self._error = None
             self._thread = threading.Thread(target=self._run, name=f"stepfoc-can {self.device}", daemon=True)
             self._thread.start()
@@ -284,10 +359,10 @@ class StepfocBus(Closing):
         else:
             self._error = ConnectionLost(describe_failure(exc, self.channel, "receive"), device=self.device)
         with self._lock:
-            waiters = list(self._waiters.values())
+            waiters = [*self._waiters.values(), *(w for q in self._queued.values() for w in q)]
+        text = f"CAN bus failed: {self._error.message}"
         for w in waiters:
-            w.error = ConnectionLost(f"CAN bus failed: {self._error.message}", device=self.device)
-            w.set()
+            w.settle(None, ConnectionLost(text, device=w.device, command=w.name))
 
     def _dispatch(self, msg: can.Message) -> None:
         for listener in list(self._listeners):
@@ -295,63 +370,27 @@ class StepfocBus(Closing):
                 listener(msg)
             except Exception:  # noqa: BLE001, S110 - a monitor callback must not kill the reader
                 pass
-        if msg.is_error_frame or msg.is_extended_id or msg.arbitration_id > 0x7FF:
-            # an 11-bit id above 0x7FF is not a frame of this protocol (virtual and multicast buses carry
-            # whatever a program sends)
+        arbitration_id = msg.arbitration_id
+        if not is_stepfoc_frame(arbitration_id, error_frame=msg.is_error_frame, extended=msg.is_extended_id):
             return
-        log_can_frame(self.device, msg.arbitration_id, msg.data, msg.is_remote_frame, msg.timestamp)
-        node, command, error = unpack_id(msg.arbitration_id)
-        spec = COMMANDS.get(command)
-        if msg.is_remote_frame or spec is None or spec.direction is Direction.HOST_TO_NODE:
-            # another host's request: its reply is expected too, and must not count as a second device
-            if spec is not None and (command == Cmd.GRIPPER_COMMAND or (msg.is_remote_frame and spec.remote)):
-                with self._lock:
-                    self._expected[(node, command)] = self._expected.get((node, command), 0) + 1
-            return
-        state = self._state(node)
-        state.error_bit = error
-        key = (node, Cmd.GRIPPER_COMMAND if command == Cmd.GRIPPER_STATUS else command)
+        log_can_frame(self.device, arbitration_id, msg.data, msg.is_remote_frame, msg.timestamp)
+        now = time.monotonic()
         with self._lock:
-            waiter = self._waiters.get(key)
-            if command != Cmd.HEARTBEAT:
-                left = self._expected.get(key, 0)
-                now = time.monotonic()
-                if left > 0:
-                    self._expected[key] = left - 1
-                    if waiter is not None and not waiter.done:
-                        self._answered[key] = now  # the reply to OUR request: a second one would be a twin
-                elif state.duplicate is None and now - self._answered.get(key, -1e9) < DUPLICATE_WINDOW_S:
-                    state.duplicate = (
-                        f"two devices answer as node {node}: a second {spec.name} reply arrived for one "
-                        "request (give every gripper on the bus its own node id)"
-                    )
-                    log.warning("%s: %s", self.device, state.duplicate)
-        try:
-            decoded = decode_frame(msg.arbitration_id, msg.data, False)
-        except ProtocolError as exc:
-            if waiter is not None and not waiter.done:
-                waiter.error = ProtocolError(
-                    exc.message, device=f"{self.device} node {node}", command=spec.name
-                )
-                waiter.set()
-            return
-        if command == Cmd.GRIPPER_STATUS:
-            state.status = decoded.value
-        elif command == Cmd.HEARTBEAT:
-            with state.heartbeat_cond:
-                state.heartbeat = time.monotonic()
-                state.heartbeat_cond.notify_all()
-            return
-        if waiter is not None and not waiter.done:
-            waiter.message = decoded
-            waiter.set()
+            event = self._session.received(arbitration_id, msg.data, now=now, remote=msg.is_remote_frame)
+            waiter = self._waiters.get(event.key) if type(event) is Delivery else None
+        if waiter is not None:
+            assert type(event) is Delivery
+            waiter.settle(event.message, event.error)
+        elif type(event) is Heartbeat:
+            cond = self.heartbeat_condition(event.node)
+            with cond:
+                cond.notify_all()
+        elif type(event) is DuplicateFound:
+            log.warning("%s: %s", self.device, event.reason)
 
-    def _state(self, node: int) -> _NodeState:
-        st = self._states.get(node)
-        if st is None:
-            with self._lock:
-                st = self._states.setdefault(node, _NodeState())
-        return st
+    def _facts(self, node: int) -> NodeFacts:
+        with self._lock:
+            return self._session.node(node)
 
     # ------------------------------------------------------------------------------------------ sending
 
@@ -381,70 +420,125 @@ class StepfocBus(Closing):
             ) from exc
         log_can_frame(device, frame.arbitration_id, frame.data, frame.remote, time.time())
 
+    def _begin(self, w: PendingRequest) -> None:
+        """Put the request ``w``, which holds its key, on the wire. Raises GripperError when it may not go."""
+        key = w.key
+        with self._lock:
+            if w.done:  # settled (cancelled, failed) while it was handed its key: nothing to send
+                return
+            duplicate = self._session.node(key[0]).duplicate
+            if duplicate is not None:
+                raise ProtocolError(duplicate, device=w.device, command=w.name)
+            if self._abandoned and w.owner in self._abandoned:
+                raise _given_up(w.device, w.name)
+            self._session.sent(key)
+            w.sent = True
+        self.send_frame(w.frame, device=w.device, command=w.name, timeout=w.send_timeout)
+
+    def _start(self, w: PendingRequest) -> None:
+        try:
+            self._begin(w)
+        except GripperError as exc:
+            w.settle(None, exc)
+
+    def _finish(self, w: PendingRequest) -> PendingRequest | None:
+        """``w`` was settled: forget it and hand its key to the next request queued for it, which the caller
+        then starts (returned)."""
+        key = w.key
+        with self._lock:
+            if w.queued:  # never held the key
+                w.queued = False
+                self._queued[key].remove(w)
+                return None
+            if self._waiters.get(key) is not w:
+                return None
+            self._session.gave_up(key)  # a late reply is expected, and goes to nobody
+            queue = self._queued.get(key)
+            if not queue:
+                del self._waiters[key]
+                return None
+            nxt = self._waiters[key] = queue.popleft()
+            nxt.queued = False
+            return nxt
+
+    def _submit(self, w: PendingRequest) -> PendingRequest:
+        """The one way a request starts: at once if its key is free, else queued behind the request holding
+        it (one request per key on the wire: the protocol's only way of matching replies)."""
+        with self._lock:
+            given_up = bool(self._abandoned) and w.owner in self._abandoned
+            holds = not given_up and w.key not in self._waiters
+            if holds:
+                self._waiters[w.key] = w
+            elif not given_up:
+                w.queued = True
+                queue = self._queued.get(w.key)
+                if queue is None:
+                    queue = self._queued[w.key] = deque()
+                queue.append(w)
+        if given_up:  # its caller gave up: it ends at once, without waiting for its turn
+            w.settle(None, _given_up(w.device, w.name))
+        elif holds:
+            self._start(w)
+        return w
+
+    def start_request(
+        self,
+        node: int,
+        command: int,
+        frame: CanFrame,
+        timeout: float,
+        *,
+        device: str,
+        name: str,
+        reply: ReplyCallback,
+    ) -> PendingRequest:
+        """Send ``frame`` without waiting: ``reply(message, None)`` or ``reply(None, error)`` is called once,
+        from the reader thread (a reply, a failed bus), from the thread that ended the request before (this
+        one's turn came and its frame could not go) or from this call, unless :meth:`PendingRequest.cancel`
+        came first. No timer runs: the caller gives up with ``cancel()``. While a request of the same key is
+        in flight, this one queues and goes out when that one ends. ``timeout`` bounds only the send."""
+        return self._submit(PendingRequest(self, (node, command), frame, timeout, device, name, reply))
+
     def request(
         self, node: int, command: int, frame: CanFrame, timeout: float, *, device: str, name: str
     ) -> Message:
-        """Send ``frame`` and wait for the reply keyed (node, command). One request per key at a time."""
+        """Send ``frame`` and wait for the reply keyed (node, command): :meth:`start_request`'s request,
+        waited for by this thread (one request per key at a time; a second one waits its turn)."""
         deadline = time.monotonic() + timeout
-        key = (node, command)
-        me = threading.get_ident()
-        lock = self._request_locks.get(key)
-        if lock is None:
-            with self._lock:
-                lock = self._request_locks.setdefault(key, threading.Lock())
-        if not lock.acquire(False):
-            self._take_turn(lock, deadline, me, device, name, timeout)
-        waiter: _Waiter | None = None
-        try:
-            duplicate = self._state(node).duplicate
-            if duplicate is not None:
-                raise ProtocolError(duplicate, device=device, command=name)
-            waiter = _Waiter(me)
-            with self._lock:
-                if self._abandoned and me in self._abandoned:
-                    raise _given_up(device, name)
-                self._waiters[key] = waiter
-                self._expected[key] = self._expected.get(key, 0) + 1
-            self.send_frame(frame, device=device, command=name, timeout=max(0.0, deadline - time.monotonic()))
-            if not waiter.wait(max(0.0, deadline - time.monotonic())):
+        w = self._submit(
+            PendingRequest(self, (node, command), frame, timeout, device, name, owner=threading.get_ident())
+        )
+        if not w.wait(max(0.0, deadline - time.monotonic())):
+            if w.cancel():
                 self._check_open(device, name)
+                if not w.sent:
+                    raise GripperTimeout(
+                        f"another {name} to this node did not finish within {timeout:g} s",
+                        device=device,
+                        command=name,
+                    )
                 raise GripperTimeout(f"no reply within {timeout:g} s", device=device, command=name)
-            if waiter.error is not None:
-                raise waiter.error
-            assert waiter.message is not None
-            return waiter.message
-        finally:
-            with self._lock:
-                if waiter is not None and self._waiters.get(key) is waiter:
-                    del self._waiters[key]
-            lock.release()
-
-    def _take_turn(
-        self, lock: threading.Lock, deadline: float, me: int, device: str, name: str, timeout: float
-    ) -> None:
-        """Wait for another request of the same key to finish (in slices, so an abandoned caller leaves)."""
-        while True:
-            if self._abandoned and me in self._abandoned:
-                raise _given_up(device, name)
-            left = deadline - time.monotonic()
-            if left <= 0:
-                raise GripperTimeout(
-                    f"another {name} to this node did not finish within {timeout:g} s",
-                    device=device,
-                    command=name,
-                )
-            if lock.acquire(timeout=min(left, _READ_POLL_S)):
-                return
+            # settled just now by another thread: its outcome is stored before the signal, with no I/O
+            # in between, so this wait ends at once
+            if not w.wait(_SETTLE_S):
+                raise GripperTimeout(f"no reply within {timeout:g} s", device=device, command=name)
+        if w.error is not None:
+            raise w.error
+        assert w.message is not None
+        return w.message
 
     def abandon(self, thread_ident: int) -> None:
         """Give up the request thread ``thread_ident`` waits for, and its later ones until :meth:`resume`:
         each ends at once with GripperTimeout and frees its key (module docstring). Does not wait."""
         with self._lock:
             self._abandoned.add(thread_ident)
-            waiters = [w for w in self._waiters.values() if w.owner == thread_ident and not w.done]
-        for w in waiters:
-            w.error = _given_up(self.device, "request")
-            w.set()
+            mine = [
+                w
+                for w in (*self._waiters.values(), *(w for q in self._queued.values() for w in q))
+                if w.owner == thread_ident
+            ]
+        for w in mine:
+            w.settle(None, _given_up(w.device, w.name))
 
     def resume(self, thread_ident: int) -> None:
         """Thread ``thread_ident``'s next request is a new call: no longer given up."""
@@ -464,10 +558,22 @@ class StepfocBus(Closing):
         return lambda: self._listeners.remove(callback) if callback in self._listeners else None
 
     def error_bit(self, node: int) -> bool:
-        return self._state(node).error_bit
+        return self._facts(node).error_bit
 
     def last_status(self, node: int) -> GripperStatus | None:
-        return self._state(node).status
+        return self._facts(node).status
+
+    def last_heartbeat(self, node: int) -> float | None:
+        """``time.monotonic()`` of the last heartbeat received from ``node``."""
+        return self._facts(node).heartbeat
+
+    def heartbeat_condition(self, node: int) -> threading.Condition:
+        """Notified (by the reader) at every heartbeat of ``node``."""
+        cond = self._heartbeats.get(node)
+        if cond is None:
+            with self._lock:
+                cond = self._heartbeats.setdefault(node, threading.Condition())
+        return cond
 
     @property
     def alive(self) -> bool:
@@ -521,6 +627,83 @@ class _RemoteRead(Generic[_T]):
         read.__name__ = read.__qualname__ = self.name
         read.__doc__ = self.__doc__
         return read
+
+
+StatusCallback = Callable[["GripperStatus | None", "str | None", "GripperError | None"], None]
+
+
+class StatusRead:
+    """:meth:`StepfocNode.start_status`: a poll and, when its status asks for it, frame 26 (the cause of
+    the error), both as started requests (:meth:`StepfocBus.start_request`); the second starts from the
+    reader thread when the first is answered. The same steps as ``poll()`` then ``fault()``, and the same
+    rules (:func:`_status_fault`, :func:`_named_fault`): frame 26 not answered in time means no cause, but
+    here the caller's timer decides "in time", as no timer runs in the driver."""
+
+    def __init__(self, node: StepfocNode, done: StatusCallback) -> None:
+        self._node = node
+        self._done = done
+        self._lock = threading.Lock()  # orders cancel() against the start of the second request
+        self._current: PendingRequest | None = None
+        self._cancelled = False
+        self._status: GripperStatus | None = None
+        self._names: list[str] = []
+        self.timeout = node.timeout  # of each request (the caller's timer)
+
+    def start(self) -> None:
+        node = self._node
+        frame = CanFrame(pack_id(node.node, Cmd.GRIPPER_COMMAND), b"", False)
+        with self._lock:  # a reply arriving at once waits here, so _current ends as the newest request
+            req = node.bus.start_request(
+                node.node,
+                Cmd.GRIPPER_COMMAND,
+                frame,
+                self.timeout,
+                device=node.device,
+                name="poll",
+                reply=self._polled,
+            )
+            if self._current is None:
+                self._current = req
+
+    def _polled(self, msg: Message | None, error: GripperError | None) -> None:
+        if msg is None:
+            self._done(None, None, error)
+            return
+        st: GripperStatus = msg.value
+        cause, names = _status_fault(st)
+        if names is None:
+            self._done(st, cause, None)
+            return
+        node = self._node
+        with self._lock:
+            if self._cancelled:
+                return
+            self._status, self._names = st, names
+            self._current = node.bus.start_request(
+                node.node,
+                Cmd.ERROR_STATE,
+                CanFrame(pack_id(node.node, Cmd.ERROR_STATE), b"", True),
+                self.timeout,
+                device=node.device,
+                name=COMMANDS[Cmd.ERROR_STATE].name,
+                reply=self._error_state,
+            )
+
+    def _error_state(self, msg: Message | None, error: GripperError | None) -> None:
+        if error is not None and not isinstance(error, GripperTimeout):
+            self._done(None, None, error)  # as fault() lets every error but a timeout through
+            return
+        assert self._status is not None
+        self._done(self._status, _named_fault(self._names, None if msg is None else msg.value), None)
+
+    def cancel(self) -> None:
+        """Give the read up: the request in flight is cancelled (its key free at once); nothing is called.
+        Idempotent; never blocks on the device."""
+        with self._lock:
+            self._cancelled = True
+            req = self._current
+        if req is not None:
+            req.cancel()
 
 
 class StepfocNode(Closing):
@@ -715,20 +898,24 @@ class StepfocNode(Closing):
         bit, so frame 26 is asked for the driver's cause (docs/protocols.md §2). Names: ``estop`` for either
         e-stop, ``watchdog``, ``temperature``, ``encoder``, ``vbus``, ``driver``, ``velocity``, ``current``;
         ``error`` when the driver names no cause."""
-        if st.estop_error:
-            return "estop"
-        names = [n for n, on in (("watchdog", st.timeout_error), ("temperature", st.temperature_error)) if on]
-        if not st.error_bit and not names:
-            return None
+        cause, names = _status_fault(st)
+        if names is None:
+            return cause
         try:
             es = self.error_state(timeout)
         except GripperTimeout:
             es = None
-        if es is not None:
-            if es.estop:
-                return "estop"
-            names += [n for n in es.active() if n not in names]
-        return ",".join(names) or "error"
+        return _named_fault(names, es)
+
+    def start_status(self, done: StatusCallback) -> StatusRead | None:
+        """:meth:`poll`, then :meth:`fault`, without blocking: ``done(status, fault, None)`` or
+        ``done(None, None, error)`` from the reader thread; ``cancel()`` on the result gives it up. None
+        while a poll would have to wait out :data:`LATCH_GUARD_S` (the caller then polls by blocking)."""
+        if self._commanded_at + LATCH_GUARD_S > time.monotonic():
+            return None
+        read = StatusRead(self, done)
+        read.start()
+        return read
 
     def wait_motion(self, *, timeout: float = 10.0, poll_interval: float = 0.01) -> GripperStatus:
         """Poll until detection is not MOVING. Call after :meth:`command`: the poll that follows a command
@@ -905,19 +1092,21 @@ class StepfocNode(Closing):
     @property
     def last_heartbeat(self) -> float | None:
         """``time.monotonic()`` of the last heartbeat received from this node."""
-        return self.bus._state(self._node).heartbeat
+        return self.bus.last_heartbeat(self._node)
 
     def wait_heartbeat(self, timeout: float = 1.0) -> float:
         """Block until the next heartbeat arrives; returns its monotonic time."""
-        state = self.bus._state(self._node)
-        with state.heartbeat_cond:
-            before = state.heartbeat
-            if not state.heartbeat_cond.wait_for(lambda: state.heartbeat != before, timeout):
+        bus, node = self.bus, self._node
+        cond = bus.heartbeat_condition(node)
+        with cond:
+            before = bus.last_heartbeat(node)
+            if not cond.wait_for(lambda: bus.last_heartbeat(node) != before, timeout):
                 raise GripperTimeout(
                     f"no heartbeat within {timeout:g} s", device=self.device, command="heartbeat"
                 )
-            assert state.heartbeat is not None
-            return state.heartbeat
+            at = bus.last_heartbeat(node)
+            assert at is not None
+            return at
 
     def abandon(self, thread_ident: int) -> None:
         """Give up the request thread ``thread_ident`` waits for (:meth:`StepfocBus.abandon`)."""

@@ -11,6 +11,7 @@ from __future__ import annotations
 import threading
 import time
 import uuid
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -19,7 +20,17 @@ from grippers.drivers.stepfoc.motion import CalibrationTracker, MotionTracker, R
 from grippers.drivers.stepfoc.speed import speed_byte_for, variant
 
 from ..errors import CommandFailed, ConnectionLost, GripperTimeout, ProtocolError, URLError
-from ..gripper import Capability, DeviceInfo, GraspResult, GraspState, Gripper, GripperState, MotionResult
+from ..gripper import (
+    Capability,
+    DeviceInfo,
+    GraspResult,
+    GraspState,
+    Gripper,
+    GripperState,
+    MotionResult,
+    StartedRead,
+    StateCallback,
+)
 from ..profiles import MsgProfile, ProfileBase, load_profile
 from ..settings import Settings
 from ..urls import ConnectionURL
@@ -60,6 +71,9 @@ class _Status:
     faults: tuple[str, ...]
 
 
+_StatusCallback = Callable[["_Status | None", "BaseException | None"], None]
+
+
 class _Link:
     """The operations the gripper needs from a driver, in device units."""
 
@@ -71,6 +85,11 @@ class _Link:
 
     def status(self) -> _Status:
         raise NotImplementedError
+
+    def start_status(self, done: _StatusCallback) -> StartedRead | None:
+        """:meth:`status` without blocking: ``done`` is called from the driver's reader. None: this link
+        reads only by blocking."""
+        return None
 
     def go(self, position: int, speed: int, current_ma: int, *, action: bool = True) -> None:
         raise NotImplementedError
@@ -153,6 +172,16 @@ class _CanLink(_Link):
     def status(self) -> _Status:
         st = self.driver.poll()
         return _from_can(st, self.driver.fault(st))
+
+    def start_status(self, done: _StatusCallback) -> StartedRead | None:
+        def finished(st: GripperStatus | None, cause: str | None, error: BaseException | None) -> None:
+            if st is None:
+                done(None, error)
+            else:
+                done(_from_can(st, cause), None)
+
+        read = self.driver.start_status(finished)
+        return None if read is None else StartedRead(read.cancel, read.timeout)
 
     def go(self, position: int, speed: int, current_ma: int, *, action: bool = True) -> None:
         self.driver.command(position, speed, current_ma, activate=True, action=action, estop=False)
@@ -573,7 +602,25 @@ class MsgGripper(Gripper):
         return GraspState.IDLE
 
     def _state(self) -> GripperState:
-        st = self._link.status()
+        return self._state_of(self._link.status())
+
+    def _start_state(self, done: StateCallback) -> StartedRead | None:
+        # CAN only: the UART client reads its replies on the calling thread (a worker reads it instead)
+        def finished(st: _Status | None, error: BaseException | None) -> None:
+            if st is None:
+                done(None, error)
+                return
+            try:
+                state = self._state_of(st)
+            except Exception as exc:  # noqa: BLE001 - handed to the caller: done is called once, always
+                done(None, exc)
+                return
+            done(state, None)
+
+        return self._link.start_status(finished)
+
+    def _state_of(self, st: _Status) -> GripperState:
+        """The state a status read says, whichever face read it."""
         return GripperState(
             width=self._width_of(st.position),
             speed=None,
