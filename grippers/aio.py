@@ -176,19 +176,23 @@ async def _awaited_read(
 ) -> T:
     """Await a read the driver completes from its reader; give it up on cancel or at its timeout."""
 
+    bound = started.timeout
+
     def too_late() -> None:
         if not fut.done():
-            text = f"no reply within {started.timeout:g} s"
+            text = f"no reply within {bound:g} s"
             fut.set_exception(GripperTimeout(text, device=device, command=started.command))
 
-    timer = loop.call_later(started.timeout, too_late)
+    # No timer where the driver keeps the time itself (a timer per call costs what the native read saves).
+    timer = None if bound is None else loop.call_later(bound, too_late)
     try:
         return await fut
     except BaseException:
         started.cancel()  # cancelled or timed out: the exchange is abandoned, the next call goes at once
         raise
     finally:
-        timer.cancel()
+        if timer is not None:
+            timer.cancel()
 
 
 class AsyncMotionHandle(Generic[T]):

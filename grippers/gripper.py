@@ -58,8 +58,9 @@ class StartedRead:
     cancel: Callable[[], None]
     """Give the read up (task cancelled, or :attr:`timeout` passed): its exchanges are abandoned as Ctrl-C
     abandons them; ``done`` may still be called once, and is then ignored. Idempotent; never blocks."""
-    timeout: float
-    """Seconds after which the caller gives up with GripperTimeout (the driver itself keeps no timer)."""
+    timeout: float | None
+    """Seconds after which the caller gives up with GripperTimeout; None: the driver times the read out
+    itself (``done`` gets its GripperTimeout), and the caller arms no timer of its own."""
     command: str = "state"
     """The device command named in that timeout's message."""
 
@@ -156,8 +157,9 @@ class Gripper(ServoFace, OptionalFeatures, ConnectionHooks, ABC):
         Why: the asyncio face awaits a read the driver completes from its reader, with no worker thread and
         no thread hop on the way out (issue 20 §2). A backend that cannot returns None (the default), and
         the asyncio face runs :meth:`_state` on a worker instead. The caller gives the read up with
-        :meth:`StartedRead.cancel` when its task is cancelled or :attr:`StartedRead.timeout` passed; the
-        driver then treats the exchange as timed out, as Ctrl-C leaves it, so the next call goes out at once.
+        :meth:`StartedRead.cancel` when its task is cancelled or :attr:`StartedRead.timeout` passed (unless
+        the driver keeps the time itself); the driver then treats the exchange as timed out, as Ctrl-C leaves
+        it, so the next call goes out at once.
         """
         return None
 

@@ -150,6 +150,15 @@ def _given_up(device: str, name: str) -> GripperTimeout:
 ReplyCallback = Callable[["Message | None", "GripperError | None"], None]
 
 
+def _timed_out(w: PendingRequest) -> GripperTimeout:
+    """A request's timeout, in the same words whoever keeps its time (a waiting thread, the reader)."""
+    if not w.sent:
+        text = f"another {w.name} to this node did not finish within {w.send_timeout:g} s"
+    else:
+        text = f"no reply within {w.send_timeout:g} s"
+    return GripperTimeout(text, device=w.device, command=w.name)
+
+
 class PendingRequest:
     """One request to a (node, command) key, from start to its settling: the reply (from the reader thread),
     a failure (an unsendable frame, a failing bus, a duplicate node id, an abandoned thread) or
@@ -168,6 +177,7 @@ class PendingRequest:
         "_claim",
         "_reply",
         "_signal",
+        "deadline",
         "device",
         "done",
         "error",
@@ -200,6 +210,9 @@ class PendingRequest:
         self.name = name
         self._reply = reply
         self.owner = owner  # the waiting thread's ident (StepfocBus.abandon finds its request by it)
+        # A request nobody waits for times out by the reader (StepfocBus._expire): the same outcome, at the
+        # same moment, as a thread's wait would give it. None: a waiting thread keeps its own time.
+        self.deadline = None if reply is None else time.monotonic() + send_timeout
         self._claim = threading.Lock()
         if reply is None:  # a thread will wait: the signal it wakes on, taken until settled
             self._signal = threading.Lock()
@@ -276,6 +289,7 @@ class StepfocBus(Closing):
         self._waiters: dict[Key, PendingRequest] = {}  # the request that holds each key
         self._queued: dict[Key, deque[PendingRequest]] = {}  # requests waiting for their key, in order
         self._abandoned: set[int] = set()  # threads whose caller gave up (abandon(), the module docstring)
+        self._timed: set[PendingRequest] = set()  # requests answered by callback, until settled (_expire)
         self._heartbeats: dict[int, threading.Condition] = {}
         self._listeners: list[Callable[[can.Message], None]] = []
         self._stop = threading.Event()
@@ -352,6 +366,16 @@ class StepfocBus(Closing):
                     self._dispatch(msg)
                 except Exception:  # noqa: BLE001 - a frame we cannot handle must not kill the reader
                     log.exception("%s: reader ignored a frame it could not handle: %r", self.device, msg)
+            if self._timed:
+                self._expire(time.monotonic())
+
+    def _expire(self, now: float) -> None:
+        """Time out the requests nobody waits for whose deadline passed (the reader's clock: it wakes at least
+        every _READ_POLL_S): the outcome and the words of :meth:`request`'s own timeout."""
+        with self._lock:
+            late = [w for w in self._timed if w.deadline is not None and now >= w.deadline]
+        for w in late:
+            w.settle(None, _timed_out(w))
 
     def _fail(self, exc: BaseException) -> None:
         if isinstance(exc, ConnectionLost):
@@ -446,6 +470,7 @@ class StepfocBus(Closing):
         then starts (returned)."""
         key = w.key
         with self._lock:
+            self._timed.discard(w)
             if w.queued:  # never held the key
                 w.queued = False
                 self._queued[key].remove(w)
@@ -467,6 +492,8 @@ class StepfocBus(Closing):
         with self._lock:
             given_up = bool(self._abandoned) and w.owner in self._abandoned
             holds = not given_up and w.key not in self._waiters
+            if w.deadline is not None and not given_up:
+                self._timed.add(w)
             if holds:
                 self._waiters[w.key] = w
             elif not given_up:
@@ -495,8 +522,10 @@ class StepfocBus(Closing):
         """Send ``frame`` without waiting: ``reply(message, None)`` or ``reply(None, error)`` is called once,
         from the reader thread (a reply, a failed bus), from the thread that ended the request before (this
         one's turn came and its frame could not go) or from this call, unless :meth:`PendingRequest.cancel`
-        came first. No timer runs: the caller gives up with ``cancel()``. While a request of the same key is
-        in flight, this one queues and goes out when that one ends. ``timeout`` bounds only the send."""
+        came first. It times out like :meth:`request` (GripperTimeout after ``timeout`` seconds, from the
+        reader, which wakes at least every _READ_POLL_S). While a request of the same key is in flight, this
+        one queues and goes out when that one ends; its time runs from this call, as a waiting thread's
+        does."""
         return self._submit(PendingRequest(self, (node, command), frame, timeout, device, name, reply))
 
     def request(
@@ -511,13 +540,7 @@ class StepfocBus(Closing):
         if not w.wait(max(0.0, deadline - time.monotonic())):
             if w.cancel():
                 self._check_open(device, name)
-                if not w.sent:
-                    raise GripperTimeout(
-                        f"another {name} to this node did not finish within {timeout:g} s",
-                        device=device,
-                        command=name,
-                    )
-                raise GripperTimeout(f"no reply within {timeout:g} s", device=device, command=name)
+                raise _timed_out(w)
             # settled just now by another thread: its outcome is stored before the signal, with no I/O
             # in between, so this wait ends at once
             if not w.wait(_SETTLE_S):
@@ -635,9 +658,9 @@ StatusCallback = Callable[["GripperStatus | None", "str | None", "GripperError |
 class StatusRead:
     """:meth:`StepfocNode.start_status`: a poll and, when its status asks for it, frame 26 (the cause of
     the error), both as started requests (:meth:`StepfocBus.start_request`); the second starts from the
-    reader thread when the first is answered. The same steps as ``poll()`` then ``fault()``, and the same
-    rules (:func:`_status_fault`, :func:`_named_fault`): frame 26 not answered in time means no cause, but
-    here the caller's timer decides "in time", as no timer runs in the driver."""
+    reader thread when the first is answered. The same steps as ``poll()`` then ``fault()``, the same rules
+    (:func:`_status_fault`, :func:`_named_fault`: frame 26 not answered in time means no cause) and the same
+    timeouts, kept by the bus's reader."""
 
     def __init__(self, node: StepfocNode, done: StatusCallback) -> None:
         self._node = node
@@ -647,7 +670,7 @@ class StatusRead:
         self._cancelled = False
         self._status: GripperStatus | None = None
         self._names: list[str] = []
-        self.timeout = node.timeout  # of each request (the caller's timer)
+        self.timeout = node.timeout  # of each request (kept by the bus's reader)
 
     def start(self) -> None:
         node = self._node

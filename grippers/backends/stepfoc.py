@@ -181,7 +181,9 @@ class _CanLink(_Link):
                 done(_from_can(st, cause), None)
 
         read = self.driver.start_status(finished)
-        return None if read is None else StartedRead(read.cancel, read.timeout)
+        # The bus times each request out itself (its reader's clock), so no caller timer: the poll and the
+        # error-cause read end as the threaded call's do, frame 26 unanswered included ("error").
+        return None if read is None else StartedRead(read.cancel, None)
 
     def go(self, position: int, speed: int, current_ma: int, *, action: bool = True) -> None:
         self.driver.command(position, speed, current_ma, activate=True, action=action, estop=False)

@@ -160,9 +160,36 @@ def test_no_reply_within_the_timeout_is_gripper_timeout(target: Target) -> None:
             faults.silent = True
             with pytest.raises(GripperTimeout, match="no reply within 0.3 s") as caught:
                 await g.state()
-            assert caught.value.command == "state" and caught.value.device == g.name
+            with pytest.raises(GripperTimeout) as threaded:
+                await asyncio.to_thread(g.sync.state)
+            # the bus keeps the time of both: one error, naming the node and its poll, whichever face asked
+            assert (caught.value.device, caught.value.command, caught.value.message) == (
+                threaded.value.device,
+                threaded.value.command,
+                threaded.value.message,
+            )
+            assert "node" in str(caught.value.device) and caught.value.command == "poll"
             faults.silent = False
             assert (await g.state()).width >= 0
+
+    run(main())
+
+
+def test_an_error_cause_never_answered_reads_as_the_threaded_call_reads_it(target: Target) -> None:
+    """The poll says "error", frame 26 (its cause) never comes: both faces wait one request timeout for it
+    and report the fault as "error" (no cause), not a timeout of the whole read."""
+
+    async def main() -> None:
+        async with grippers.aio.open(target.url, timeout=0.3) as g:
+            await g.state()
+            faults = target.faults(g)
+            faults.error_bit_replies(1)
+            faults.drop_replies(1)
+            native = await asyncio.wait_for(g.state(), 5.0)
+            faults.error_bit_replies(1)
+            faults.drop_replies(1)
+            threaded = await asyncio.to_thread(g.sync.state)
+            assert native.faults == threaded.faults == ("error",)
 
     run(main())
 
