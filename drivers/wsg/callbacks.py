@@ -11,10 +11,12 @@ A request whose command's slot is held (another exchange of that id, or a stale 
 one) waits in a queue, never a thread: the reader thread sends it once the slot is free, and where only a
 proof can free it (:meth:`Session.needs_barrier`) it sends the same LOOP barrier a blocking caller would.
 
-There is no timer: the caller gives a request up with :meth:`CallbackEngine.withdraw` (its own deadline, a
-cancelled task), which abandons the exchange as a cancelled blocking call is abandoned (its late reply
-swallowed; where the line keeps replies in order no reorder margin, see ``ExchangeEngine.abandon``). A lost
-or closed line fails every such request with ConnectionLost.
+A request with a ``timeout`` times out as a blocking one does (GripperTimeout, its exchange abandoned, the
+late reply swallowed): the connection's reader thread, which wakes at least every POLL, keeps the time, so
+no caller needs a timer of its own. The caller may give a request up sooner with
+:meth:`CallbackEngine.withdraw` (a cancelled task), which abandons the exchange as a cancelled blocking call
+is abandoned (where the line keeps replies in order no reorder margin, see ``ExchangeEngine.abandon``). A
+lost or closed line fails every such request with ConnectionLost.
 """
 
 from __future__ import annotations
@@ -25,7 +27,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from threading import get_ident
 
-from ..errors import ConnectionLost, GripperError
+from ..errors import ConnectionLost, GripperError, GripperTimeout
 from .commands import Cmd, command_name
 from .exchanges import ExchangeEngine
 from .protocol import Packet
@@ -48,6 +50,8 @@ class Submitted:
     command: int
     payload: bytes
     done: Done
+    timeout: float | None = None  # GripperTimeout this long after submit() (kept by the reader thread)
+    deadline: float | None = field(default=None, repr=False)
     exchange: Exchange | None = field(default=None, repr=False)  # once its slot was taken
     barrier: Submitted | None = field(default=None, repr=False)  # the LOOP proving a stale reply lost
     over: bool = False  # answered, failed or withdrawn: ``done`` is not called (again)
@@ -72,6 +76,8 @@ class CallbackEngine(ExchangeEngine):
         From any thread, the reader's included (a callback submitting the next request). A line already lost
         or closed calls ``sub.done`` with ConnectionLost before returning."""
         cmd = sub.command
+        if sub.timeout is not None:
+            sub.deadline = time.monotonic() + sub.timeout
         with self._lock:
             if self._lost is not None or self._closing or self._closed:
                 error = self._lost or ConnectionLost("client is closed", device=self.device)
@@ -115,6 +121,30 @@ class CallbackEngine(ExchangeEngine):
             barrier, sub.barrier = sub.barrier, None
         if barrier is not None:
             self.withdraw(barrier)
+
+    def _late(self, now: float) -> bool:
+        """A callback request's deadline has passed (lock held)."""
+        subs = (*self._notify.values(), *(s for q in self._queued.values() for s in q))
+        return any(sub.deadline is not None and now >= sub.deadline for sub in subs)
+
+    def _expire(self, now: float) -> None:
+        """Time out the callback requests whose deadline passed (the reader thread, lock not held): sent
+        ones as "no reply within", queued ones as a blocking caller's wait for the slot ends."""
+        with self._lock:
+            late = [
+                sub
+                for sub in (*self._notify.values(), *(s for q in self._queued.values() for s in q))
+                if sub.deadline is not None and now >= sub.deadline and not sub.over
+            ]
+        for sub in late:
+            sent = sub.exchange is not None
+            self.withdraw(sub)  # abandoned (late reply swallowed) or dropped from the queue
+            if sent:
+                text = f"no reply within {sub.timeout:g} s"
+            else:
+                text = "a previous exchange of this command is still outstanding (one per command id)"
+            sub.over = False  # withdraw() marked it over; its caller is told once, here
+            sub.fail(GripperTimeout(text, device=self.device, command=command_name(sub.command)))
 
     def _open(self, sub: Submitted, now: float) -> bytes | None:
         """Take ``sub``'s slot and register it (lock held): the bytes to send; None while the slot is held."""

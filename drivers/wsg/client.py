@@ -227,7 +227,8 @@ class WsgClient(WsgConnection):
     ) -> Queries:
         """:meth:`queries` with no thread waiting: each query is sent when the previous one's reply came,
         from the reader thread, which then calls ``done(values, None)`` or ``done(None, error)`` (once,
-        unless :meth:`Queries.cancel` came first). The caller applies the bound (:attr:`Queries.timeout`)."""
+        unless :meth:`Queries.cancel` came first). Each query times out as :meth:`queries`' do (the reader
+        keeps the time)."""
         reads = Queries(self, cmds, done)
         reads._next()
         return reads

@@ -88,12 +88,10 @@ class Queries:
         self._current: Submitted | None = None
         self._cancelled = False
         self._over = False
-        #: The caller's bound (the driver keeps no timer): the client's timeout for each query in turn.
-        self.timeout = client.timeout * len(cmds)
 
     def _next(self) -> None:
         cmd = self._cmds[len(self._values)]
-        sub = Submitted(cmd, self._client._query_payload(cmd), self._step)
+        sub = Submitted(cmd, self._client._query_payload(cmd), self._step, self._client.timeout)
         # Set before the request goes out (its reply may come back on the reader at once), and checked after:
         # a cancel() in between sees this request or withdraws it here.
         self._current = sub

@@ -215,7 +215,9 @@ class WsgGripper(Gripper):
             done(st, None)
 
         reads = self._client.start_queries(_STATE_READS, finished)
-        return StartedRead(cancel=reads.cancel, timeout=reads.timeout)
+        # Each query times out in the driver as the threaded call's does (its reader keeps the time): no
+        # caller timer.
+        return StartedRead(cancel=reads.cancel, timeout=None)
 
     def _info(self) -> DeviceInfo:
         si = self._system_info

@@ -167,14 +167,20 @@ def test_a_cancel_mid_read_abandons_the_exchange_out() -> None:
 
 
 @pytest.mark.parametrize("name", list(URLS))
-def test_a_timeout_names_the_device_and_state(name: str) -> None:
+def test_a_timeout_is_the_threaded_calls_timeout(name: str) -> None:
+    """The driver keeps the time of both faces: a silent device ends the read after one query's timeout,
+    with the threaded call's words (the device's URL, the query's name)."""
+
     async def main() -> None:
         async with grippers.aio.open(URLS[name], timeout=0.2) as g:
             g.sync.simulator.faults.silent = True
             with pytest.raises(GripperTimeout) as caught:
-                await g.state()
-            assert caught.value.device == g.name
-            assert caught.value.command == "state"
+                await asyncio.wait_for(g.state(), 10.0)
+            with pytest.raises(GripperTimeout) as threaded:
+                await asyncio.to_thread(g.sync.state)
+            assert caught.value.device == threaded.value.device == g.sync.driver.device
+            assert caught.value.command == threaded.value.command == "GET_SYSTEM_STATE (40h)"
+            assert "within 0.2 s" in str(caught.value)
             g.sync.simulator.faults.silent = False
             # The timed-out read was abandoned: the gripper reads again (UDP: after stale_ttl).
             for _ in range(100):
