@@ -50,7 +50,7 @@ class Submitted:
     command: int
     payload: bytes
     done: Done
-    timeout: float | None = None  # GripperTimeout this long after submit() (kept by the reader thread)
+    timeout: float | None = None  # GripperTimeout this long after the send (kept by the reader thread)
     deadline: float | None = field(default=None, repr=False)
     exchange: Exchange | None = field(default=None, repr=False)  # once its slot was taken
     barrier: Submitted | None = field(default=None, repr=False)  # the LOOP proving a stale reply lost
@@ -76,8 +76,6 @@ class CallbackEngine(ExchangeEngine):
         From any thread, the reader's included (a callback submitting the next request). A line already lost
         or closed calls ``sub.done`` with ConnectionLost before returning."""
         cmd = sub.command
-        if sub.timeout is not None:
-            sub.deadline = time.monotonic() + sub.timeout
         with self._lock:
             if self._lost is not None or self._closing or self._closed:
                 error = self._lost or ConnectionLost("client is closed", device=self.device)
@@ -123,27 +121,22 @@ class CallbackEngine(ExchangeEngine):
             self.withdraw(barrier)
 
     def _late(self, now: float) -> bool:
-        """A callback request's deadline has passed (lock held)."""
-        subs = (*self._notify.values(), *(s for q in self._queued.values() for s in q))
-        return any(sub.deadline is not None and now >= sub.deadline for sub in subs)
+        """A sent callback request's deadline has passed (lock held)."""
+        return any(sub.deadline is not None and now >= sub.deadline for sub in self._notify.values())
 
     def _expire(self, now: float) -> None:
-        """Time out the callback requests whose deadline passed (the reader thread, lock not held): sent
-        ones as "no reply within", queued ones as a blocking caller's wait for the slot ends."""
+        """Time out the sent callback requests whose deadline passed (the reader thread, lock not held), in
+        a blocking exchange's words; the exchange is abandoned as a timed-out one is."""
         with self._lock:
             late = [
                 sub
-                for sub in (*self._notify.values(), *(s for q in self._queued.values() for s in q))
+                for sub in self._notify.values()
                 if sub.deadline is not None and now >= sub.deadline and not sub.over
             ]
         for sub in late:
-            sent = sub.exchange is not None
-            self.withdraw(sub)  # abandoned (late reply swallowed) or dropped from the queue
-            if sent:
-                text = f"no reply within {sub.timeout:g} s"
-            else:
-                text = "a previous exchange of this command is still outstanding (one per command id)"
+            self.withdraw(sub)  # abandoned: its late reply is swallowed
             sub.over = False  # withdraw() marked it over; its caller is told once, here
+            text = f"no reply within {sub.timeout:g} s"
             sub.fail(GripperTimeout(text, device=self.device, command=command_name(sub.command)))
 
     def _open(self, sub: Submitted, now: float) -> bytes | None:
@@ -153,6 +146,11 @@ class CallbackEngine(ExchangeEngine):
             return None
         exchange, raw = opened
         sub.exchange = exchange
+        if sub.timeout is not None:
+            # From the send, not from submit(): a request queued behind others of its command (100 awaits
+            # at once) waits its turn as calls queued in the asyncio face did; each one out is bounded, so
+            # the queue drains in finite time.
+            sub.deadline = now + sub.timeout
         self._notify[exchange] = sub
         self.stats["lost_replies"] = self._session.lost_replies  # open() may have dropped a proved marker
         return raw

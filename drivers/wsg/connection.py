@@ -279,7 +279,7 @@ class WsgConnection(CallbackEngine):
                         if sends or self._deferred or (not self._reading and self._background_needed()):
                             break
                         self._bg.wait(POLL)  # (queued requests: checked again at least every POLL)
-                        if (self._notify or self._queued) and self._late(time.monotonic()):
+                        if self._notify and self._late(time.monotonic()):
                             break  # a callback request's deadline passed: timed out below
                     if stop.is_set() or self._lost is not None:
                         return  # what was opened here fails with the line (close(), _connection_lost)
@@ -297,8 +297,8 @@ class WsgConnection(CallbackEngine):
             if answered is not None:
                 # (it may submit the next request: read at once, above)
                 self._call_back(answered[0].reply, answered[1])
-            if self._notify or self._queued:
-                self._expire(time.monotonic())  # callback requests past their deadline (.callbacks)
+            if self._notify:
+                self._expire(time.monotonic())  # sent callback requests past their deadline (.callbacks)
 
     def _call_back(self, call: Callable[..., None], *args: Any) -> None:
         """A call the reader thread makes for others: a bug in it is logged, never the end of the reading
