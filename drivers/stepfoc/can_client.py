@@ -210,9 +210,10 @@ class PendingRequest:
         self.name = name
         self._reply = reply
         self.owner = owner  # the waiting thread's ident (StepfocBus.abandon finds its request by it)
-        # A request nobody waits for times out by the reader (StepfocBus._expire): the same outcome, at the
-        # same moment, as a thread's wait would give it. None: a waiting thread keeps its own time.
-        self.deadline = None if reply is None else time.monotonic() + send_timeout
+        # A request nobody waits for times out by the reader (StepfocBus._expire), ``send_timeout`` after its
+        # frame went out (set then): queued behind others of its key it waits its turn, as calls queued in the
+        # asyncio face did, and each one out is bounded. None: not sent yet, or a thread keeps its own time.
+        self.deadline: float | None = None
         self._claim = threading.Lock()
         if reply is None:  # a thread will wait: the signal it wakes on, taken until settled
             self._signal = threading.Lock()
@@ -457,6 +458,8 @@ class StepfocBus(Closing):
                 raise _given_up(w.device, w.name)
             self._session.sent(key)
             w.sent = True
+            if w._reply is not None:
+                w.deadline = time.monotonic() + w.send_timeout
         self.send_frame(w.frame, device=w.device, command=w.name, timeout=w.send_timeout)
 
     def _start(self, w: PendingRequest) -> None:
@@ -492,7 +495,7 @@ class StepfocBus(Closing):
         with self._lock:
             given_up = bool(self._abandoned) and w.owner in self._abandoned
             holds = not given_up and w.key not in self._waiters
-            if w.deadline is not None and not given_up:
+            if w._reply is not None and not given_up:
                 self._timed.add(w)
             if holds:
                 self._waiters[w.key] = w
@@ -524,8 +527,7 @@ class StepfocBus(Closing):
         one's turn came and its frame could not go) or from this call, unless :meth:`PendingRequest.cancel`
         came first. It times out like :meth:`request` (GripperTimeout after ``timeout`` seconds, from the
         reader, which wakes at least every _READ_POLL_S). While a request of the same key is in flight, this
-        one queues and goes out when that one ends; its time runs from this call, as a waiting thread's
-        does."""
+        one queues and goes out when that one ends; its time runs from its send."""
         return self._submit(PendingRequest(self, (node, command), frame, timeout, device, name, reply))
 
     def request(
