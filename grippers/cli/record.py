@@ -117,11 +117,6 @@ def run(args: argparse.Namespace) -> int:
         sink = open_sink(args.output)  # a wrong name or an unwritable path is found before the gripper moves
     except RecordingError as exc:
         raise UsageError(str(exc)) from None
-    try:
-        gripper = open_gripper(args)
-    except BaseException:
-        sink.abandon()
-        raise
     rows: list[dict[str, Any]] = []
     lock = threading.Lock()
     start = time.time()
@@ -147,11 +142,20 @@ def run(args: argparse.Namespace) -> int:
                 }
             )
 
-    stream = gripper.stream(rate_hz=args.rate, callback=sample)
-    log.info(
-        "recording %s to %s (Ctrl-C ends it; the file is written then)", args.target, ", ".join(sink.files)
-    )
+    # One try from the open on: a Ctrl-C (or any failure) at any point either abandons the sink (nothing was
+    # recorded: the gripper did not open) or writes it (never an empty file left behind, never a gripper
+    # left open).
+    gripper: Any = None
+    stream = None
     try:
+        gripper = open_gripper(args)
+        start = time.time()
+        stream = gripper.stream(rate_hz=args.rate, callback=sample)
+        log.info(
+            "recording %s to %s (Ctrl-C ends it; the file is written then)",
+            args.target,
+            ", ".join(sink.files),
+        )
         for text, name, do_args in plan:
             event(text, "start")
             try:
@@ -172,12 +176,16 @@ def run(args: argparse.Namespace) -> int:
         while time.time() < end:
             time.sleep(min(0.05, max(0.0, end - time.time())))
     finally:
-        stream.close()
-        gripper.close()
-        with lock:
-            ordered = sorted(rows, key=lambda r: r["t_s"])
-        header = {"target": args.target, "start_unix": start, "rate_hz": args.rate, "do": list(args.do)}
-        sink.write(header, ordered)
+        if gripper is None:
+            sink.abandon()
+        else:
+            if stream is not None:
+                stream.close()
+            gripper.close()
+            with lock:
+                ordered = sorted(rows, key=lambda r: r["t_s"])
+            header = {"target": args.target, "start_unix": start, "rate_hz": args.rate, "do": list(args.do)}
+            sink.write(header, ordered)
     samples = sum(1 for r in ordered if r["kind"] == "state")
     if args.json:
         write_json(
