@@ -157,7 +157,9 @@ def _sampler(g: Any) -> Callable[[], tuple[float, float]]:
     """(simulated time, true opening in mm) read from the in-process simulator, no wire traffic."""
     server = g.simulator
     model = server.model
-    if hasattr(server, "lock"):  # WSG engine
+    from grippers.drivers.wsg.sim.model import WsgModel
+
+    if isinstance(model, WsgModel):  # (the MSG's server has a lock attribute too since issue 19)
 
         def read_wsg() -> tuple[float, float]:
             with server.lock:
