@@ -154,19 +154,25 @@ def _nothing(_ident: int) -> None:
     pass
 
 
+def _settle(fut: asyncio.Future[Any], result: Any, exc: BaseException | None) -> None:
+    if fut.done():
+        return
+    if exc is not None:
+        fut.set_exception(exc)
+    else:
+        fut.set_result(result)
+
+
 def _deliver(
     loop: asyncio.AbstractEventLoop, fut: asyncio.Future[Any], result: Any, exc: BaseException | None
 ) -> None:
-    def settle() -> None:
-        if fut.done():
-            return
-        if exc is not None:
-            fut.set_exception(exc)
-        else:
-            fut.set_result(result)
-
+    """Complete ``fut`` from any thread: directly on the loop's own (a loop that reads the transport
+    itself), else through one wake of the loop."""
+    if asyncio._get_running_loop() is loop:
+        _settle(fut, result, exc)
+        return
     try:
-        loop.call_soon_threadsafe(settle)
+        loop.call_soon_threadsafe(_settle, fut, result, exc)
     except RuntimeError:  # the loop is closed: nobody waits any more
         pass
 
@@ -285,7 +291,7 @@ class AsyncGripper:
     fixed pool of threads, like every other call, so concurrent awaits never add a thread.
     """
 
-    def __init__(self, gripper: Gripper, workers: _Workers) -> None:
+    def __init__(self, gripper: Gripper, workers: _Workers, *, read_on_loop: bool = True) -> None:
         self.sync = gripper
         self._workers = workers
         self._control = _Workers(f"{gripper.name} control", 1)
@@ -294,6 +300,16 @@ class AsyncGripper:
         self._motion_pool = _Workers(f"{gripper.name} motion", MOTION_WORKERS)
         gripper._motions.spawn = self._motion_pool.spawn
         self._closed = False
+        # The loop reads the transport itself where the driver can (a CAN bus with a file descriptor): a
+        # reply then reaches its task with no thread hand-over (drivers/stepfoc/can_reader.py).
+        self._loop_detach: Callable[[], None] | None = None
+        if read_on_loop:
+            try:
+                loop = asyncio.get_running_loop()
+            except RuntimeError:  # built outside a loop: its calls hand over from the reader, as before
+                pass
+            else:
+                self._loop_detach = gripper._read_on(loop)
 
     # -- plumbing ------------------------------------------------------------------------------------------
 
@@ -488,8 +504,11 @@ class AsyncGripper:
         """Close the gripper (on a worker: it joins the gripper's own threads, bounded), then the workers."""
         if self._closed:
             return
-        closing = self._workers.submit(self.sync.close)
         self._closed = True
+        if self._loop_detach is not None:  # on the loop's thread, before the transport closes
+            detach, self._loop_detach = self._loop_detach, None
+            detach()
+        closing = self._workers.submit(self.sync.close)
         try:
             await asyncio.shield(closing)
         finally:
@@ -510,7 +529,8 @@ class AsyncGripper:
 class _Opening:
     """What :func:`open` returns: ``await`` it, or use it in ``async with`` (closed at the end)."""
 
-    def __init__(self, target: str | os.PathLike[str], overrides: dict[str, Any]) -> None:
+    def __init__(self, target: str | os.PathLike[str], overrides: dict[str, Any], read_on_loop: bool) -> None:
+        self._read_on_loop = read_on_loop
         self._target = target
         self._overrides = overrides
         self._gripper: AsyncGripper | None = None
@@ -527,7 +547,7 @@ class _Opening:
                 opening.add_done_callback(_close_opened)
             workers.close(timeout=0)
             raise
-        return AsyncGripper(gripper, workers)
+        return AsyncGripper(gripper, workers, read_on_loop=self._read_on_loop)
 
     def __await__(self) -> Generator[Any, None, AsyncGripper]:
         return self._open().__await__()
@@ -541,9 +561,15 @@ class _Opening:
             await self._gripper.close()
 
 
-def open(target: str | os.PathLike[str], **overrides: Any) -> _Opening:  # noqa: A001 - mirrors grippers.open
+def open(  # noqa: A001 - mirrors grippers.open
+    target: str | os.PathLike[str], *, read_on_loop: bool = True, **overrides: Any
+) -> _Opening:
     """Open a gripper for asyncio: ``async with grippers.aio.open(url) as g`` or ``g = await ...open(url)``.
 
     Takes what :func:`grippers.open` takes (a URL, a profile name or file, keyword overrides).
+    ``read_on_loop``: where the transport allows it (an MSG on a SocketCAN or ``udp_multicast`` bus), the
+    event loop reads it itself while the gripper is open, so a reply reaches its task with no thread
+    hand-over; the threaded calls under it then depend on the loop running, as python-can's ``Notifier``
+    with a loop does. False keeps the driver's reader thread.
     """
-    return _Opening(target, overrides)
+    return _Opening(target, overrides, read_on_loop)

@@ -28,6 +28,8 @@ from .states import Capability, DeviceInfo, GraspResult, GraspState, GripperStat
 from .streams import StateStream, put_dropping_oldest
 
 if TYPE_CHECKING:
+    import asyncio
+
     from .reconnect import LinkWatch
     from .servo import ServoLoop
 
@@ -149,6 +151,15 @@ class Gripper(ServoFace, OptionalFeatures, ConnectionHooks, ABC):
 
     def _resume(self, thread_ident: int) -> None:
         """Thread ``thread_ident`` starts a new call: undo :meth:`_abandon`. Default: nothing."""
+
+    def _read_on(self, loop: asyncio.AbstractEventLoop) -> Callable[[], None] | None:
+        """Let the running asyncio ``loop`` read the transport itself, so that :meth:`_start_state`'s reply
+        reaches its task with no thread hand-over; returns what undoes it (called on the loop's thread before
+        the gripper closes), or None where the driver keeps its reader thread (the default).
+
+        Why only some: an event loop can wait only on a file descriptor (a SocketCAN or ``udp_multicast`` bus;
+        drivers/stepfoc/can_reader.py)."""
+        return None
 
     def _start_state(self, done: StateCallback) -> StartedRead | None:
         """Start reading the state without blocking the caller; ``done(state, None)`` or ``done(None, error)``

@@ -33,7 +33,7 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable
-from typing import Any, Generic, Protocol, TypeVar, overload
+from typing import TYPE_CHECKING, Any, Generic, Protocol, TypeVar, overload
 
 import can
 
@@ -67,15 +67,18 @@ from .can_protocol import (
     pack_id,
     parse_can_url,
 )
+from .can_reader import BusReader
 from .can_session import CanSession, Delivery, DuplicateFound, Heartbeat, Key, NodeFacts, is_stepfoc_frame
 from .dissect import log_can_frame
 from .motion import CalibrationTracker, Reading, Verdict
 
 __all__ = ["CalibrationWatch", "StepfocBus", "StepfocNode", "open_node", "parse_url"]
 
+if TYPE_CHECKING:
+    import asyncio
+
 log = logging.getLogger(__name__)
 
-_READ_POLL_S = 0.05  # the reader's longest block, so close() returns promptly
 _SETTLE_S = 5.0  # bound on a wait for an outcome another thread is storing (microseconds in practice)
 
 # After a 5-byte 61 the firmware resets its at-position latch at the next control tick (160 us on STEPFOC,
@@ -293,11 +296,10 @@ class StepfocBus(Closing):
         self._timed: set[PendingRequest] = set()  # requests answered by callback, until settled (_expire)
         self._heartbeats: dict[int, threading.Condition] = {}
         self._listeners: list[Callable[[can.Message], None]] = []
-        self._stop = threading.Event()
         self._error: ConnectionLost | None = None  # why the bus failed (reader or close); reopen() clears it
         self._closed = False
-        self._thread = threading.Thread(target=self._run, name=f"stepfoc-can {self.device}", daemon=True)
-        self._thread.start()
+        self._reader = BusReader(self.device, lambda: self.bus, self._received, self._tick, self._fail)
+        self._reader.start()
 
     def _open_bus(self) -> can.BusABC:
         try:
@@ -327,7 +329,7 @@ class StepfocBus(Closing):
                     device=self.device,
                     command="reconnect",
                 )
-            self._thread.join(timeout=2.0)  # it ended at the failure; wait for it to be gone
+            self._reader.stop()  # it ended at the failure; wait for it to be gone
             try:
                 self.bus.shutdown()
             except (can.CanError, OSError):
@@ -336,8 +338,7 @@ class StepfocBus(Closing):
             with self._lock:
                 self._session.reset()
             self._error = None
-            self._thread = threading.Thread(target=self._run, name=f"stepfoc-can {self.device}", daemon=True)
-            self._thread.start()
+            self._reader.start()
             log.info("%s: CAN bus reopened", self.device)
             return True
 
@@ -354,25 +355,30 @@ class StepfocBus(Closing):
 
     # ------------------------------------------------------------------------------------------ reader
 
-    def _run(self) -> None:
-        while not self._stop.is_set():
-            try:
-                msg = self.bus.recv(timeout=_READ_POLL_S)
-            except Exception as exc:  # noqa: BLE001 - any failure of the bus ends the reader; waiters learn why
-                if not self._stop.is_set():
-                    self._fail(exc)
-                return
-            if msg is not None:
-                try:
-                    self._dispatch(msg)
-                except Exception:  # noqa: BLE001 - a frame we cannot handle must not kill the reader
-                    log.exception("%s: reader ignored a frame it could not handle: %r", self.device, msg)
-            if self._timed:
-                self._expire(time.monotonic())
+    def _received(self, msg: can.Message) -> None:
+        try:
+            self._dispatch(msg)
+        except Exception:  # noqa: BLE001 - a frame we cannot handle must not kill the reader
+            log.exception("%s: reader ignored a frame it could not handle: %r", self.device, msg)
+
+    def _tick(self) -> None:
+        if self._timed:
+            self._expire(time.monotonic())
+
+    def attach_loop(self, loop: asyncio.AbstractEventLoop) -> bool:
+        """Let the running asyncio ``loop`` read this bus instead of the reader thread, while attached: a
+        reply then completes an awaiting task with no thread hand-over (drivers/stepfoc/can_reader.py). Call
+        on the loop's thread; False (nothing changes) for a bus without a file descriptor, or one another
+        loop reads. Each True needs a :meth:`detach_loop`."""
+        return self._reader.attach(loop)
+
+    def detach_loop(self, loop: asyncio.AbstractEventLoop) -> None:
+        """Undo :meth:`attach_loop` (on the loop's thread); the last one gives the bus back to a thread."""
+        self._reader.detach(loop)
 
     def _expire(self, now: float) -> None:
         """Time out the requests nobody waits for whose deadline passed (the reader's clock: it wakes at least
-        every _READ_POLL_S): the outcome and the words of :meth:`request`'s own timeout."""
+        every READ_POLL_S): the outcome and the words of :meth:`request`'s own timeout."""
         with self._lock:
             late = [w for w in self._timed if w.deadline is not None and now >= w.deadline]
         for w in late:
@@ -526,7 +532,7 @@ class StepfocBus(Closing):
         from the reader thread (a reply, a failed bus), from the thread that ended the request before (this
         one's turn came and its frame could not go) or from this call, unless :meth:`PendingRequest.cancel`
         came first. It times out like :meth:`request` (GripperTimeout after ``timeout`` seconds, from the
-        reader, which wakes at least every _READ_POLL_S). While a request of the same key is in flight, this
+        reader, which wakes at least every READ_POLL_S). While a request of the same key is in flight, this
         one queues and goes out when that one ends; its time runs from its send."""
         return self._submit(PendingRequest(self, (node, command), frame, timeout, device, name, reply))
 
@@ -536,9 +542,12 @@ class StepfocBus(Closing):
         """Send ``frame`` and wait for the reply keyed (node, command): :meth:`start_request`'s request,
         waited for by this thread (one request per key at a time; a second one waits its turn)."""
         deadline = time.monotonic() + timeout
+        self._reader.check_loop()
         w = self._submit(
             PendingRequest(self, (node, command), frame, timeout, device, name, owner=threading.get_ident())
         )
+        if self._reader.reads_here():  # the event loop reads this bus, and this is its thread: read here
+            self._reader.pump(lambda: w.done, deadline)
         if not w.wait(max(0.0, deadline - time.monotonic())):
             if w.cancel():
                 self._check_open(device, name)
@@ -610,9 +619,7 @@ class StepfocBus(Closing):
             return
         with self._reopen_lock:  # a reconnection in progress finishes first, so its bus is the one shut down
             self._closed = True
-            self._stop.set()
-            if threading.current_thread() is not self._thread:
-                self._thread.join(timeout=2.0)
+            self._reader.stop()
             self._fail(ConnectionLost("the bus was closed", device=self.device))
             if self._own_bus:
                 self.bus.shutdown()

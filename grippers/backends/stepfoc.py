@@ -13,7 +13,7 @@ import time
 import uuid
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from grippers.drivers.stepfoc.can_protocol import Detection, GripperStatus
 from grippers.drivers.stepfoc.motion import CalibrationTracker, MotionTracker, Reading, Verdict
@@ -34,6 +34,9 @@ from ..gripper import (
 from ..profiles import MsgProfile, ProfileBase, load_profile
 from ..settings import Settings
 from ..urls import ConnectionURL
+
+if TYPE_CHECKING:
+    import asyncio
 
 DEFAULT_PROFILE = "msg-150"  # the MSG cannot report its rail length: profile= chooses another
 POLL_PERIOD = 0.01  # s between status polls while waiting for a motion; a CAN round trip is ~0.2 ms
@@ -605,6 +608,15 @@ class MsgGripper(Gripper):
 
     def _state(self) -> GripperState:
         return self._state_of(self._link.status())
+
+    def _read_on(self, loop: asyncio.AbstractEventLoop) -> Callable[[], None] | None:
+        link = self._link
+        if not isinstance(link, _CanLink):
+            return None  # the UART client reads on the calling thread
+        bus = link.driver.bus  # shared by the nodes on it; the same object after a reopen
+        if not bus.attach_loop(loop):
+            return None
+        return lambda: bus.detach_loop(loop)
 
     def _start_state(self, done: StateCallback) -> StartedRead | None:
         # CAN only: the UART client reads its replies on the calling thread (a worker reads it instead)
