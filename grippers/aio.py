@@ -5,7 +5,9 @@ Which way, and why: the awaitables sit on the same backends and sans-IO cores as
 native: the backend starts the read (:meth:`grippers.Gripper._start_state`), the driver's reader completes it,
 and the reply reaches the event loop through one ``call_soon_threadsafe``: no worker thread and no thread hop
 on the way out (issue 20 §2; the WSG's exchange engine and the STEPFOC bus complete a callback from the reader
-that already owns the transport, as python-can's notifier does for a bus without a file descriptor). Motions
+that already owns the transport, as python-can's notifier does for a bus without a file descriptor). Where the
+transport has one (an MSG on SocketCAN), the loop itself is that reader while the face is open
+(``read_on_loop``; drivers/stepfoc/can_reader.py), so the reply is decoded where its task awaits it. Motions
 and the other calls run the threaded gripper's own code on a small, fixed set of worker threads started at
 open (:data:`WORKERS`, plus one that runs only stop, fast stop and acknowledge): a motion lasts seconds, so a
 hop costs nothing there, while the backends are where units change and where the grasp outcome, the MSG's

@@ -60,8 +60,6 @@ from .can_protocol import (
     GripperCommand,
     GripperStatus,
     Message,
-    Watchdog,
-    WatchdogAction,
     encode_command,
     encode_frame,
     pack_id,
@@ -71,6 +69,7 @@ from .can_reader import BusReader
 from .can_session import CanSession, Delivery, DuplicateFound, Heartbeat, Key, NodeFacts, is_stepfoc_frame
 from .dissect import log_can_frame
 from .motion import CalibrationTracker, Reading, Verdict
+from .node_setup import NodeSetup
 
 __all__ = ["CalibrationWatch", "StepfocBus", "StepfocNode", "open_node", "parse_url"]
 
@@ -738,8 +737,9 @@ class StatusRead:
             req.cancel()
 
 
-class StepfocNode(Closing):
-    """One MSG gripper (node 0..15) on a :class:`StepfocBus`. Values are the device's: bytes 0..255 and mA."""
+class StepfocNode(NodeSetup, Closing):
+    """One MSG gripper (node 0..15) on a :class:`StepfocBus`. Values are the device's: bytes 0..255 and mA.
+    Its identity, watchdog and heartbeat settings are :class:`~.node_setup.NodeSetup`'s."""
 
     def __init__(
         self,
@@ -1081,64 +1081,6 @@ class StepfocNode(Closing):
     encoder = _RemoteRead[EncoderData](
         Cmd.ENCODER, "Remote frame 28: encoder position (ticks) and velocity (ticks/s)."
     )
-
-    def ping(self, timeout: float | None = None) -> bool:
-        """Remote frame 10; True when the node answers in time, False when it does not."""
-        try:
-            self._remote(Cmd.PING, timeout)
-        except GripperTimeout:
-            return False
-        return True
-
-    def set_node_id(self, new: int) -> None:
-        """Command 11; this handle follows the node to its new id. Lost at reset unless saved (13)."""
-        if not isinstance(new, int) or not 0 <= new <= MAX_NODE:
-            raise LimitError(f"node {new!r} outside 0..{MAX_NODE}", device=self.device, command="set_can_id")
-        self.send(Cmd.SET_CAN_ID, new)
-        self._node = new
-
-    def save_config(self) -> None:
-        self.send(Cmd.SAVE_CONFIG)
-
-    def reset(self) -> None:
-        """Command 14: the driver reboots and loses its calibration (docs/protocols.md §2)."""
-        self.send(Cmd.RESET)
-        self.last_command = None
-
-    def watchdog(self, ms: int, action: WatchdogAction | int = WatchdogAction.IDLE) -> None:
-        """Command 15: the node raises a timeout error if no frame reaches it within ``ms`` (0 = off)."""
-        if not 0 <= ms <= 0xFFFFFFFF:
-            raise LimitError(
-                f"watchdog time {ms} ms outside 0..2^32-1", device=self.device, command="watchdog"
-            )
-        self.send(Cmd.WATCHDOG, Watchdog(ms, WatchdogAction(action)))
-
-    def heartbeat(self, ms: int) -> None:
-        """Command 30: the node sends a heartbeat (9) every ``ms`` (0 = off, the default)."""
-        if not 0 <= ms <= 0xFFFFFFFF:
-            raise LimitError(
-                f"heartbeat period {ms} ms outside 0..2^32-1", device=self.device, command="heartbeat_setup"
-            )
-        self.send(Cmd.HEARTBEAT_SETUP, ms)
-
-    @property
-    def last_heartbeat(self) -> float | None:
-        """``time.monotonic()`` of the last heartbeat received from this node."""
-        return self.bus.last_heartbeat(self._node)
-
-    def wait_heartbeat(self, timeout: float = 1.0) -> float:
-        """Block until the next heartbeat arrives; returns its monotonic time."""
-        bus, node = self.bus, self._node
-        cond = bus.heartbeat_condition(node)
-        with cond:
-            before = bus.last_heartbeat(node)
-            if not cond.wait_for(lambda: bus.last_heartbeat(node) != before, timeout):
-                raise GripperTimeout(
-                    f"no heartbeat within {timeout:g} s", device=self.device, command="heartbeat"
-                )
-            at = bus.last_heartbeat(node)
-            assert at is not None
-            return at
 
     def abandon(self, thread_ident: int) -> None:
         """Give up the request thread ``thread_ident`` waits for (:meth:`StepfocBus.abandon`)."""

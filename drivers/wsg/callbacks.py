@@ -100,10 +100,14 @@ class CallbackEngine(ExchangeEngine):
                 with self._lock:
                     self._bg.notify()
 
-    def withdraw(self, sub: Submitted) -> None:
+    def withdraw(self, sub: Submitted, error: GripperError | None = None) -> None:
         """Give ``sub`` up (idempotent, never blocks): dropped from the queue, or its exchange abandoned as a
-        cancelled blocking call's is (late reply swallowed); ``done`` is no longer called."""
+        cancelled blocking call's is (late reply swallowed); ``done`` is no longer called, but once with
+        ``error`` when one is given (a timeout the reader keeps) and ``sub`` was not over yet."""
         with self._lock:
+            tell = error is not None and not sub.over
+            if error is not None and not tell:
+                return  # answered or failed meanwhile: that outcome stands
             sub.over = True
             exchange = sub.exchange
             if exchange is None:
@@ -119,6 +123,9 @@ class CallbackEngine(ExchangeEngine):
             barrier, sub.barrier = sub.barrier, None
         if barrier is not None:
             self.withdraw(barrier)
+        if tell:
+            assert error is not None
+            sub.done(None, error)
 
     def _late(self, now: float) -> bool:
         """A sent callback request's deadline has passed (lock held)."""
@@ -133,11 +140,9 @@ class CallbackEngine(ExchangeEngine):
                 for sub in self._notify.values()
                 if sub.deadline is not None and now >= sub.deadline and not sub.over
             ]
-        for sub in late:
-            self.withdraw(sub)  # abandoned: its late reply is swallowed
-            sub.over = False  # withdraw() marked it over; its caller is told once, here
+        for sub in late:  # abandoned (its late reply swallowed), and its caller told once
             text = f"no reply within {sub.timeout:g} s"
-            sub.fail(GripperTimeout(text, device=self.device, command=command_name(sub.command)))
+            self.withdraw(sub, GripperTimeout(text, device=self.device, command=command_name(sub.command)))
 
     def _open(self, sub: Submitted, now: float) -> bytes | None:
         """Take ``sub``'s slot and register it (lock held): the bytes to send; None while the slot is held."""

@@ -118,6 +118,27 @@ class _Link:
     def identity(self) -> dict[str, Any]:
         raise NotImplementedError
 
+    def serial(self) -> str | None:
+        """What tells this device from another on reconnection (None: the link cannot say)."""
+        return None
+
+    def servo(self, position: int, speed: int, current_ma: int, *, first: bool) -> bool:
+        """Send one streamed target unless the gripper already heads there (``first``: always send).
+        True if a frame went out."""
+        raise NotImplementedError
+
+    def alive(self) -> bool:
+        raise NotImplementedError
+
+    def reopened(self) -> _Link:
+        """After the link was lost: the link that reaches the device again (this one, or a fresh one the
+        caller swaps in and whose old one it closes); raises while the device does not answer."""
+        raise NotImplementedError
+
+    def read_on(self, loop: asyncio.AbstractEventLoop) -> Callable[[], None] | None:
+        """:meth:`Gripper._read_on` for this link (default: the driver keeps its reader)."""
+        return None
+
     def close(self) -> None:
         raise NotImplementedError
 
@@ -227,6 +248,37 @@ class _CanLink(_Link):
             "extra": {"node": self.node_id, "batch_date": info.batch_date},
         }
 
+    def serial(self) -> str | None:
+        serial = self.identity().get("serial")
+        return None if serial is None else str(serial)
+
+    def servo(self, position: int, speed: int, current_ma: int, *, first: bool) -> bool:
+        node = self.driver
+        cmd = node.make_command(position, speed, current_ma)
+        if cmd == node.last_command and not first:
+            return False  # the gripper already heads there; the firmware would take it as "same"
+        # One 61 per target; returns with its 60 reply. A first frame equal to the last 61 (the "same
+        # command" latch, docs/protocols.md §2) is made to differ by the node itself (send_command).
+        node.send_command(cmd)
+        return True
+
+    def alive(self) -> bool:
+        bus, _ = self._buses.get(self._key, (None, 0))
+        return bus is not None and bool(bus.alive)
+
+    def reopened(self) -> _Link:
+        # A bus whose interface went down or away is opened afresh (drivers/canlink.py); one that never
+        # failed stays: the node answering again is the reconnection.
+        self.driver.bus.reopen()
+        self.status()
+        return self
+
+    def read_on(self, loop: asyncio.AbstractEventLoop) -> Callable[[], None] | None:
+        bus = self.driver.bus  # shared by the nodes on it; the same object after a reopen
+        if not bus.attach_loop(loop):
+            return None
+        return lambda: bus.detach_loop(loop)
+
     def _release_bus(self) -> None:
         with self._buses_lock:
             bus, count = self._buses[self._key]
@@ -247,6 +299,7 @@ class _UartLink(_Link):
         self.port = port
         self.driver = StepfocUart(port, baudrate=baudrate, timeout=timeout, current_limit_ma=current_limit)
         self._go_lock = threading.Lock()
+        self._servo_last: tuple[int, int, int] | None = None  # the last streamed target sent
 
     def status(self) -> _Status:
         info = self.driver.gripinfo()
@@ -310,6 +363,26 @@ class _UartLink(_Link):
             "hardware": str(info.hardware_version),
             "extra": {"node": info.can_id, "batch_date": info.batch_date, "port": self.port},
         }
+
+    def servo(self, position: int, speed: int, current_ma: int, *, first: bool) -> bool:
+        if (position, speed, current_ma) == self._servo_last and not first:
+            return False
+        self.go(position, speed, current_ma)  # Gripvel, Gripcur, Grippos (docs/protocols.md §2)
+        self._servo_last = (position, speed, current_ma)
+        return True
+
+    def alive(self) -> bool:
+        return not self.driver.closed
+
+    def reopened(self) -> _Link:
+        d = self.driver
+        fresh = _UartLink(self.port, d._ser.baudrate, d.current_limit_ma, d.timeout)
+        try:
+            fresh.status()
+        except BaseException:
+            fresh.close()
+            raise
+        return fresh
 
     def close(self) -> None:
         self.driver.close()
@@ -610,13 +683,7 @@ class MsgGripper(Gripper):
         return self._state_of(self._link.status())
 
     def _read_on(self, loop: asyncio.AbstractEventLoop) -> Callable[[], None] | None:
-        link = self._link
-        if not isinstance(link, _CanLink):
-            return None  # the UART client reads on the calling thread
-        bus = link.driver.bus  # shared by the nodes on it; the same object after a reopen
-        if not bus.attach_loop(loop):
-            return None
-        return lambda: bus.detach_loop(loop)
+        return self._link.read_on(loop)  # CAN only: the UART client reads on the calling thread
 
     def _start_state(self, done: StateCallback) -> StartedRead | None:
         # CAN only: the UART client reads its replies on the calling thread (a worker reads it instead)
@@ -686,26 +753,13 @@ class MsgGripper(Gripper):
 
     def _servo_begin(self) -> None:
         self._servo_first = True
-        self._servo_last: tuple[int, int, int] | None = None
 
     def _servo(self, target: Any) -> bool:
         position, speed = self._position_byte(target.width), self._speed_byte(target.speed)
         current = self._maps.default_current_ma if target.force is None else self._current_ma(target.force)
-        link = self._link
-        if isinstance(link, _CanLink):
-            node = link.driver
-            cmd = node.make_command(position, speed, current)
-            if cmd == node.last_command and not self._servo_first:
-                return False  # the gripper already heads there; the firmware would take it as "same"
-            # One 61 per target; returns with its 60 reply. A first frame equal to the last 61 (the "same
-            # command" latch, docs/protocols.md §2) is made to differ by the node itself (send_command).
-            node.send_command(cmd)
-        else:
-            if (position, speed, current) == self._servo_last and not self._servo_first:
-                return False
-            link.go(position, speed, current)  # UART: Gripvel, Gripcur, Grippos (docs/protocols.md §2)
+        if not self._link.servo(position, speed, current, first=self._servo_first):
+            return False
         self._servo_first = False
-        self._servo_last = (position, speed, current)
         self._mode, self._held = "move", False
         return True
 
@@ -716,36 +770,19 @@ class MsgGripper(Gripper):
         self._link.driver.resume(thread_ident)
 
     def _link_alive(self) -> bool:
-        link = self._link
-        if isinstance(link, _CanLink):
-            bus, _ = _CanLink._buses.get(link._key, (None, 0))
-            return bus is not None and bus.alive
-        return not link.driver.closed
+        return self._link.alive()
 
     def _identity(self) -> dict[str, str]:
-        if not isinstance(self._link, _CanLink):
-            return {}  # the UART protocol reports no serial: nothing to ask
-        serial = self._link.identity().get("serial")
-        return {} if serial is None else {"serial": str(serial)}
+        serial = self._link.serial()  # the UART protocol reports none: nothing to compare
+        return {} if serial is None else {"serial": serial}
 
     def _reconnect(self) -> None:
         link = self._link
-        if isinstance(link, _UartLink):
-            d = link.driver
-            fresh = _UartLink(link.port, d._ser.baudrate, d.current_limit_ma, self.timeout)
-            try:
-                fresh.status()
-            except BaseException:
-                fresh.close()
-                raise
-            self._link, old = fresh, link
-            old.close()
-        else:
-            # A bus whose interface went down or away is opened afresh (drivers/canlink.py); one that never
-            # failed stays: the node answering again is the reconnection.
-            link.driver.bus.reopen()
-            link.status()
-            self._check_same_device(self._identity())  # another MSG put on this node is refused
+        fresh = link.reopened()
+        if fresh is not link:
+            self._link = fresh
+            link.close()
+        self._check_same_device(self._identity())  # another MSG put on this node is refused
         # A gripper that was power-cycled has lost its calibration (docs/protocols.md §2) and anything
         # it held.
         self._mode, self._held = "idle", False
