@@ -24,7 +24,6 @@ import serial
 
 from ..closing import Closing
 from ..errors import (
-    CommandFailed,
     ConnectionLost,
     GripperError,
     GripperTimeout,
@@ -34,12 +33,11 @@ from ..errors import (
 )
 from .dissect import log_uart_line
 from .motion import Verdict
+from .uart_calibration import UartCalibration
 from .uart_protocol import (
     BAUDRATE,
     COMMANDS,
     MAX_CURRENT_MA,
-    MODE_CALIBRATE,
-    MODE_IDLE,
     Answer,
     GripInfo,
     GripInfoAssembler,
@@ -51,9 +49,6 @@ from .uart_protocol import (
     is_unknown_command,
     parse_mode,
 )
-
-# a calibration ends with the jaws at the closed stop (position 255, docs/protocols.md §2)
-CAL_AT_CLOSED = 250
 
 T = TypeVar("T")
 
@@ -117,7 +112,7 @@ class StepfocUart(Closing):
         self._lock = threading.RLock()
         self._abandoned: set[int] = set()  # threads whose caller gave up (abandon(), module docstring)
         self._closed = False
-        self._cal_seen = False  # #Mode showed calibration mode since the last Gripcal
+        self._calibration = UartCalibration(self)  # what #Mode showed of a calibration, its verdicts
         try:
             self._ser = serial.serial_for_url(
                 self.port, baudrate=baudrate, timeout=min(_POLL_S, self.timeout), write_timeout=self.timeout
@@ -157,18 +152,10 @@ class StepfocUart(Closing):
         behaviour a client must survive"), so the end is read from ``#Mode`` (:meth:`calibration_ended`).
         ``timeout`` bounds the whole wait (default 30 s) when waiting, else the answer line.
         """
-        if not wait:
-            self._cal_seen = False
-            self._exchange("Gripcal", None, self._single("Gripcal"), timeout)
-            return
-        self.start_calibration()
-        deadline = time.monotonic() + (30.0 if timeout is None else timeout)
-        while not self.calibration_ended():
-            if time.monotonic() >= deadline:
-                raise GripperTimeout(
-                    "calibration not finished before the timeout", device=self.device, command="Gripcal"
-                )
-            time.sleep(poll)
+        if wait:
+            self._calibration.run(30.0 if timeout is None else timeout, poll)
+        else:
+            self._calibration.send(timeout)
 
     def mode(self, *, timeout: float | None = None) -> int | None:
         """The driver mode ``#Mode`` prints (0 idle, 7 calibrating, …); None when it prints nothing, which
@@ -202,84 +189,18 @@ class StepfocUart(Closing):
         """``#Gripcal`` after ``#Error``: with any driver error the firmware forces mode 0 at its next tick,
         so the calibration would not run while ``#Gripinfo`` showed nothing wrong (docs/protocols.md §2).
         CommandFailed naming the error instead. Resets what :meth:`calibration_verdict` has seen."""
-        try:
-            causes = self.errors()
-        except (NotSupported, GripperTimeout):
-            causes = []  # a firmware without #Error: the mode check below still catches a calibration that
-            # never ran
-        if causes:
-            raise CommandFailed(
-                f"cannot calibrate: driver error active ({', '.join(causes)}); acknowledge it first",
-                status_name="error",
-                device=self.device,
-                command=command,
-            )
-        self._cal_seen = False
-        self._exchange("Gripcal", None, self._single("Gripcal"), None)
+        self._calibration.start(command)
 
     def calibration_verdict(self, *, command: str = "Gripcal") -> Verdict:
         """RUNNING while ``#Mode`` says calibrating; ENDED once it idles after it was SEEN calibrating, with
         the calibrated bit set and the jaws at the closed stop; RETRY when it idles without having been seen
         running (it never started, or ended between two polls). CommandFailed when it ended any other way
         (aborted by a motion command, an error - named from ``#Error`` - or the calibration time-out)."""
-        try:
-            mode = self.mode()
-        except NotSupported:  # a firmware without #Mode: only a first calibration can be told
-            return Verdict.ENDED if self.gripinfo().calibrated else Verdict.RUNNING
-        if mode == MODE_CALIBRATE:
-            self._cal_seen = True
-            return Verdict.RUNNING
-        if mode != MODE_IDLE:
-            raise CommandFailed(
-                "calibration aborted: the driver left calibration mode (a motion command?)",
-                status_name="aborted",
-                device=self.device,
-                command=command,
-            )
-        try:
-            causes = self.errors()
-        except (NotSupported, GripperTimeout):
-            causes = []
-        if causes:
-            raise CommandFailed(
-                f"calibration stopped by a driver error: {', '.join(causes)}",
-                status_name="error",
-                device=self.device,
-                command=command,
-            )
-        if not self._cal_seen:
-            return Verdict.RETRY
-        info = self.gripinfo()
-        position = self.position()
-        if info.estop:
-            raise CommandFailed(
-                "calibration aborted by the e-stop",
-                status_name="fast_stop",
-                device=self.device,
-                command=command,
-            )
-        if not info.calibrated:
-            return Verdict.RETRY  # the firmware's calibration time-out: a new 62 starts from the beginning
-        if position < CAL_AT_CLOSED:
-            raise CommandFailed(
-                f"calibration aborted or failed: the driver idles at position {position}",
-                status_name="aborted",
-                device=self.device,
-                command=command,
-            )
-        return Verdict.ENDED
+        return self._calibration.verdict(command)
 
     def calibration_ended(self, *, command: str = "Gripcal") -> bool:
         """True once the calibration ended (see :meth:`calibration_verdict`); CommandFailed for a RETRY."""
-        verdict = self.calibration_verdict(command=command)
-        if verdict is Verdict.RETRY:
-            raise CommandFailed(
-                "calibration did not run to its end (not seen running, or calibrated bit 0)",
-                status_name="aborted",
-                device=self.device,
-                command=command,
-            )
-        return verdict is Verdict.ENDED
+        return self._calibration.ended(command)
 
     def position(self, setpoint: int | None = None, *, timeout: float | None = None) -> int:
         """The ACTUAL position byte; with ``setpoint`` also activates and starts the motion (firmware)."""

@@ -24,6 +24,7 @@ from .callbacks import CallbackEngine, Submitted
 from .commands import AUTO_UPDATE_COMMANDS, Cmd, command_name, encode_request
 from .exchanges import POLL, SILENT_GAP
 from .handles import Subscription
+from .motion_exchanges import MotionExchanges
 from .transports import (
     DEFAULT_BAUDRATE,
     DEFAULT_CAN_RECV_ID,
@@ -53,8 +54,11 @@ _FROM_URL_PARAMETERS: dict[str, tuple[str, ...]] = {
 _MIN_PERIOD_MS = 10  # docs/protocols.md §1: auto-update period minimum
 
 
-class WsgConnection(CallbackEngine):
-    """One connection to a WSG: requests from any thread, a reader thread for what nobody waits for."""
+class WsgConnection(CallbackEngine, MotionExchanges):
+    """One connection to a WSG: requests from any thread, a reader thread for what nobody waits for.
+
+    Both bases extend the one :class:`~.exchanges.ExchangeEngine`: exchanges answered by callback, and
+    the steps of a motion command."""
 
     def __init__(
         self,

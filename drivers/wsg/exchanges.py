@@ -29,6 +29,9 @@ Stops first (issue 23 §1): STOP and FAST STOP never wait for a stale marker of 
 each one fences the motion requests still waiting for their slot: those end with E_CMD_ABORTED instead of
 going out after the stop (a servo target queued behind a running move would otherwise start a new motion the
 moment the stop ended the old one).
+
+A motion command's steps (its first reply now, its end later) are built from these in
+:mod:`.motion_exchanges`.
 """
 
 from __future__ import annotations
@@ -431,53 +434,6 @@ class ExchangeEngine(LineReader):
         except BaseException:
             self._rescue()
             raise
-
-    def _start(
-        self, cmd: int, payload: bytes, timeout: float | None
-    ) -> tuple[Exchange, Packet, float, float]:
-        """Send a motion command and wait for its first reply: (exchange, first reply, deadline, total).
-
-        The caller stays registered with the exchange (an interrupt before :meth:`_finish` or :meth:`_done`
-        is rescued like one inside them)."""
-        start = time.monotonic()
-        total = self.motion_timeout if timeout is None else timeout
-        ack_wait = min(total, self.timeout)
-        try:
-            exchange = self._begin(cmd, payload, start + ack_wait)
-            first = None
-            if self._reading == get_ident():
-                first = self._read_own_reply(exchange, ack_wait)
-            if first is None:
-                first = self._wait(exchange, start + ack_wait, final=False, waited=ack_wait, keep=True)
-            else:
-                with self._lock:
-                    self._callers[get_ident()] = exchange  # kept until the motion's caller is done
-        except GripperError:
-            raise
-        except BaseException:
-            self._rescue()
-            raise
-        return exchange, first, start + total, total
-
-    def motion_outstanding(self) -> bool:
-        """Whether a motion command (20h, 21h, 25h, 26h) on this connection still waits for its end."""
-        return any(exchange.command in MOTIONS for exchange in self._session.outstanding())
-
-    def _done(self) -> None:
-        """The motion's caller returns without waiting for its end (or ends on its first reply)."""
-        with self._lock:
-            self._leave()
-
-    def _finish(self, exchange: Exchange, deadline: float, waited: float, abandon: bool = True) -> None:
-        """Wait for a motion's final reply; CommandFailed unless it is E_SUCCESS."""
-        try:
-            final = self._wait(exchange, deadline, final=True, abandon=abandon, waited=waited)
-        except GripperError:
-            raise
-        except BaseException:
-            self._rescue(abandon)
-            raise
-        self._check(exchange.command, final)
 
     def request(
         self, cmd: int, payload: bytes = b"", *, timeout: float | None = None, check: bool = False

@@ -1,12 +1,16 @@
-"""What is served: the liveliness tokens ``grippers/<name>`` visible from an endpoint (``grippers probe``)."""
+"""What is served: the liveliness tokens ``grippers/<name>`` visible from an endpoint (``grippers probe``),
+and whether a name is served already (``grippers serve`` refuses to serve it twice)."""
 
 from __future__ import annotations
 
+from typing import Any
 from urllib.parse import quote
 
-from ..errors import URLError
+from ..errors import GripperError, URLError
 from ..urls import parse_url
 from . import protocol
+
+DUPLICATE_WAIT_S = 1.0  # how long refuse_duplicate() listens for another server of the same name
 
 
 def served_names(connect: list[str], timeout: float = 2.0, *, config_file: str | None = None) -> list[str]:
@@ -41,3 +45,35 @@ def served_urls(target: str, timeout: float = 2.0) -> list[str]:
     names = served_names(connect, timeout, config_file=params.get("zenoh_config"))
     rest = "&".join(f"{k}={quote(v, safe='/:,.[]')}" for k, v in params.items())
     return [f"zenoh://{n}?{rest}" for n in names]
+
+
+def refuse_duplicate(session: Any, name: str, *, declared: bool = False) -> None:
+    """Two servers of one name would both answer every query and mix their streams: the second refuses.
+
+    Asked (on the serving ``session``) before anything of ours is declared, and again once everything is
+    (``declared``, Server.start): a peer's declarations reach a session that just connected a moment after it
+    opened, so the first question alone could miss a server that is there. Answers from our own session do not
+    count."""
+    from .session import import_zenoh
+
+    zenoh = import_zenoh()
+    own = str(session.zid())
+    replies = session.get(
+        protocol.info_key(name),
+        consolidation=zenoh.ConsolidationMode.NONE,
+        timeout=DUPLICATE_WAIT_S,
+    )
+    for reply in replies:
+        replier = getattr(reply.replier_id, "zid", None)  # an EntityGlobalId: session and entity
+        if reply.ok is None or str(replier) == own or (declared and replier is None):
+            continue  # ours, or (once ours is declared) a reply that does not say whose
+        try:
+            url = str(protocol.decode_json(reply.ok.payload.to_bytes(), "info").get("url", "?"))
+        except Exception:
+            url = "?"
+        raise GripperError(
+            f"{name!r} is already served on this Zenoh network (it serves {url}); "
+            "stop that server or serve this gripper under another NAME=",
+            device=name,
+            command="serve",
+        )

@@ -18,6 +18,7 @@ from typing import Any
 from ..errors import ConnectionLost, GripperError, ProtocolError
 from ..gripper import Gripper
 from . import payloads, protocol
+from .discovery import refuse_duplicate
 from .lease import Lease
 from .session import DEFAULT_LISTEN, import_zenoh, make_config, open_session, own_locators
 
@@ -25,7 +26,6 @@ log = logging.getLogger("grippers.remote")  # serve's own lines: lost, back, lea
 
 CLOSE_JOIN_S = 5.0
 RETRY_LOST_S = 1.0  # how often a lost gripper is tried again (a reconnect=true URL brings it back)
-DUPLICATE_WAIT_S = 1.0  # how long start() listens for another server of the same name
 
 
 class ServedGripper:
@@ -57,7 +57,7 @@ class ServedGripper:
         zenoh = import_zenoh()
         session = self.server.session
         callback = zenoh.handlers.Callback
-        self._refuse_duplicate()
+        refuse_duplicate(session, self.name)
         self._read_info()
         self._publisher = session.declare_publisher(protocol.state_key(self.name))
         self._declared.append(self._publisher)
@@ -102,35 +102,6 @@ class ServedGripper:
             profile_assumed=bool(getattr(self.gripper, "_profile_assumed", False)),
         )
         self._info_doc = protocol.dumps(doc)
-
-    def _refuse_duplicate(self, declared: bool = False) -> None:
-        """Two servers of one name would both answer every query and mix their streams: the second refuses.
-
-        Asked before anything of ours is declared, and again once everything is (Server.start): a peer's
-        declarations reach a session that just connected a moment after it opened, so the first question
-        alone could miss a server that is there. Answers from our own session do not count."""
-        zenoh = import_zenoh()
-        session = self.server.session
-        own = str(session.zid())
-        replies = session.get(
-            protocol.info_key(self.name),
-            consolidation=zenoh.ConsolidationMode.NONE,
-            timeout=DUPLICATE_WAIT_S,
-        )
-        for reply in replies:
-            replier = getattr(reply.replier_id, "zid", None)  # an EntityGlobalId: session and entity
-            if reply.ok is None or str(replier) == own or (declared and replier is None):
-                continue  # ours, or (once ours is declared) a reply that does not say whose
-            try:
-                url = str(protocol.decode_json(reply.ok.payload.to_bytes(), "info").get("url", "?"))
-            except Exception:
-                url = "?"
-            raise GripperError(
-                f"{self.name!r} is already served on this Zenoh network (it serves {url}); "
-                "stop that server or serve this gripper under another NAME=",
-                device=self.name,
-                command="serve",
-            )
 
     def close(self) -> None:
         self._stop.set()
@@ -484,7 +455,7 @@ class Server:
                 self.served.append(served)
                 served.start()
             for served in self.served:
-                served._refuse_duplicate(declared=True)
+                refuse_duplicate(self.session, served.name, declared=True)
             given = [e for e in self._listen if e.rsplit(":", 1)[-1] != "0"]
             self.locators = own_locators(self.session) or given
         except BaseException:

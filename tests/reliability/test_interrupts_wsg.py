@@ -31,7 +31,15 @@ from grippers.drivers.wsg.commands import Cmd, SystemFlags
 
 _ENGINE = {
     str(Path(wsg_package.__file__).parent / name)
-    for name in ("client.py", "connection.py", "exchanges.py", "reading.py", "handles.py", "interrupts.py")
+    for name in (
+        "client.py",
+        "connection.py",
+        "exchanges.py",
+        "motion_exchanges.py",
+        "reading.py",
+        "handles.py",
+        "interrupts.py",
+    )
 }
 
 

@@ -1,0 +1,71 @@
+"""Motion exchanges of a WSG connection: the first reply now, the end of the motion later.
+
+A motion command (20h, 21h, 25h, 26h) answers E_CMD_PENDING at once and its final reply when the jaws stop,
+seconds later. Between the two its caller may return (``wait=False``: a :class:`~.handles.Pending` waits
+later) or wait on, and a Ctrl-C may land anywhere in between: so the caller stays registered with its exchange
+from the first reply until it is done with it, and an interrupt there is rescued like one inside an exchange
+(:mod:`.exchanges`, whose send, wait and rescue these steps are built from).
+"""
+
+from __future__ import annotations
+
+import time
+from threading import get_ident
+
+from ..errors import GripperError
+from .exchanges import MOTIONS, ExchangeEngine
+from .protocol import Packet
+from .session import Exchange
+
+__all__ = ["MotionExchanges"]
+
+
+class MotionExchanges(ExchangeEngine):
+    """:class:`~.exchanges.ExchangeEngine` plus the steps of a motion command (see the module docstring)."""
+
+    def _start(
+        self, cmd: int, payload: bytes, timeout: float | None
+    ) -> tuple[Exchange, Packet, float, float]:
+        """Send a motion command and wait for its first reply: (exchange, first reply, deadline, total).
+
+        The caller stays registered with the exchange (an interrupt before :meth:`_finish` or :meth:`_done`
+        is rescued like one inside them)."""
+        start = time.monotonic()
+        total = self.motion_timeout if timeout is None else timeout
+        ack_wait = min(total, self.timeout)
+        try:
+            exchange = self._begin(cmd, payload, start + ack_wait)
+            first = None
+            if self._reading == get_ident():
+                first = self._read_own_reply(exchange, ack_wait)
+            if first is None:
+                first = self._wait(exchange, start + ack_wait, final=False, waited=ack_wait, keep=True)
+            else:
+                with self._lock:
+                    self._callers[get_ident()] = exchange  # kept until the motion's caller is done
+        except GripperError:
+            raise
+        except BaseException:
+            self._rescue()
+            raise
+        return exchange, first, start + total, total
+
+    def motion_outstanding(self) -> bool:
+        """Whether a motion command (20h, 21h, 25h, 26h) on this connection still waits for its end."""
+        return any(exchange.command in MOTIONS for exchange in self._session.outstanding())
+
+    def _done(self) -> None:
+        """The motion's caller returns without waiting for its end (or ends on its first reply)."""
+        with self._lock:
+            self._leave()
+
+    def _finish(self, exchange: Exchange, deadline: float, waited: float, abandon: bool = True) -> None:
+        """Wait for a motion's final reply; CommandFailed unless it is E_SUCCESS."""
+        try:
+            final = self._wait(exchange, deadline, final=True, abandon=abandon, waited=waited)
+        except GripperError:
+            raise
+        except BaseException:
+            self._rescue(abandon)
+            raise
+        self._check(exchange.command, final)
