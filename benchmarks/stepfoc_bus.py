@@ -87,7 +87,9 @@ def _polling_slice(bus: StepfocBus, seconds: float) -> tuple[float, int, float]:
     threads = [threading.Thread(target=poller, args=(i,), daemon=True) for i in range(NODES)]
     for t in threads:
         t.start()
-    reader_cpu = thread_cpu_clock(bus._thread.ident)  # the bus's reader thread
+    reader = bus._reader.thread  # the bus's reader thread
+    assert reader is not None and reader.ident is not None
+    reader_cpu = thread_cpu_clock(reader.ident)
     start.wait()
     r0, w0 = reader_cpu(), time.perf_counter()
     time.sleep(seconds)

@@ -72,6 +72,11 @@ class BusReader:
         self._timer: asyncio.TimerHandle | None = None
         self._stopped = True
 
+    @property
+    def thread(self) -> threading.Thread | None:
+        """The reader thread (None, or not alive, while a loop reads)."""
+        return self._thread
+
     # -------------------------------------------------------------------------------------- any thread
 
     def start(self) -> None:

@@ -68,14 +68,18 @@ def test_run_refuses_an_unknown_target() -> None:
 
 
 @pytest.mark.udp_multicast  # target 13's MSG runs over python-can's udp_multicast bus
-def test_servo_and_asyncio_targets_run_to_a_verdict(capsys: pytest.CaptureFixture[str]) -> None:
-    """Targets 11 (servo) and 13 (asyncio) drive both families end to end: a driver change that breaks them
-    shows here as an error line, not at the next full benchmark run (11 and 12 once failed unseen)."""
-    run.main(["--quick", "--only", "11,13"])
+def test_targets_on_driver_internals_run_to_a_verdict(capsys: pytest.CaptureFixture[str]) -> None:
+    """Targets 5 (the STEPFOC bus's reader), 11 (servo) and 13 (asyncio) reach into the drivers: a driver
+    change that breaks them shows here as an error line, not at the next full benchmark run (11 and 12 once
+    failed unseen, and 5 when the bus's reader moved to its own class)."""
+    run.main(["--quick", "--only", "5,11,13"])
     out = capsys.readouterr().out
-    verdicts = {ln.split("  ")[0]: ln.split()[-1] for ln in out.splitlines() if ln[:3] in ("11 ", "13 ")}
+    verdicts = {
+        ln.split("  ")[0]: ln.split()[-1] for ln in out.splitlines() if ln[:3] in ("5 s", "11 ", "13 ")
+    }
     assert "(error)" not in out
     assert set(verdicts) >= {
+        "5 stepfoc bus, 16 nodes",
         "11 servo wsg (0.25 Hz sine @100 Hz)",
         "11 servo msg (0.25 Hz sine @100 Hz)",
         "13 aio state() WSG over TCP",
