@@ -288,7 +288,8 @@ class StepfocBus(Closing):
         self.bus = bus
         self._reopen_lock = threading.Lock()
         self._lock = threading.Lock()  # guards the session and the tables below
-        self._session = CanSession(self.device)  # the protocol: which frame answers which request
+        # the protocol: which frame answers which request; udp_multicast hands our own frames back
+        self._session = CanSession(self.device, echoes=type(bus).__name__ == "UdpMulticastBus")
         self._waiters: dict[Key, PendingRequest] = {}  # the request that holds each key
         self._queued: dict[Key, deque[PendingRequest]] = {}  # requests waiting for their key, in order
         self._abandoned: set[int] = set()  # threads whose caller gave up (abandon(), the module docstring)
@@ -442,6 +443,11 @@ class StepfocBus(Closing):
         device = device or self.device
         self._check_open(device, command)
         msg = standard_message(frame.arbitration_id, frame.data, frame.remote)
+        if self._session.echoes:  # told before it goes: the echo may be read before send() returns
+            with self._lock:
+                self._session.sending(
+                    frame.arbitration_id, frame.data, remote=frame.remote, now=time.monotonic()
+                )
         try:
             self.bus.send(msg, timeout=timeout)
         except can.CanError as exc:

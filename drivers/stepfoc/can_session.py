@@ -23,6 +23,13 @@ and when it stops waiting for it (:meth:`CanSession.gave_up`). Everything a fram
   node as duplicated (:class:`DuplicateFound`, once; :attr:`NodeFacts.duplicate` from then on), and the
   client refuses every later request to it. An unsolicited frame at any other time is only ignored: a bus
   tool may send anything.
+* **Our own frames.** A bus that delivers what this client sends back to it (python-can's ``udp_multicast``:
+  the operating system loops every multicast datagram back to its sender, whatever python-can's
+  ``receive_own_messages`` says) would make each of our requests count twice, once as another host's, so a
+  twin's reply would always find a request to answer and duplicate node ids would go unseen. With
+  ``echoes=True`` the session is told each frame before it goes out (:meth:`CanSession.sending`) and drops the
+  first identical frame that comes back, in order, within :data:`ECHO_WINDOW_S`. Identical frames are
+  interchangeable, so which of two identical frames is taken for the echo changes no count.
 * **Per node facts** (:class:`NodeFacts`): the error bit of the last identifier it sent, its last status,
   the duplicate finding and the time of its last heartbeat (a :class:`Heartbeat` event).
 
@@ -31,6 +38,7 @@ Not thread-safe: the client calls it under one lock.
 
 from __future__ import annotations
 
+from collections import deque
 from dataclasses import dataclass
 
 from ..errors import ProtocolError
@@ -38,6 +46,7 @@ from .can_protocol import COMMANDS, Cmd, Direction, GripperStatus, Message, deco
 
 __all__ = [
     "DUPLICATE_WINDOW_S",
+    "ECHO_WINDOW_S",
     "CanSession",
     "Delivery",
     "DuplicateFound",
@@ -49,6 +58,7 @@ __all__ = [
 ]
 
 DUPLICATE_WINDOW_S = 0.05  # two nodes with one id answer one request within microseconds of each other
+ECHO_WINDOW_S = 1.0  # an own frame looped back later than this was lost (a full socket buffer): forgotten
 
 Key = tuple[int, int]  # (node, command of the request)
 
@@ -106,8 +116,10 @@ def reply_key(node: int, command: int) -> Key:
 class CanSession:
     """The matching state of one bus: expected replies per key, keys waited for, per-node facts."""
 
-    def __init__(self, device: str = "can") -> None:
+    def __init__(self, device: str = "can", *, echoes: bool = False) -> None:
         self.device = device  # names the node in a ProtocolError of a reply
+        self.echoes = echoes  # the bus hands this client's own frames back (module docstring)
+        self._own: deque[tuple[int, bytes, bool, float]] = deque()  # sent, their echo not yet back
         self._expected: dict[Key, int] = {}  # requests seen minus replies seen, per key
         self._answered: dict[Key, float] = {}  # time of the last reply to one of this client's requests
         self._waiting: set[Key] = set()  # keys whose request waits for its reply
@@ -127,6 +139,21 @@ class CanSession:
         self._expected[key] = self._expected.get(key, 0) + 1
         self._waiting.add(key)
 
+    def sending(self, arbitration_id: int, data: bytes, *, remote: bool, now: float) -> None:
+        """This client is about to send this frame (before it goes: its echo may come back at once). Kept
+        only on a bus that ``echoes``; a frame that then fails to go out is forgotten after ECHO_WINDOW_S."""
+        if self.echoes:
+            self._own.append((arbitration_id, bytes(data), remote, now))
+
+    def _own_echo(self, arbitration_id: int, data: bytes | bytearray, remote: bool, now: float) -> bool:
+        own = self._own
+        while own and now - own[0][3] > ECHO_WINDOW_S:
+            own.popleft()
+        if own and own[0][0] == arbitration_id and own[0][2] == remote and own[0][1] == data:
+            own.popleft()
+            return True
+        return False
+
     def gave_up(self, key: Key) -> None:
         """The request of ``key`` no longer waits (answered, timed out, abandoned, failed). Its count stays:
         a late reply is expected, not a twin's."""
@@ -136,6 +163,7 @@ class CanSession:
         """The bus was reopened: requests counted before the outage will never be answered."""
         self._expected.clear()
         self._answered.clear()
+        self._own.clear()
 
     def received(
         self,
@@ -150,6 +178,8 @@ class CanSession:
         """One frame from the bus at time ``now``: what it means for this client (module docstring)."""
         if not is_stepfoc_frame(arbitration_id, error_frame=error_frame, extended=extended):
             return None
+        if self._own and self._own_echo(arbitration_id, data, remote, now):
+            return None  # our own frame, handed back by the bus
         node, command, error = unpack_id(arbitration_id)
         spec = COMMANDS.get(command)
         if remote or spec is None or spec.direction is Direction.HOST_TO_NODE:

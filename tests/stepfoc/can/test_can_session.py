@@ -18,6 +18,7 @@ from grippers.drivers.stepfoc.can_protocol import (
 )
 from grippers.drivers.stepfoc.can_session import (
     DUPLICATE_WINDOW_S,
+    ECHO_WINDOW_S,
     CanSession,
     Delivery,
     DuplicateFound,
@@ -168,4 +169,59 @@ def test_reset_forgets_the_counts() -> None:
     s.gave_up(POLL)
     s.reset()
     assert s.received(STATUS_ID, status_bytes(), now=1.0) is None  # not expected, but no reply of ours yet
+    assert s.node(NODE).duplicate is None
+
+
+POLL_ID = pack_id(NODE, Cmd.GRIPPER_COMMAND)
+
+
+def poll_with_echo(s: CanSession, now: float) -> None:
+    """What a client on python-can's udp_multicast bus does: sends an empty 61 and gets it back."""
+    s.sending(POLL_ID, b"", remote=False, now=now)
+    s.sent(POLL)
+    assert s.received(POLL_ID, b"", now=now + 0.0001) is None
+
+
+@pytest.mark.parametrize("echoes", [True, False])
+def test_on_a_bus_that_echoes_a_twin_is_still_found(echoes: bool) -> None:
+    """Our own poll handed back by the bus is not another host's request: without knowing it, the twin's
+    second reply finds that phantom request to answer and goes unseen (as it did over udp_multicast)."""
+    s = CanSession(echoes=echoes)
+    poll_with_echo(s, 1.0)
+    assert isinstance(s.received(STATUS_ID, status_bytes(40), now=1.001), Delivery)
+    event = s.received(STATUS_ID, status_bytes(90), now=1.001 + DUPLICATE_WINDOW_S / 10)
+    assert isinstance(event, DuplicateFound) is echoes
+
+
+def test_an_echo_is_matched_in_order_and_another_hosts_request_still_counts() -> None:
+    s = CanSession(echoes=True)
+    poll_with_echo(s, 1.0)
+    assert isinstance(s.received(STATUS_ID, status_bytes(40), now=1.001), Delivery)
+    # another host's poll (nothing of ours outstanding): counted, so the node's answer to it is no twin
+    assert s.received(POLL_ID, b"", now=1.002) is None
+    assert s.received(STATUS_ID, status_bytes(40), now=1.003) is None
+    assert s.node(NODE).duplicate is None
+
+
+def test_an_own_frame_whose_echo_never_came_is_forgotten() -> None:
+    """A frame whose echo never came (it failed to go out, or the echo was lost) must not shift the
+    matching: kept, it would take our next echo, and our next frame would swallow another host's request,
+    whose reply would then pass for a twin's."""
+    s = CanSession(echoes=True)
+    s.sending(POLL_ID, b"", remote=False, now=1.0)  # never comes back
+    later = 1.0 + ECHO_WINDOW_S + 0.1
+    poll_with_echo(s, later)
+    assert isinstance(s.received(STATUS_ID, status_bytes(40), now=later + 0.001), Delivery)
+    assert s.received(POLL_ID, b"", now=later + 0.002) is None  # another host's poll: counted
+    assert s.received(STATUS_ID, status_bytes(40), now=later + 0.003) is None  # its reply: no twin
+    assert s.node(NODE).duplicate is None
+
+
+def test_a_bus_without_echo_keeps_nothing() -> None:
+    s = CanSession()
+    s.sending(POLL_ID, b"", remote=False, now=1.0)
+    s.sent(POLL)
+    assert s.received(POLL_ID, b"", now=1.001) is None  # another host's identical poll: counted
+    assert s.received(STATUS_ID, status_bytes(40), now=1.002) is not None  # ours is answered
+    assert s.received(STATUS_ID, status_bytes(40), now=1.003) is None  # and theirs is expected
     assert s.node(NODE).duplicate is None
