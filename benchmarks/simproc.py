@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import subprocess
 import sys
 import threading
@@ -19,14 +20,24 @@ if __package__ in (None, ""):
 from benchmarks.common import REPO
 
 
-class WsgSimProcess:
-    """``WsgSimProcess(time_scale=…, record=path)``: ``.url``, ``.port``; ``close()`` waits for the end."""
+def _start(cmd: list[str], cpu: int | None) -> subprocess.Popen[str]:
+    """The child, on CPU ``cpu`` alone when given (a device has a processor of its own: see device_apart)."""
 
-    def __init__(self, *, time_scale: float = 1.0, record: str | None = None) -> None:
+    def place() -> None:
+        if cpu is not None:
+            os.sched_setaffinity(0, {cpu})
+
+    return subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, preexec_fn=place)
+
+
+class WsgSimProcess:
+    """``WsgSimProcess(time_scale=…, record=path, cpu=N)``: ``.url``, ``.port``; ``close()`` waits for it."""
+
+    def __init__(self, *, time_scale: float = 1.0, record: str | None = None, cpu: int | None = None) -> None:
         cmd = [sys.executable, str(REPO / "benchmarks" / "simproc.py"), "--time-scale", str(time_scale)]
         if record:
             cmd += ["--record", record]
-        self._proc = subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+        self._proc = _start(cmd, cpu)
         assert self._proc.stdout is not None
         line = self._proc.stdout.readline().strip()
         if not line.startswith("wsg+tcp://"):
@@ -56,7 +67,7 @@ class MsgSimProcess:
 
     GROUP = "239.74.163.2"  # python-can's IPv4 default group (administratively scoped)
 
-    def __init__(self, nodes: int, *, port: int) -> None:
+    def __init__(self, nodes: int, *, port: int, cpu: int | None = None) -> None:
         listen = f"can://udp_multicast/{self.GROUP}?port={port}"
         cmd = [
             sys.executable,
@@ -66,7 +77,7 @@ class MsgSimProcess:
             "--listen",
             listen,
         ]
-        self._proc = subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+        self._proc = _start(cmd, cpu)
         assert self._proc.stdout is not None
         line = self._proc.stdout.readline().strip()
         if not line.startswith("stepfoc+can://"):
