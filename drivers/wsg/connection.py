@@ -360,8 +360,9 @@ class WsgConnection(CallbackEngine, MotionExchanges):
         sub._deliver(reply.value)
         return sub
 
-    def _forget(self, sub: Subscription) -> bool:
-        """Remove ``sub``; True when it was the last one of its command."""
+    def _forget(self, sub: Subscription, *, switched_off: bool = True) -> bool:
+        """Remove ``sub``; True when it was the last one of its command. ``switched_off=False``: the device
+        still sends its updates until the switch-off request is answered (:meth:`_unsubscribe`)."""
         with self._lock:
             subs = self._subs.get(sub.command, [])
             if sub in subs:
@@ -370,9 +371,20 @@ class WsgConnection(CallbackEngine, MotionExchanges):
                 return False
             self._subs.pop(sub.command, None)
             self._sub_params.pop(sub.command, None)
-            self._session.unsubscribe(sub.command)
+            if switched_off:
+                self._session.unsubscribe(sub.command)
             return True
 
     def _unsubscribe(self, sub: Subscription, timeout: float | None) -> None:
-        if self._forget(sub) and not (self._closing or self._closed or self._lost):
-            self._call(sub.command, timeout=timeout, payload=encode_request(sub.command))
+        # The session keeps the command subscribed until the device has answered the switch-off: an update
+        # it sent before taking the request (same id, same data) is then an update nobody takes, or the
+        # switch-off's reply, never an "unsolicited" packet (benchmark 3 counted one at a switch-off).
+        if not self._forget(sub, switched_off=False):
+            return
+        try:
+            if not (self._closing or self._closed or self._lost):
+                self._call(sub.command, timeout=timeout, payload=encode_request(sub.command))
+        finally:
+            with self._lock:
+                if sub.command not in self._subs:  # not subscribed again meanwhile
+                    self._session.unsubscribe(sub.command)
