@@ -6,7 +6,7 @@ figures are the median latency of each, the ratio the median of five sessions' (
 each). WSG over loopback TCP; MSG over python-can's ``udp_multicast`` bus, which has a file descriptor, as
 SocketCAN has, so the event loop reads it itself (drivers/stepfoc/can_reader.py); the MSG over the in-process
 ``virtual`` bus, which has none, is printed beside it: there the reply is handed from the reader thread. The
-simulator runs on a CPU of its own, as a device computes on its own processor (:func:`device_apart`).
+MSG's simulator runs on a CPU of its own, as a device computes on its own processor (:func:`device_apart`).
 """
 
 from __future__ import annotations
@@ -225,10 +225,11 @@ SESSIONS = 5  # fresh simulator processes, each with its own gripper
 
 def _in_sessions(
     start: Any, rounds: int, batch: int
-) -> tuple[float, float, list[float], tuple[float, float]]:
+) -> tuple[float, float, list[float], tuple[float, float], str]:
     """:func:`_latencies` in :data:`SESSIONS` sessions of ``rounds / SESSIONS`` rounds, each against a fresh
-    simulator process (``start()``: a context manager giving (url, floor), ``floor()`` asyncio's own floor
-    against that simulator, measured in the last session): (threaded, awaited, each session's ratio, floor).
+    simulator process (``start()``: a context manager giving (url, floor, placement), ``floor()``
+    asyncio's own floor against that simulator, measured in the last session): (threaded, awaited, each
+    session's ratio, floor, placement).
     The first two are medians over every call.
 
     Why sessions: where the kernel puts the threads of a session holds for its life and moved one session's
@@ -237,42 +238,48 @@ def _in_sessions(
     awaited: list[float] = []
     ratios: list[float] = []
     floor = (0.0, 0.0)
+    places: list[str] = []
     per = max(1, rounds // SESSIONS)
     for n in range(SESSIONS):
-        with start() as (url, measure_floor):
+        with start() as (url, measure_floor, where):
+            places.append(where)
             sync_lat, async_lat = _latencies(url, per, batch)
             if n == SESSIONS - 1:
                 floor = measure_floor(rounds, batch)
         threaded += sync_lat
         awaited += async_lat
         ratios.append(median(async_lat) / median(sync_lat))
-    return median(threaded), median(awaited), ratios, floor
+    return median(threaded), median(awaited), ratios, floor, places[-1]
 
 
 def run(quick: bool) -> list[Result]:
-    with device_apart() as cpu:
-        return _run(quick, cpu)
-
-
-def _run(quick: bool, cpu: int | None) -> list[Result]:
     rounds, batch = (5, 40) if quick else (20, 100)
 
     @contextlib.contextmanager
-    def wsg() -> Iterator[tuple[str, Any]]:
-        with WsgSimProcess(cpu=cpu) as sim:
-            yield sim.url, lambda r, b: _asyncio_floor_wsg(sim.port, r, b)
+    def wsg() -> Iterator[tuple[str, Any, str]]:
+        # The WSG's device I/O is its reader thread's under both faces; confining that thread and the loop
+        # to one CPU (device_apart, on two) would add a context switch to the one hand-over a client with
+        # more cores does not pay: the simulator shares the CPUs here (0.94-1.05x so, 1.07-1.17x apart).
+        with WsgSimProcess() as sim:
+            yield sim.url, lambda r, b: _asyncio_floor_wsg(sim.port, r, b), "the simulator shares the CPUs"
 
     @contextlib.contextmanager
-    def msg() -> Iterator[tuple[str, Any]]:
-        with MsgSimProcess(1, port=_free_udp_port(), cpu=cpu) as sim:
-            yield f"stepfoc+can://udp_multicast/{sim.GROUP}?port={sim.port}&node=0", _asyncio_floor_hop
+    def msg() -> Iterator[tuple[str, Any, str]]:
+        # The event loop itself sends and reads here: a simulator on its CPU runs inside its sendto
+        # (device_apart's docstring), which a device with its own processor never does.
+        with device_apart() as cpu, MsgSimProcess(1, port=_free_udp_port(), cpu=cpu) as sim:
+            placed = (
+                f"the simulator on CPU {cpu} alone, this process off it" if cpu is not None else "one CPU"
+            )
+            yield (
+                f"stepfoc+can://udp_multicast/{sim.GROUP}?port={sim.port}&node=0",
+                _asyncio_floor_hop,
+                placed,
+            )
 
-    placed = (
-        f"the simulator on CPU {cpu} alone, this process off it" if cpu is not None else "one CPU for all"
-    )
     results = []
     for label, start in (("WSG over TCP", wsg), ("MSG over CAN", msg)):
-        threaded, awaited, ratios, (bare, bare_async) = _in_sessions(start, rounds, batch)
+        threaded, awaited, ratios, (bare, bare_async), placed = _in_sessions(start, rounds, batch)
         ratio = median(ratios)
         details = [
             f"{rounds * batch} calls of each, alternating batches of {batch}; one gripper, two faces",
