@@ -547,7 +547,6 @@ class StepfocBus(Closing):
         """Send ``frame`` and wait for the reply keyed (node, command): :meth:`start_request`'s request,
         waited for by this thread (one request per key at a time; a second one waits its turn)."""
         deadline = time.monotonic() + timeout
-        self._reader.check_loop()
         w = self._submit(
             PendingRequest(self, (node, command), frame, timeout, device, name, owner=threading.get_ident())
         )

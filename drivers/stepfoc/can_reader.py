@@ -80,8 +80,12 @@ class BusReader:
     # -------------------------------------------------------------------------------------- any thread
 
     def start(self) -> None:
-        """Begin reading: on the attached loop if there is one still open, else on a fresh thread."""
+        """Begin reading (at open, after a reopen)."""
         self._stopped = False
+        self._begin()
+
+    def _begin(self) -> None:
+        """Read on the attached loop if there is one still open, else on a fresh thread."""
         loop = self._loop
         if loop is not None:
             try:
@@ -90,6 +94,18 @@ class BusReader:
             except RuntimeError:  # the loop was closed without detaching: a thread reads again
                 self._loop = None
         self._start_thread()
+
+    def _read_one(self, bus: can.BusABC, timeout: float, failed: Callable[[BaseException], None]) -> bool:
+        """One receive, whoever reads: the frame, if one came, to ``on_frame``; False (``failed`` told)
+        when the bus failed, which ends that reader."""
+        try:
+            msg = bus.recv(timeout=timeout)
+        except Exception as exc:  # noqa: BLE001 - any failure of the bus ends the reader; waiters learn why
+            failed(exc)
+            return False
+        if msg is not None:
+            self._on_frame(msg)
+        return True
 
     def stop(self) -> None:
         """Stop reading (a close, or a reopen to follow), bounded: the thread is joined, the loop's reader
@@ -116,19 +132,20 @@ class BusReader:
         if not removed.wait(_HANDBACK_S):
             log.warning("%s: the event loop did not remove its reader within %g s", self._name, _HANDBACK_S)
 
-    def check_loop(self) -> None:
-        """A loop that was closed while attached reads nothing any more: a thread takes over (cheap; called
-        before each request)."""
+    def reads_here(self) -> bool:
+        """True on the loop's thread while the loop reads, or is about to: a blocking wait there must
+        :meth:`pump` (the loop cannot read while it is blocked). Called before each blocking request (one
+        attribute test while no loop is attached), it also notices a loop that was closed while attached,
+        which reads nothing any more: a thread takes over."""
         loop = self._loop
-        if loop is not None and loop.is_closed():
+        if loop is None:
+            return False
+        if loop.is_closed():
             self._loop, self._fd, self._timer, self._users = None, None, None, 0
             if not self._stopped and (self._thread is None or not self._thread.is_alive()):
                 self._start_thread()
-
-    def reads_here(self) -> bool:
-        """True on the loop's thread while the loop reads, or is about to: a blocking wait there must
-        :meth:`pump` (the loop cannot read while it is blocked)."""
-        return self._loop is not None and not self._stopped and threading.get_ident() == self._loop_ident
+            return False
+        return not self._stopped and threading.get_ident() == self._loop_ident
 
     def pump(self, settled: Callable[[], bool], deadline: float) -> None:
         """Read the bus on this thread (the loop's, which is blocked in a request) until ``settled()`` or
@@ -146,13 +163,8 @@ class BusReader:
             left = deadline - time.monotonic()
             if left <= 0:
                 return
-            try:
-                msg = bus.recv(timeout=min(left, READ_POLL_S))
-            except Exception as exc:  # noqa: BLE001 - the bus failed: as the reader would report it
-                self._loop_failed(exc)
+            if not self._read_one(bus, min(left, READ_POLL_S), self._loop_failed):
                 return
-            if msg is not None:
-                self._on_frame(msg)
             self._on_tick()
 
     # -------------------------------------------------------------------------------------- the loop's thread
@@ -217,13 +229,7 @@ class BusReader:
         # One frame per wake, as python-can's Notifier reads: the selector is level-triggered, so a second
         # frame wakes the loop again, between other tasks (a flooded bus cannot starve them), and a wake
         # never pays for an empty read.
-        try:
-            msg = self._source().recv(timeout=0)
-        except Exception as exc:  # noqa: BLE001 - any failure of the bus ends the reader; waiters learn why
-            self._loop_failed(exc)
-            return
-        if msg is not None:
-            self._on_frame(msg)
+        self._read_one(self._source(), 0, self._loop_failed)
 
     def _tick(self) -> None:
         self._on_tick()
@@ -253,23 +259,14 @@ class BusReader:
 
     def _run(self, stop: threading.Event) -> None:
         bus = self._source()
+
+        def failed(exc: BaseException) -> None:
+            if not stop.is_set():  # a failure while stopping is the stop's (a bus shut down)
+                self._on_failure(exc)
+
         while not stop.is_set():
-            try:
-                msg = bus.recv(timeout=READ_POLL_S)
-            except Exception as exc:  # noqa: BLE001 - any failure of the bus ends the reader; waiters learn why
-                if not stop.is_set():
-                    self._on_failure(exc)
+            if not self._read_one(bus, READ_POLL_S, failed):
                 return
-            if msg is not None:
-                self._on_frame(msg)
             self._on_tick()
-        if self._stopped:
-            return
-        loop = self._loop
-        try:  # stopped for an attached loop: hand over (the loop starts a thread again if it was detached)
-            if loop is None:
-                raise RuntimeError("detached before the hand-over")
-            loop.call_soon_threadsafe(self._loop_begin, loop)
-        except RuntimeError:  # detached, or the loop closed meanwhile: a thread keeps reading
-            self._loop = None
-            self._start_thread()
+        if not self._stopped:  # stopped for an attached loop: hand over (or read on, if it went meanwhile)
+            self._begin()
