@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import asyncio
 import dataclasses
-import random
 import threading
 import uuid
 from collections.abc import Iterator
@@ -23,6 +22,7 @@ import grippers.aio
 from grippers.drivers.stepfoc.can_protocol import Cmd, unpack_id
 from grippers.drivers.stepfoc.sim import MsgModel, serve_can
 from grippers.errors import ConnectionLost, GripperTimeout, ProtocolError
+from tests.mcast import private_port
 
 TIMEOUT = 6.0  # long enough that "at once" and "after the old request's timeout" cannot be confused
 NODE = 2
@@ -40,7 +40,7 @@ class Target:
 def udp_multicast_bus() -> str:
     """A ``udp_multicast`` bus of this test's own (a private port isolates it: docs/protocols.md §2)."""
     pytest.importorskip("msgpack", reason="python-can's udp_multicast interface needs msgpack")
-    return f"udp_multicast/{GROUP}?port={random.randint(40000, 60000)}"
+    return f"udp_multicast/{GROUP}?port={private_port()}"
 
 
 GROUP = "239.74.163.2"  # python-can's IPv4 default group (administratively scoped)

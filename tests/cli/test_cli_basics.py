@@ -14,6 +14,7 @@ from pathlib import Path
 import pytest
 
 from grippers.cli import main
+from tests.mcast import private_port
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -142,7 +143,7 @@ def test_sim_msg_on_a_private_udp_multicast_port(sim_process, mcast_channel: str
     it from another process, and a client on the default port does not (the port isolates the bus)."""
     from grippers.drivers.stepfoc.can_client import StepfocBus
 
-    port = 43000 + os.getpid() % 1000
+    port = private_port()
     sim = sim_process("msg", "--listen", f"can://udp_multicast/{mcast_channel}?node=11&port={port}")
     assert sim.url.endswith(f"?node=11&port={port}")
     bus, node = StepfocBus.from_url(sim.url)

@@ -7,7 +7,6 @@ ids, and the tests stay few. The simulator runs in a subprocess (``python -c`` c
 
 from __future__ import annotations
 
-import random
 import subprocess
 import sys
 from collections.abc import Callable, Iterator
@@ -17,6 +16,7 @@ import pytest
 from grippers.drivers.errors import GripperTimeout
 from grippers.drivers.stepfoc.can_client import StepfocBus, open_node
 from grippers.drivers.stepfoc.can_protocol import Detection
+from tests.mcast import private_port
 
 pytest.importorskip("msgpack")  # python-can's udp_multicast needs it
 pytestmark = pytest.mark.udp_multicast
@@ -39,7 +39,7 @@ def remote_sim() -> Iterator[Callable[[list[int]], str]]:
     procs: list[subprocess.Popen[str]] = []
 
     def start(nodes: list[int]) -> str:
-        port = random.randint(40000, 60000)
+        port = private_port()
         listen = f"can://udp_multicast/{GROUP}?port={port}"
         proc = subprocess.Popen(
             [sys.executable, "-c", SCRIPT, listen, ",".join(map(str, nodes))],
