@@ -25,6 +25,7 @@ RANGES: dict[str, tuple[float, float]] = {
     "local_port": (0, 65535),
     "port": (1, 65535),
     "node": (0, 15),
+    "slave": (1, 247),  # a Robotiq's Modbus slave id (9 by default)
     "send_id": (0, 0x7FF),
     "recv_id": (0, 0x7FF),
     "bitrate": (1, 10_000_000),

@@ -34,6 +34,7 @@ ENTRY_POINT_GROUP = "grippers.backends"
 BUILTIN_BACKENDS: dict[str, str] = {
     "wsg": "grippers.backends.wsg:WsgBackend",
     "stepfoc": "grippers.backends.stepfoc:StepfocBackend",
+    "robotiq": "grippers.backends.robotiq:RobotiqBackend",
     "zenoh": "grippers.remote.client:ZenohBackend",  # served grippers (docs/remote.md); needs [remote]
 }
 

@@ -1,0 +1,536 @@
+"""The Robotiq backend: 2F-85, 2F-140 and Hand-E over Modbus RTU (an RS-485 adapter, or a UR robot's
+tool-communication forwarder on TCP), on :class:`grippers.drivers.robotiq.client.RobotiqClient`.
+
+Units change here and nowhere else: the device speaks bytes (position, speed and force 0..255), the profile's
+``robotiq`` section maps them to mm (per unit: its own open and closed counts), mm/s and N (approximate: the
+grip force also depends on the speed, the fingers and the part; docs/protocols-robotiq.md §2).
+
+The semantics on the common interface (docs/getting-started-robotiq.md says the same to users):
+
+- ``home()`` activates a gripper that is not active: rACT cleared, then set, and a bounded wait for gSTA
+  "activation completed" (the sweep opens and closes the fingers). On an active, fault-free gripper it sends
+  nothing and returns: clearing rACT would release a held part and sweep the whole stroke, and the gripper
+  needs no referencing once active. A re-activation is needed only after a major fault (``acknowledge()``
+  does it) or a power cycle (``home()`` does it, the gripper then reports itself not active).
+- ``move``/``grasp``/``release`` write rPR, rSP, rFR with rGTO set and poll the status until gOBJ leaves 0;
+  ``grasp()`` is held on gOBJ 2 (contact while closing) or 1 (contact while opening), no part on gOBJ 3.
+- ``stop()`` clears rGTO: the fingers halt where they are. ``fast_stop()`` does the same, since the device has
+  no brake or e-stop input of its own (the automatic release, rATR/rARD, is a slow opening or closing, not a
+  stop); the library latches it until ``acknowledge()`` (``info().extra["fast_stop"]`` says so).
+- ``acknowledge()`` clears the fast-stop latch and, after a major fault (0x0A-0x0F), re-activates as the
+  manual prescribes (rACT cleared, then set), which sweeps the fingers and releases any part.
+- a motion before the activation raises :func:`not_activated_error`'s error at once, not a timeout.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from typing import TYPE_CHECKING, Annotated, Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from grippers.drivers.errors import CommandFailed, ConnectionLost, GripperTimeout
+from grippers.drivers.robotiq.client import RobotiqClient
+from grippers.drivers.robotiq.modbus import READ_HOLDING
+from grippers.drivers.robotiq.registers import (
+    BAUDRATE,
+    DEFAULT_SLAVE,
+    FORWARDER_PORT,
+    MAJOR_FAULTS,
+    ActivationState,
+    Command,
+    Fault,
+    ObjectDetection,
+    Status,
+    fault_name,
+    fault_text,
+)
+
+from ..errors import URLError
+from ..gripper import Capability, DeviceInfo, GraspResult, GraspState, Gripper, GripperState, MotionResult
+from ..profiles import Length, ProfileBase, TimeScale, Timeout
+
+if TYPE_CHECKING:
+    from ..servo import ServoTarget
+    from ..settings import Settings
+    from ..urls import ConnectionURL
+
+log = logging.getLogger(__name__)
+
+POLL_PERIOD = 0.005  # s between status polls in a motion wait (an exchange takes ~5 ms at 115200 baud)
+FALLBACK_PROFILE = "robotiq-2f85"
+
+
+# -- errors: the lead maps these two onto the library-wide classes when they land (one line each) ----------
+
+
+class RobotiqNotActivated(CommandFailed):
+    """A motion asked of a gripper that is not activated (``home()`` activates it)."""
+
+
+class RobotiqMotionBlocked(CommandFailed):
+    """A plain move stopped by an obstacle before its target; ``width`` is where the fingers stopped (m)."""
+
+    def __init__(self, message: str, *, width: float, **kw: Any) -> None:
+        self.width = width
+        super().__init__(message, **kw)
+
+
+def not_activated_error(message: str, *, device: str, command: str) -> CommandFailed:
+    """The error for a motion before activation (to become the library's NotReferenced)."""
+    return RobotiqNotActivated(message, status_name="not_activated", device=device, command=command)
+
+
+def motion_blocked_error(message: str, *, width: float, device: str, command: str) -> CommandFailed:
+    """The error for a move stopped by an obstacle (to become the library's MotionBlocked)."""
+    return RobotiqMotionBlocked(message, width=width, status_name="blocked", device=device, command=command)
+
+
+class RobotiqFault(CommandFailed):
+    """The gripper reports a fault (gFLT): ``status`` is the code, ``status_name`` its name."""
+
+
+# -- the profile's family section --------------------------------------------------------------------------
+
+
+class _Section(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+Byte = Annotated[int, Field(ge=0, le=255)]
+
+
+class RobotiqTransport(_Section):
+    timeout_s: Timeout = 0.5
+    slave: Annotated[int, Field(ge=1, le=247)] = DEFAULT_SLAVE
+    baudrate: Annotated[int, Field(gt=0)] = BAUDRATE
+    tcp_port: Annotated[int, Field(ge=1, le=65535)] = FORWARDER_PORT
+    read_function: Literal[3, 4] = READ_HOLDING
+
+
+class RobotiqMaps(_Section):
+    """The unit's byte maps. Positions: gPO of this unit fully open and fully closed (measured with nothing
+    between the fingers: command rPR 0 and 255 and read gPO back), and the widths there. Speed and force: linear
+    between the mechanics' minimum (byte 0) and maximum (byte 255); the force map is approximate."""
+
+    open_count: Byte
+    closed_count: Byte
+    open_width_mm: Length
+    closed_width_mm: Length = 0.0
+    force_approximate: bool = True  # the grip force depends on speed, fingers and part, not only rFR
+    grasp_travel_mm: Length = 10.0  # grasp() commands this far past the part's nominal width
+
+    @model_validator(mode="after")
+    def _ordered(self) -> RobotiqMaps:
+        if self.open_count >= self.closed_count:
+            raise ValueError("needs open_count < closed_count (gPO grows as the fingers close)")
+        if self.open_width_mm <= self.closed_width_mm:
+            raise ValueError("needs open_width_mm > closed_width_mm")
+        return self
+
+
+class RobotiqSimulator(_Section):
+    activation_s: Annotated[float, Field(gt=0, le=60)] = 1.0
+    part_width_mm: Length | None = None
+    time_scale: TimeScale = 1.0
+    watchdog_s: Annotated[float, Field(gt=0, le=60)] | None = None
+    activated: bool = False  # start activated (a demo); the real gripper powers up not activated
+
+
+class RobotiqProfile(ProfileBase):
+    family: Literal["robotiq"] = "robotiq"
+    transport: RobotiqTransport = RobotiqTransport()
+    robotiq: RobotiqMaps
+    simulator: RobotiqSimulator = RobotiqSimulator()
+
+    @model_validator(mode="after")
+    def _maps_fit_the_mechanics(self) -> RobotiqProfile:
+        m, r = self.mechanics, self.robotiq
+        if abs(m.min_width_mm - r.closed_width_mm) > 1e-6 or abs(m.max_width_mm - r.open_width_mm) > 1e-6:
+            raise ValueError(
+                f"robotiq: open_width_mm/closed_width_mm ({r.open_width_mm:g}/{r.closed_width_mm:g}) must be "
+                f"the mechanics' max and min width ({m.max_width_mm:g}/{m.min_width_mm:g})"
+            )
+        return self
+
+
+# -- the gripper ---------------------------------------------------------------------------------------------
+
+
+class RobotiqGripper(Gripper):
+    capabilities = frozenset({Capability.CURRENT_CONTROL, Capability.CALIBRATION})
+
+    def __init__(self, client: RobotiqClient, profile: RobotiqProfile, url: str, *, timeout: float) -> None:
+        super().__init__(profile, url, timeout=timeout)
+        self._client = client
+        self._maps = profile.robotiq
+        self._motion_lock = threading.Lock()
+        self._motion_id = 0
+        self._motion_cause = ""
+        self._last = Command()  # the request block as last written (its speed and force persist)
+        self._mode = "idle"
+        self._held = False
+        self._latched = False  # fast_stop(): the device has no fast-stop state, the library keeps it
+
+    @property
+    def driver(self) -> RobotiqClient:
+        return self._client
+
+    # -- maps --------------------------------------------------------------------------------------------
+
+    def _count_per_mm(self) -> float:
+        m = self._maps
+        return (m.closed_count - m.open_count) / (m.open_width_mm - m.closed_width_mm)
+
+    def _position_byte(self, width: float) -> int:
+        m = self._maps
+        return max(0, min(255, round(m.open_count + (m.open_width_mm - width * 1000) * self._count_per_mm())))
+
+    def _width_of(self, position: int) -> float:
+        m = self._maps
+        return (m.open_width_mm - (position - m.open_count) / self._count_per_mm()) / 1000
+
+    def _scale(self, value: float, lo: float, hi: float) -> int:
+        return 255 if hi <= lo else max(0, min(255, round((value - lo) / (hi - lo) * 255)))
+
+    def _speed_byte(self, speed: float) -> int:
+        m = self.profile.mechanics
+        return self._scale(speed * 1000, m.min_speed_mm_s, m.max_speed_mm_s)
+
+    def _force_byte(self, force: float) -> int:
+        m = self.profile.mechanics
+        return self._scale(force, m.min_force_n, m.max_force_n)
+
+    # -- motion bookkeeping (as the MSG backend: a newer motion or a stop ends older waits) ----------------
+
+    def _begin(self, cause: str) -> int:
+        with self._motion_lock:
+            self._motion_id += 1
+            self._motion_cause = cause
+            return self._motion_id
+
+    def _check_current(self, motion: int, command: str) -> None:
+        with self._motion_lock:
+            if motion == self._motion_id:
+                return
+            cause = self._motion_cause
+        raise CommandFailed(f"{command} {cause}", status_name="aborted", device=self.name, command=command)
+
+    def _supersede(self) -> None:
+        # The gripper takes a new target mid-motion (rPR rewritten with rGTO set): no stop in between.
+        self._begin("superseded by a newer motion before it ended")
+
+    def _fault_error(self, st: Status, command: str) -> CommandFailed | None:
+        """The typed error for the fault ``st`` shows, or None where the wait goes on (a delayed action, the
+        watchdog's note, which the next write clears)."""
+        if st.fault in (Fault.NONE, Fault.ACTION_DELAYED, Fault.NO_COMMUNICATION):
+            return None
+        if st.fault == Fault.ACTIVATION_BIT:
+            return not_activated_error(
+                "the gripper is not activated (gFLT 0x07): call home() to activate it",
+                device=self.name,
+                command=command,
+            )
+        hint = " (acknowledge() re-activates the gripper)" if st.fault in MAJOR_FAULTS else ""
+        return RobotiqFault(
+            f"gripper fault 0x{st.fault:02X}: {fault_text(st.fault)}{hint}",
+            status=st.fault,
+            status_name=fault_name(st.fault),
+            device=self.name,
+            command=command,
+        )
+
+    def _ready(self, command: str) -> Status:
+        """The status before a motion: activated and without a fault, or a clear error."""
+        st = self._client.read_status(command=command)
+        error = self._fault_error(st, command)
+        if error is not None:
+            raise error
+        if not st.activated:
+            what = "being activated" if st.sta == ActivationState.IN_PROGRESS else "not activated"
+            raise not_activated_error(
+                f"the gripper is {what} (gSTA {int(st.sta)}): call home() to activate it first",
+                device=self.name,
+                command=command,
+            )
+        return st
+
+    def _poll(self, command: str, motion: int, timeout: float, done: Any) -> Status:
+        """Poll the status until ``done(status)``; ends early, never as success, on a newer motion or a stop
+        from this process, a fault, rGTO or rACT cleared by someone else, close(), or the timeout."""
+        deadline = time.monotonic() + timeout
+        while True:
+            if self._closed:
+                raise ConnectionLost("the gripper was closed during the motion", device=self.name, command=command)
+            self._check_current(motion, command)
+            st = self._client.read_status(command=command)
+            self._check_current(motion, command)
+            error = self._fault_error(st, command)
+            if error is not None:
+                raise error
+            if not st.act or (command != "home" and not (st.gto and st.sta == ActivationState.COMPLETE)):
+                raise CommandFailed(
+                    f"{command} aborted: rGTO or rACT was cleared (another program?) at "
+                    f"{self._width_of(st.position) * 1000:.1f} mm",
+                    status_name="aborted",
+                    device=self.name,
+                    command=command,
+                )
+            if done(st):
+                return st
+            if time.monotonic() >= deadline:
+                raise GripperTimeout(f"not done after {timeout:g} s", device=self.name, command=command)
+            time.sleep(POLL_PERIOD)
+
+    def _go(self, command: str, position: int, speed: float, force: float | None, timeout: float) -> Status:
+        self._ready(command)
+        f = self._last.force if force is None else self._force_byte(force)
+        cmd = Command(act=True, gto=True, position=position, speed=self._speed_byte(speed), force=f)
+        motion = self._begin(f"superseded by a newer motion before it ended ({command})")
+        self._client.write_command(cmd, command=command)
+        self._last = cmd
+
+        def done(st: Status) -> bool:
+            # The echo says the status belongs to this request (manual, "position request echo").
+            return st.position_echo == position and st.obj != ObjectDetection.MOVING
+
+        return self._poll(command, motion, timeout, done)
+
+    # -- the interface -----------------------------------------------------------------------------------
+
+    def _home(self, timeout: float) -> None:
+        st = self._client.read_status(command="home")
+        if st.activated and st.fault not in MAJOR_FAULTS and st.fault != Fault.ACTIVATION_BIT:
+            return  # active already: nothing is toggled (see the module's docstring)
+        if st.fault in MAJOR_FAULTS and st.act:
+            error = self._fault_error(st, "home")
+            assert error is not None
+            raise error
+        motion = self._begin("superseded by a newer motion before it ended (home)")
+        self._mode, self._held = "home", False
+        if st.act or st.fault:
+            self._client.write_command(Command(), command="home")  # rACT 0: a rising edge is needed
+        self._last = Command(act=True, speed=self._last.speed, force=self._last.force or 255)
+        self._client.write_command(self._last, command="home")
+        self._poll("home", motion, timeout, lambda s: s.sta == ActivationState.COMPLETE)
+        self._mode = "idle"
+
+    def _move(self, width: float, speed: float, timeout: float) -> MotionResult:
+        self._mode, self._held = "move", False
+        st = self._go("move", self._position_byte(width), speed, None, timeout)
+        self._mode = "idle"
+        if st.obj in (ObjectDetection.CONTACT_CLOSING, ObjectDetection.CONTACT_OPENING):
+            at = self._width_of(st.position)
+            raise motion_blocked_error(
+                f"stopped by an obstacle at {at * 1000:.1f} mm before {width * 1000:.1f} mm (gOBJ {int(st.obj)})",
+                width=at,
+                device=self.name,
+                command="move",
+            )
+        return MotionResult(self._width_of(st.position), GraspState.IDLE)
+
+    def _grasp(self, width: float, speed: float, force: float, timeout: float) -> GraspResult:
+        m = self._maps
+        self._mode, self._held = "grasp", False
+        beyond = width * 1000 - m.grasp_travel_mm
+        target = 255 if beyond <= m.closed_width_mm else self._position_byte(beyond / 1000)
+        st = self._go("grasp", target, speed, force, timeout)
+        at = self._width_of(st.position)
+        held = st.obj in (ObjectDetection.CONTACT_CLOSING, ObjectDetection.CONTACT_OPENING)
+        self._held = held
+        if held:
+            return GraspResult(True, at, force, GraspState.HOLDING)
+        return GraspResult(
+            False,
+            at,
+            None,
+            GraspState.NO_PART,
+            reason=f"reached {at * 1000:.1f} mm without meeting a part (gOBJ 3)",
+        )
+
+    def _release(self, width: float, speed: float, timeout: float) -> MotionResult:
+        self._mode, self._held = "release", False
+        target = 0 if width >= self.limits.max_width else self._position_byte(width)
+        st = self._go("release", target, speed, None, timeout)
+        self._mode = "idle"
+        return MotionResult(self._width_of(st.position), GraspState.IDLE)
+
+    def _halt(self, cause: str, command: str) -> None:
+        self._begin(cause)
+        cmd = Command(act=True, gto=False, position=self._last.position, speed=self._last.speed, force=self._last.force)
+        self._client.write_command(cmd, command=command)
+        self._last = cmd
+        self._mode = "idle"
+
+    def _stop(self) -> None:
+        self._halt("aborted by stop()", "stop")
+
+    def _fast_stop(self) -> None:
+        self._latched = True
+        self._halt("aborted by fast_stop()", "fast_stop")
+
+    def _acknowledge(self) -> None:
+        st = self._client.read_status(command="acknowledge")
+        if st.fault in MAJOR_FAULTS:
+            log.warning("%s: re-activating after fault 0x%02X: the fingers sweep the stroke", self.name, st.fault)
+            motion = self._begin("aborted by acknowledge()")
+            self._client.write_command(Command(), command="acknowledge")
+            self._last = Command(act=True, speed=self._last.speed, force=self._last.force)
+            self._client.write_command(self._last, command="acknowledge")
+            bound = self._motion_timeout(2 * self.limits.stroke, self.limits.min_speed)
+            self._poll("home", motion, bound, lambda s: s.sta == ActivationState.COMPLETE)
+        self._latched = False
+
+    # -- state and info ----------------------------------------------------------------------------------
+
+    def _grasp_state(self, st: Status) -> GraspState:
+        if st.fault in MAJOR_FAULTS:
+            return GraspState.ERROR
+        if st.moving:
+            return {"grasp": GraspState.GRASPING, "release": GraspState.RELEASING}.get(
+                self._mode, GraspState.POSITIONING
+            )
+        if st.gto and st.obj in (ObjectDetection.CONTACT_CLOSING, ObjectDetection.CONTACT_OPENING):
+            return GraspState.HOLDING
+        if self._mode == "grasp" or (self._held and st.gto and st.obj == ObjectDetection.AT_POSITION):
+            return GraspState.PART_LOST if self._held else GraspState.NO_PART
+        return GraspState.IDLE
+
+    def _state(self) -> GripperState:
+        st = self._client.read_status(command="state")
+        faults = tuple(fault_name(st.fault) for _ in (0,) if st.fault) + (("fast_stop",) if self._latched else ())
+        return GripperState(
+            width=self._width_of(st.position),
+            speed=None,
+            force=None,
+            current=st.current_ma / 1000,
+            grasp=self._grasp_state(st),
+            moving=st.moving,
+            referenced=st.activated,
+            faults=faults,
+            timestamp=time.time(),
+        )
+
+    def _info(self) -> DeviceInfo:
+        p = self.profile
+        st = self._client.read_status(command="info")
+        return DeviceInfo(
+            family="robotiq",
+            vendor=p.vendor,
+            model=p.model,
+            serial=None,  # not in the documented registers
+            firmware=None,
+            hardware=None,
+            limits=self.limits,
+            url=self.url,
+            profile=p.name,
+            extra={
+                "slave": self._client.slave,
+                "activated": st.activated,
+                "status": st.describe(),
+                "force": "approximate: rFR 0..255 mapped linearly onto the profile's force range",
+                "fast_stop": "rGTO cleared (the device has no brake); latched by the library until acknowledge()",
+                "warnings": ["force in newtons is approximate (the rFR byte sets a current limit)"],
+            },
+        )
+
+    def _close(self) -> None:
+        self._client.close()
+
+    # -- servo: a stream of rPR targets --------------------------------------------------------------------
+
+    def _servo_begin(self) -> None:
+        self._ready("servo")
+        self._mode = "move"
+
+    def _servo(self, target: ServoTarget) -> bool | None:
+        force = self._last.force if target.force is None else self._force_byte(target.force)
+        cmd = Command(
+            act=True, gto=True, position=self._position_byte(target.width), speed=self._speed_byte(target.speed), force=force
+        )
+        if cmd == self._last:
+            return False
+        self._client.write_command(cmd, command="servo")
+        self._last = cmd
+        return True
+
+    def _servo_end(self) -> None:
+        self._mode = "idle"
+
+
+class RobotiqBackend:
+    family = "robotiq"
+    profile_model = RobotiqProfile
+
+    def open(self, url: ConnectionURL, profile: ProfileBase | None, settings: Settings) -> RobotiqGripper:
+        from ..profiles import load_profile
+
+        if profile is None:
+            profile = load_profile(FALLBACK_PROFILE)
+        if not isinstance(profile, RobotiqProfile):
+            raise URLError(f"{url.url}: profile {profile.name!r} is not a Robotiq profile")
+        t = profile.transport
+        common = {
+            "timeout": settings.positive("timeout", t.timeout_s),
+            "slave": settings.int("slave", t.slave),
+            "read_function": settings.int("read_function", t.read_function),
+        }
+        if not 1 <= common["slave"] <= 247:
+            raise URLError(f"{url.url}: slave must be 1..247, not {common['slave']}")
+        if common["read_function"] not in (3, 4):
+            raise URLError(f"{url.url}: read_function must be 3 or 4")
+        if url.transport == "serial":
+            if not url.serial_port:
+                raise URLError(f"{url.url}: a serial URL needs a port")
+            client = RobotiqClient.serial(
+                url.serial_port, baudrate=settings.int("baudrate", t.baudrate), device=url.url, **common
+            )
+        elif url.transport == "tcp":
+            if not url.host:
+                raise URLError(f"{url.url}: a tcp URL needs a host")
+            client = RobotiqClient.tcp(url.host, url.port or t.tcp_port, device=url.url, **common)
+        else:
+            raise URLError(f"{url.url}: robotiq speaks over serial or tcp (a forwarder), not {url.transport!r}")
+        try:
+            client.read_status(command="open")  # a gripper answers, or the open fails here
+            return RobotiqGripper(client, profile, url.url, timeout=common["timeout"])
+        except BaseException:
+            client.close()
+            raise
+
+    def simulator(self, profile: ProfileBase, settings: Settings, listen: str | None = None) -> Any:
+        """A simulated unit of ``profile`` serving on ``listen`` (default: loopback TCP, a free port)."""
+        from grippers.drivers.robotiq.sim import ModelParams, RobotiqModel, serve
+
+        assert isinstance(profile, RobotiqProfile)
+        m, r, sim = profile.mechanics, profile.robotiq, profile.simulator
+        params = ModelParams(
+            model=profile.model,
+            open_width_mm=r.open_width_mm,
+            closed_width_mm=r.closed_width_mm,
+            open_count=r.open_count,
+            closed_count=r.closed_count,
+            min_speed_mm_s=m.min_speed_mm_s,
+            max_speed_mm_s=m.max_speed_mm_s,
+            activation_s=settings.positive("activation_s", sim.activation_s),
+            slave=settings.int("slave", profile.transport.slave),
+            watchdog_s=settings.float("watchdog_s", sim.watchdog_s),
+        )
+        model = RobotiqModel(params, part_width_mm=settings.float("part_width_mm", sim.part_width_mm))
+        if settings.bool("activated", sim.activated):
+            model.act, model.sta = True, ActivationState.COMPLETE
+            model.command = Command(act=True)
+        transport = settings.str("transport", "tcp")
+        if listen is None:
+            listen = {"tcp": "tcp://127.0.0.1:0", "pty": "pty", "serial": "pty"}.get(transport)
+            if listen is None:
+                raise URLError(f"{settings.url}: transport must be tcp or pty, not {transport!r}")
+        server = serve(model, listen, time_scale=settings.positive("time_scale", sim.time_scale))
+        if params.slave != DEFAULT_SLAVE:
+            server.url += f"?slave={params.slave}"
+        return server
+
+    def simulate(self, profile: ProfileBase, settings: Settings) -> Any:
+        return self.simulator(profile, settings)
