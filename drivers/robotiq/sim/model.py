@@ -7,7 +7,8 @@ behaviour and figure comes from (docs/protocols-robotiq.md §3):
 - activation: a rising edge of rACT starts a sweep of ``activation_s`` (1 s by default: issue 29's figure,
   not a measured one) reporting gSTA 1 "in progress", then gSTA 3; the fingers close then open across the
   whole stroke (the manual and the SDK docs: "the gripper fully opens and closes"; the order is ours). A part
-  between the jaws blocks the sweep: activation fault 0x0D ("verify that no interference ... occurred").
+  between the jaws does not disturb the sweep here (``part_width_mm`` is for the grasps after it); the
+  activation fault 0x0D ("verify that no interference ... occurred") is injected with :meth:`inject_fault`.
 - rGTO with rACT clear: fault 0x07; rGTO during the activation: fault 0x05, the action runs once activated.
 - motion at the speed byte's speed, linear from ``min_speed`` (rSP 0) to ``max_speed`` (rSP 255) as the SDK's
   conversion assumes; the fingers stop at the unit's open and closed counts (gPO 3 and 230 on the SDK's
@@ -156,9 +157,6 @@ class RobotiqModel:
             self.act, self.sta, self.gto = True, ActivationState.IN_PROGRESS, False
             self._activation_started = now
             self.fault = Fault.NONE
-            if self._part_count() is not None:
-                self.fault = Fault.ACTIVATION
-                self.sta = ActivationState.RESET
         if cmd.atr:
             self._start_release(cmd)
             return
@@ -203,6 +201,9 @@ class RobotiqModel:
         """Run the device up to simulated time ``now``."""
         dt = max(0.0, now - self._now)
         self._now = max(self._now, now)
+        if self.fault in MAJOR_FAULTS and not self._releasing:
+            self.current = 0
+            return
         if self.act and self.sta == ActivationState.IN_PROGRESS:
             self._activate_step(now)
             return
