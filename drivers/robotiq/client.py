@@ -92,7 +92,9 @@ class TcpLink:
         try:
             self._sock = socket.create_connection((host, port), timeout=timeout)
         except OSError as exc:
-            raise ConnectionLost(f"cannot connect to {host}:{port}: {exc}", device=device, command="open") from exc
+            raise ConnectionLost(
+                f"cannot connect to {host}:{port}: {exc}", device=device, command="open"
+            ) from exc
         self._sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
 
     def write(self, data: bytes) -> None:
@@ -152,13 +154,17 @@ class RobotiqClient:
         self.exchanges = 0
 
     @classmethod
-    def serial(cls, port: str, *, baudrate: int = BAUDRATE, device: str | None = None, **kw: Any) -> RobotiqClient:
+    def serial(
+        cls, port: str, *, baudrate: int = BAUDRATE, device: str | None = None, **kw: Any
+    ) -> RobotiqClient:
         name = device or port
         kw.setdefault("inter_frame_s", modbus.silent_interval(baudrate))
         return cls(SerialLink(port, baudrate, device=name), device=name, **kw)
 
     @classmethod
-    def tcp(cls, host: str, port: int = FORWARDER_PORT, *, device: str | None = None, **kw: Any) -> RobotiqClient:
+    def tcp(
+        cls, host: str, port: int = FORWARDER_PORT, *, device: str | None = None, **kw: Any
+    ) -> RobotiqClient:
         name = device or f"{host}:{port}"
         return cls(TcpLink(host, port, device=name, timeout=kw.get("timeout", 0.5)), device=name, **kw)
 
@@ -208,7 +214,9 @@ class RobotiqClient:
             left = deadline - time.monotonic()
             if left <= 0:
                 raise GripperTimeout(
-                    f"no answer from slave {self.slave} within {self.timeout:g} s", device=self.device, command=command
+                    f"no answer from slave {self.slave} within {self.timeout:g} s",
+                    device=self.device,
+                    command=command,
                 )
             data = self.link.read(left)
             if not data:
@@ -231,7 +239,9 @@ class RobotiqClient:
 
     def write_and_read(self, cmd: Command, *, command: str = "command") -> Status:
         """FC 23: the command written and the status read in one exchange (the SDK's cycle)."""
-        req = modbus.read_write_request(self.slave, STATUS_ADDRESS, BLOCK_REGISTERS, COMMAND_ADDRESS, cmd.registers())
+        req = modbus.read_write_request(
+            self.slave, STATUS_ADDRESS, BLOCK_REGISTERS, COMMAND_ADDRESS, cmd.registers()
+        )
         reply = self.exchange(req, READ_WRITE, BLOCK_REGISTERS, command=command)
         return Status.from_registers(reply.values)
 

@@ -126,7 +126,8 @@ def write_request(slave: int, address: int, values: tuple[int, ...] | list[int])
 def read_write_request(
     slave: int, read_address: int, read_count: int, write_address: int, values: tuple[int, ...] | list[int]
 ) -> bytes:
-    """FC 23: write ``values`` at ``write_address``, then read ``read_count`` registers at ``read_address``."""
+    """FC 23: write ``values`` at ``write_address``, then read ``read_count`` registers from ``read_address``
+    (the device writes first)."""
     _check_slave(slave)
     if not 1 <= read_count <= MAX_READ or not 1 <= len(values) <= MAX_RW_WRITE:
         raise ValueError(f"read/write: 1..{MAX_READ} read and 1..{MAX_RW_WRITE} written registers")
@@ -247,7 +248,11 @@ class RequestParser(_Parser):
         if fc == READ_WRITE:
             if len(buf) < 11:
                 return None
-            rcount, wcount, nbytes = int.from_bytes(buf[4:6], "big"), int.from_bytes(buf[8:10], "big"), buf[10]
+            rcount, wcount, nbytes = (
+                int.from_bytes(buf[4:6], "big"),
+                int.from_bytes(buf[8:10], "big"),
+                buf[10],
+            )
             ok = 1 <= rcount <= MAX_READ and 1 <= wcount <= MAX_RW_WRITE and nbytes == 2 * wcount
             return 13 + nbytes if ok else 0
         return 0

@@ -118,8 +118,11 @@ class Command:
 
     @property
     def action(self) -> int:
-        return (ACT if self.act else 0) | (GTO if self.gto else 0) | (ATR if self.atr else 0) | (
-            ARD if self.ard else 0
+        return (
+            (ACT if self.act else 0)
+            | (GTO if self.gto else 0)
+            | (ATR if self.atr else 0)
+            | (ARD if self.ard else 0)
         )
 
     def registers(self) -> tuple[int, int, int]:

@@ -33,7 +33,6 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from grippers.drivers.errors import CommandFailed, ConnectionLost, GripperTimeout
 from grippers.drivers.robotiq.client import RobotiqClient
-from grippers.drivers.robotiq.modbus import READ_HOLDING
 from grippers.drivers.robotiq.registers import (
     BAUDRATE,
     DEFAULT_SLAVE,
@@ -50,7 +49,7 @@ from grippers.drivers.robotiq.registers import (
 
 from ..errors import URLError
 from ..gripper import Capability, DeviceInfo, GraspResult, GraspState, Gripper, GripperState, MotionResult
-from ..profiles import Length, ProfileBase, TimeScale, Timeout
+from ..profiles import Length, ProfileBase, Timeout, TimeScale
 
 if TYPE_CHECKING:
     from ..servo import ServoTarget
@@ -107,13 +106,13 @@ class RobotiqTransport(_Section):
     slave: Annotated[int, Field(ge=1, le=247)] = DEFAULT_SLAVE
     baudrate: Annotated[int, Field(gt=0)] = BAUDRATE
     tcp_port: Annotated[int, Field(ge=1, le=65535)] = FORWARDER_PORT
-    read_function: Literal[3, 4] = READ_HOLDING
+    read_function: Literal[3, 4] = 3  # READ_HOLDING, as the manuals and the SDK read the status
 
 
 class RobotiqMaps(_Section):
     """The unit's byte maps. Positions: gPO of this unit fully open and fully closed (measured with nothing
-    between the fingers: command rPR 0 and 255 and read gPO back), and the widths there. Speed and force: linear
-    between the mechanics' minimum (byte 0) and maximum (byte 255); the force map is approximate."""
+    between the fingers: command rPR 0 and 255 and read gPO back), and the widths there. Speed and force:
+    linear between the mechanics' minimum (byte 0) and maximum (byte 255); the force map is approximate."""
 
     open_count: Byte
     closed_count: Byte
@@ -263,7 +262,9 @@ class RobotiqGripper(Gripper):
         deadline = time.monotonic() + timeout
         while True:
             if self._closed:
-                raise ConnectionLost("the gripper was closed during the motion", device=self.name, command=command)
+                raise ConnectionLost(
+                    "the gripper was closed during the motion", device=self.name, command=command
+                )
             self._check_current(motion, command)
             st = self._client.read_status(command=command)
             self._check_current(motion, command)
@@ -324,7 +325,8 @@ class RobotiqGripper(Gripper):
         if st.obj in (ObjectDetection.CONTACT_CLOSING, ObjectDetection.CONTACT_OPENING):
             at = self._width_of(st.position)
             raise motion_blocked_error(
-                f"stopped by an obstacle at {at * 1000:.1f} mm before {width * 1000:.1f} mm (gOBJ {int(st.obj)})",
+                f"stopped by an obstacle at {at * 1000:.1f} mm before {width * 1000:.1f} mm "
+                f"(gOBJ {int(st.obj)})",
                 width=at,
                 device=self.name,
                 command="move",
@@ -359,7 +361,9 @@ class RobotiqGripper(Gripper):
 
     def _halt(self, cause: str, command: str) -> None:
         self._begin(cause)
-        cmd = Command(act=True, gto=False, position=self._last.position, speed=self._last.speed, force=self._last.force)
+        cmd = Command(
+            act=True, gto=False, position=self._last.position, speed=self._last.speed, force=self._last.force
+        )
         self._client.write_command(cmd, command=command)
         self._last = cmd
         self._mode = "idle"
@@ -374,7 +378,9 @@ class RobotiqGripper(Gripper):
     def _acknowledge(self) -> None:
         st = self._client.read_status(command="acknowledge")
         if st.fault in MAJOR_FAULTS:
-            log.warning("%s: re-activating after fault 0x%02X: the fingers sweep the stroke", self.name, st.fault)
+            log.warning(
+                "%s: re-activating after fault 0x%02X: the fingers sweep the stroke", self.name, st.fault
+            )
             motion = self._begin("aborted by acknowledge()")
             self._client.write_command(Command(), command="acknowledge")
             self._last = Command(act=True, speed=self._last.speed, force=self._last.force)
@@ -400,7 +406,9 @@ class RobotiqGripper(Gripper):
 
     def _state(self) -> GripperState:
         st = self._client.read_status(command="state")
-        faults = tuple(fault_name(st.fault) for _ in (0,) if st.fault) + (("fast_stop",) if self._latched else ())
+        faults = tuple(fault_name(st.fault) for _ in (0,) if st.fault) + (
+            ("fast_stop",) if self._latched else ()
+        )
         return GripperState(
             width=self._width_of(st.position),
             speed=None,
@@ -431,7 +439,8 @@ class RobotiqGripper(Gripper):
                 "activated": st.activated,
                 "status": st.describe(),
                 "force": "approximate: rFR 0..255 mapped linearly onto the profile's force range",
-                "fast_stop": "rGTO cleared (the device has no brake); latched by the library until acknowledge()",
+                "fast_stop": "rGTO cleared (the device has no brake); the library refuses motion until "
+                "acknowledge()",
                 "warnings": ["force in newtons is approximate (the rFR byte sets a current limit)"],
             },
         )
@@ -448,7 +457,11 @@ class RobotiqGripper(Gripper):
     def _servo(self, target: ServoTarget) -> bool | None:
         force = self._last.force if target.force is None else self._force_byte(target.force)
         cmd = Command(
-            act=True, gto=True, position=self._position_byte(target.width), speed=self._speed_byte(target.speed), force=force
+            act=True,
+            gto=True,
+            position=self._position_byte(target.width),
+            speed=self._speed_byte(target.speed),
+            force=force,
         )
         if cmd == self._last:
             return False
@@ -492,7 +505,9 @@ class RobotiqBackend:
                 raise URLError(f"{url.url}: a tcp URL needs a host")
             client = RobotiqClient.tcp(url.host, url.port or t.tcp_port, device=url.url, **common)
         else:
-            raise URLError(f"{url.url}: robotiq speaks over serial or tcp (a forwarder), not {url.transport!r}")
+            raise URLError(
+                f"{url.url}: robotiq speaks over serial or tcp (a forwarder), not {url.transport!r}"
+            )
         try:
             client.read_status(command="open")  # a gripper answers, or the open fails here
             return RobotiqGripper(client, profile, url.url, timeout=common["timeout"])

@@ -42,9 +42,9 @@ GRASPED_04 = H("09 04 06 B9 00 00 FF BD 00 5C 9A")
 RW_REPLY = H("09 17 04 01 00 09 E6 F6 C1")
 
 ALL = [
-    ACTIVATION_CLEAR, ACTIVATION_SET, CLOSE_FULL, OPEN_FULL, WRITE_ECHO, READ1_03, READ3_03, READ1_04, READ3_04,
-    ACTIVATING_04, ACTIVATED_04, ACTIVATING_03, ACTIVATED_03, GRIPPING_03, OPENING_04, OPENED_04, GRASPED_04,
-    RW_REPLY,
+    ACTIVATION_CLEAR, ACTIVATION_SET, CLOSE_FULL, OPEN_FULL, WRITE_ECHO, READ1_03, READ3_03, READ1_04,
+    READ3_04, ACTIVATING_04, ACTIVATED_04, ACTIVATING_03, ACTIVATED_03, GRIPPING_03, OPENING_04, OPENED_04,
+    GRASPED_04, RW_REPLY,
 ]  # fmt: skip
 
 
@@ -96,11 +96,19 @@ def test_requests_parse_on_the_device_side() -> None:
     p = RequestParser(9)
     reqs = p.feed(CLOSE_FULL + READ3_03 + READ1_04)
     assert [r.function for r in reqs] == [0x10, 0x03, 0x04]
-    assert Command.from_registers(reqs[0].values) == Command(act=True, gto=True, position=255, speed=255, force=255)
+    assert Command.from_registers(reqs[0].values) == Command(
+        act=True, gto=True, position=255, speed=255, force=255
+    )
     assert (reqs[1].address, reqs[1].count) == (STATUS_ADDRESS, 3)
     rw = modbus.read_write_request(9, STATUS_ADDRESS, 3, COMMAND_ADDRESS, Command(act=True).registers())
     (r,) = p.feed(rw)
-    assert (r.function, r.address, r.count, r.write_address, r.values) == (0x17, STATUS_ADDRESS, 3, COMMAND_ADDRESS, (0x0100, 0, 0))
+    assert (r.function, r.address, r.count, r.write_address, r.values) == (
+        0x17,
+        STATUS_ADDRESS,
+        3,
+        COMMAND_ADDRESS,
+        (0x0100, 0, 0),
+    )
 
 
 def test_parser_is_silent_on_another_slave_and_a_bad_crc_and_resynchronises_on_garbage() -> None:

@@ -46,7 +46,9 @@ def test_activation_sweeps_for_a_second_then_completes_open() -> None:
     assert not _read(m, 0.0).act
     _write(m, Command(act=True), 0.0)
     mid = _read(m, 0.5)
-    assert mid.act and mid.sta == ActivationState.IN_PROGRESS and mid.position > 200  # closed half-way through
+    assert (
+        mid.act and mid.sta == ActivationState.IN_PROGRESS and mid.position > 200
+    )  # closed half-way through
     done = _read(m, 1.01)
     assert done.activated and done.position == 3
 
@@ -146,7 +148,9 @@ def test_another_slave_a_broadcast_and_unknown_functions() -> None:
     m = RobotiqModel()
     other = modbus.Request(slave=8, function=3, address=STATUS_ADDRESS, count=3)
     assert m.handle(other, 0.0) is None
-    broadcast = modbus.Request(slave=0, function=0x10, write_address=COMMAND_ADDRESS, values=Command(act=True).registers())
+    broadcast = modbus.Request(
+        slave=0, function=0x10, write_address=COMMAND_ADDRESS, values=Command(act=True).registers()
+    )
     assert m.handle(broadcast, 0.0) is None and m.act
     reply = m.handle(modbus.Request(slave=9, function=0x06, address=COMMAND_ADDRESS, count=1), 0.0)
     assert reply == modbus.exception_response(9, 6, 1)

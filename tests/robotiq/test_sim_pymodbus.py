@@ -12,11 +12,21 @@ from pymodbus import FramerType
 from pymodbus.client import ModbusSerialClient, ModbusTcpClient
 from pymodbus.exceptions import ModbusIOException
 
-from grippers.drivers.robotiq.registers import COMMAND_ADDRESS, STATUS_ADDRESS, ActivationState, Command, Status
+from grippers.drivers.robotiq.registers import (
+    COMMAND_ADDRESS,
+    STATUS_ADDRESS,
+    ActivationState,
+    Command,
+    Status,
+)
 from grippers.drivers.robotiq.sim import RobotiqModel, RobotiqSimServer, serve
 
 # pymodbus names the slave id ``device_id`` since 3.10 and ``slave`` before.
-_ID = "device_id" if "device_id" in inspect.signature(ModbusTcpClient.read_holding_registers).parameters else "slave"
+_ID = (
+    "device_id"
+    if "device_id" in inspect.signature(ModbusTcpClient.read_holding_registers).parameters
+    else "slave"
+)
 
 
 def _kw(slave: int = 9) -> dict[str, Any]:
@@ -80,7 +90,9 @@ def test_read_write_in_one_exchange_as_the_sdk_cycles(peer: tuple[RobotiqSimServ
     assert Status.from_registers(rr.registers).sta == ActivationState.IN_PROGRESS
 
 
-def test_another_slave_id_gets_no_answer_and_a_bad_address_an_exception(peer: tuple[RobotiqSimServer, Any]) -> None:
+def test_another_slave_id_gets_no_answer_and_a_bad_address_an_exception(
+    peer: tuple[RobotiqSimServer, Any],
+) -> None:
     server, client = peer
     rr = client.read_holding_registers(0x0100, count=3, **_kw())
     assert rr.isError() and rr.exception_code == 2

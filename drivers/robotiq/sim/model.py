@@ -257,9 +257,9 @@ class RobotiqModel:
         self.requests += 1
         self.advance(now)
         w = self.p.watchdog_s
-        if w is not None and self._last_request is not None and self.act and now - self._last_request > w:
-            if self.fault == Fault.NONE:
-                self.fault = Fault.NO_COMMUNICATION
+        last = self._last_request
+        if w is not None and last is not None and self.act and now - last > w and self.fault == Fault.NONE:
+            self.fault = Fault.NO_COMMUNICATION
         self._last_request = now
         reply = self._answer(req, now)
         return None if req.slave == 0 else reply
@@ -286,7 +286,7 @@ class RobotiqModel:
     def _block(self, address: int, count: int) -> list[int] | None:
         for base, regs in ((STATUS_ADDRESS, self.status().registers()), (COMMAND_ADDRESS, (0, 0, 0))):
             start = address - base
-            if 0 <= start and start + count <= BLOCK_SIZE:
+            if start >= 0 and start + count <= BLOCK_SIZE:
                 full = list(regs) + [0] * (BLOCK_SIZE - len(regs))
                 return full[start : start + count]
         return None

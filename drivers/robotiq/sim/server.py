@@ -11,6 +11,7 @@ it (:meth:`step`).
 from __future__ import annotations
 
 import contextlib
+import functools
 import os
 import selectors
 import socket
@@ -42,7 +43,9 @@ class RobotiqSimServer(Closing):
     Tests that change the model (``part_width_mm``, :meth:`RobotiqModel.inject_fault`) hold ``.lock``.
     """
 
-    def __init__(self, model: RobotiqModel, listen: str, *, time_scale: float = 1.0, family: str = "robotiq") -> None:
+    def __init__(
+        self, model: RobotiqModel, listen: str, *, time_scale: float = 1.0, family: str = "robotiq"
+    ) -> None:
         self.model = model
         self.clock = SimClock(time_scale)
         self.faults = FaultHooks()
@@ -137,9 +140,9 @@ class RobotiqSimServer(Closing):
             return
         sock.setblocking(True)
         sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-        link = _Link(lambda data, s=sock: self._send_tcp(s, data), RequestParser(None), f"tcp {peer}")
+        link = _Link(functools.partial(self._send_tcp, sock), RequestParser(None), f"tcp {peer}")
         self._links[sock] = link
-        self._selector.register(sock, selectors.EVENT_READ, lambda s=sock: self._read_tcp(s))
+        self._selector.register(sock, selectors.EVENT_READ, functools.partial(self._read_tcp, sock))
 
     def _send_tcp(self, sock: socket.socket, data: bytes) -> None:
         with contextlib.suppress(OSError):
@@ -224,7 +227,9 @@ class RobotiqSimServer(Closing):
         self._wake_w.close()
 
 
-def serve(model: RobotiqModel, listen: str = "tcp://127.0.0.1:0", *, time_scale: float = 1.0) -> RobotiqSimServer:
+def serve(
+    model: RobotiqModel, listen: str = "tcp://127.0.0.1:0", *, time_scale: float = 1.0
+) -> RobotiqSimServer:
     """Start a simulator: ``listen`` is ``pty`` (the RTU line) or ``tcp://HOST:PORT`` (a forwarder; port 0:
     any free port)."""
     return RobotiqSimServer(model, listen, time_scale=time_scale)

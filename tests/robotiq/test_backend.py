@@ -1,0 +1,177 @@
+"""``grippers.open("sim://robotiq-…")`` end to end: activation, motions, grasps, stops, every fault as a typed
+error, the transports (TCP forwarder, the pty's RTU line), the slave id, and lost or corrupt replies."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Iterator
+from typing import Any
+
+import pytest
+
+import grippers
+from grippers.backends.robotiq import RobotiqFault, RobotiqMotionBlocked, RobotiqNotActivated
+from grippers.drivers.robotiq.registers import MAJOR_FAULTS, ActivationState, Command, Fault
+from grippers.errors import CommandFailed, FastStopActive, GripperTimeout, URLError
+from grippers.gripper import GraspState
+
+
+def _until(check: Callable[[], bool], seconds: float = 10.0) -> None:
+    deadline = time.monotonic() + seconds
+    while not check():
+        assert time.monotonic() < deadline, "condition not reached"
+        time.sleep(0.01)
+
+
+@pytest.fixture(params=["tcp", "pty"])
+def g(request: pytest.FixtureRequest) -> Iterator[Any]:
+    gripper = grippers.open(f"sim://robotiq-2f85?time_scale=10&transport={request.param}")
+    try:
+        yield gripper
+    finally:
+        gripper.close()
+        assert gripper.simulator.error is None
+
+
+def test_a_motion_before_activation_is_a_clear_error_then_home_activates(g: Any) -> None:
+    assert not g.state().referenced
+    with pytest.raises(RobotiqNotActivated, match="not activated.*home"):
+        g.move(0.04)
+    g.simulator.pause()
+    handle = g.home(wait=False)
+    _until(lambda: g.simulator.model.sta == ActivationState.IN_PROGRESS)
+    assert not g.state().referenced  # "activation in progress" is reported, not completion
+    g.simulator.resume()
+    handle.wait(10)
+    assert g.state().referenced and abs(g.state().width - 0.085) < 1e-3
+
+
+def test_home_on_an_active_gripper_toggles_nothing(g: Any) -> None:
+    g.home()
+    g.move(0.03)
+    writes = g.simulator.model.requests
+    g.home()
+    assert g.simulator.model.requests == writes + 1  # one status read, no rACT toggle
+    assert abs(g.state().width - 0.03) < 1e-3
+
+
+def test_moves_grasps_and_release(g: Any) -> None:
+    g.home()
+    r = g.move(0.05, 0.15)
+    assert abs(r.width - 0.05) < 0.5e-3 and r.state is GraspState.IDLE
+    miss = g.grasp(0.03)
+    assert (
+        not miss.grasped
+        and miss.state is GraspState.NO_PART
+        and "without meeting a part" in (miss.reason or "")
+    )
+    g.release()
+    with g.simulator.lock:
+        g.simulator.model.part_width_mm = 42.0
+    hit = g.grasp(0.04, force=60)
+    assert hit.grasped and abs(hit.width - 0.042) < 0.5e-3 and g.state().grasp is GraspState.HOLDING
+    with g.simulator.lock:
+        g.simulator.model.part_width_mm = None
+    _until(lambda: g.state().grasp is GraspState.PART_LOST)
+    assert abs(g.release().width - 0.085) < 1e-3
+
+
+def test_a_plain_move_stopped_by_a_part_says_where(g: Any) -> None:
+    g.home()
+    with g.simulator.lock:
+        g.simulator.model.part_width_mm = 50.0
+    with pytest.raises(RobotiqMotionBlocked) as err:
+        g.move(0.02)
+    assert isinstance(err.value, CommandFailed) and abs(err.value.width - 0.050) < 0.5e-3
+
+
+def test_stop_and_fast_stop_end_the_motion_honestly(g: Any) -> None:
+    g.home()
+    g.simulator.pause()
+    handle = g.move(0.0, 0.02, wait=False)
+    _until(lambda: g.state().moving)
+    g.stop()
+    with pytest.raises(CommandFailed, match="aborted by stop"):
+        handle.wait(5)
+    assert not g.simulator.model.gto
+    handle = g.move(0.0, 0.02, wait=False)
+    _until(lambda: g.state().moving)
+    g.fast_stop()
+    with pytest.raises(CommandFailed, match="aborted by fast_stop"):
+        handle.wait(5)
+    assert "fast_stop" in g.state().faults  # latched by the library: the device has no fast-stop state
+    with pytest.raises(FastStopActive):
+        g.move(0.04)
+    g.acknowledge()
+    g.simulator.resume()
+    assert g.state().faults == () and abs(g.move(0.04).width - 0.04) < 1e-3
+
+
+@pytest.mark.parametrize(
+    "code", [0x08, *sorted(MAJOR_FAULTS - {Fault.AUTO_RELEASE_IN_PROGRESS, Fault.AUTO_RELEASE_COMPLETE})]
+)
+def test_every_fault_during_a_motion_is_a_typed_error_naming_it(g: Any, code: int) -> None:
+    g.home()
+    g.simulator.pause()
+    handle = g.move(0.0, 0.02, wait=False)
+    _until(lambda: g.state().moving)
+    with g.simulator.lock:
+        g.simulator.model.inject_fault(code)
+    with pytest.raises(RobotiqFault) as err:
+        handle.wait(5)
+    assert err.value.status == code and f"0x{code:02X}" in str(err.value) and g.url in str(err.value)
+    g.simulator.resume()
+    if code in MAJOR_FAULTS:
+        assert g.state().grasp is GraspState.ERROR
+        with pytest.raises(RobotiqFault):
+            g.move(0.04)
+        g.acknowledge()  # a reset and a new activation, as the manual prescribes
+    else:
+        with g.simulator.lock:
+            g.simulator.model.clear_fault()
+    assert g.state().referenced and g.state().faults == ()
+    assert abs(g.move(0.04).width - 0.04) < 1e-3
+
+
+def test_automatic_release_faults_are_reported_and_acknowledged(g: Any) -> None:
+    g.home()
+    g.driver.write_command(Command(act=True, atr=True, ard=True))
+    _until(lambda: "automatic_release_completed" in g.state().faults)
+    with pytest.raises(RobotiqFault, match="automatic release completed"):
+        g.move(0.04)
+    g.acknowledge()
+    assert g.state().referenced
+
+
+def test_servo_streams_position_requests(g: Any) -> None:
+    g.home()
+    for w in (0.08, 0.06, 0.04):
+        g.servo(w, 0.15)
+    _until(lambda: abs(g.state().width - 0.04) < 1e-3)
+    g.stop()
+    assert g.servo_stats.sent >= 1
+
+
+def test_slave_id_and_a_silent_or_corrupt_device() -> None:
+    with grippers.open("sim://robotiq-hande?slave=3&timeout=0.3") as g:
+        assert g.driver.slave == 3 and g.info().extra["slave"] == 3
+        g.simulator.faults.silent = True
+        with pytest.raises(GripperTimeout, match="no answer from slave 3"):
+            g.state()
+        g.simulator.faults.silent = False
+        g.simulator.faults.corrupt_replies(1)  # a bad CRC: dropped in silence, so the read times out
+        with pytest.raises(GripperTimeout):
+            g.state()
+        g.simulator.faults.send_garbage(b"\x09\x03\x06\xff")
+        assert g.state().width > 0  # garbage before a reply: resynchronised
+
+
+def test_profiles_and_urls_are_checked() -> None:
+    from grippers.profiles import load_profile
+
+    for name, stroke in (("robotiq-2f85", 0.085), ("robotiq-2f140", 0.140), ("robotiq-hande", 0.050)):
+        assert abs(load_profile(name).limits().max_width - stroke) < 1e-9
+    with pytest.raises(URLError, match="slave"):
+        grippers.open("sim://robotiq-2f85?slave=300")
+    with pytest.raises(URLError):
+        grippers.open("robotiq+udp://127.0.0.1:1")
