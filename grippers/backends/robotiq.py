@@ -441,7 +441,6 @@ class RobotiqGripper(Gripper):
                 "force": "approximate: rFR 0..255 mapped linearly onto the profile's force range",
                 "fast_stop": "rGTO cleared (the device has no brake); the library refuses motion until "
                 "acknowledge()",
-                "warnings": ["force in newtons is approximate (the rFR byte sets a current limit)"],
             },
         )
 
