@@ -26,7 +26,7 @@ from benchmarks.common import Result, format_table, markdown_table
 
 def _targets() -> dict[int, Callable[[bool], list[Result]]]:
     # imported here so that `--only` loads only what it runs
-    from benchmarks import aio, remote, startup, stepfoc_bus, stepfoc_codec, wsg_client, wsg_parser
+    from benchmarks import aio, remote, robotiq, startup, stepfoc_bus, stepfoc_codec, wsg_client, wsg_parser
 
     return {
         1: wsg_parser.run,
@@ -42,6 +42,7 @@ def _targets() -> dict[int, Callable[[bool], list[Result]]]:
         11: _servo,  # issue 15 (benchmarks/servo.py)
         12: _servo_remote,  # issue 21 §3: servo from a zenoh:// client, beside 11's local figures
         13: aio.run,  # issue 20 §2: the asyncio face's state() against the threaded one
+        14: robotiq.run,  # issue 29 §5: a Robotiq poll's CPU against its wire time, servo over a pty
     }
 
 

@@ -1,8 +1,8 @@
 """The Robotiq URCap's ASCII socket (TCP 63352 on a UR controller), sans-IO: lines out, lines in.
 
-``SET VAR VALUE [VAR VALUE ...]`` is answered ``ack``; ``GET VAR`` is answered ``VAR VALUE``. Request variables
-ACT, GTO, ATR, ARD, POS (rPR), SPE, FOR; status variables STA, OBJ, FLT, PRE (the position request echo), and
-GET POS reads gPO. Values are the register bytes. Facts: docs/protocols-robotiq.md §5.
+``SET VAR VALUE [VAR VALUE ...]`` is answered ``ack``; ``GET VAR`` is answered ``VAR VALUE``. Request
+variables ACT, GTO, ATR, ARD, POS (rPR), SPE, FOR; status variables STA, OBJ, FLT, PRE (the position request
+echo), and GET POS reads gPO. Values are the register bytes. Facts: docs/protocols-robotiq.md §5.
 """
 
 from __future__ import annotations
@@ -16,7 +16,8 @@ MAX_LINE = 256  # a reply longer than this is not the URCap's
 
 
 def set_line(**values: int) -> bytes:
-    """``SET POS 100 GTO 1\\n`` from ``set_line(POS=100, GTO=1)`` (order kept: the URCap applies them in turn)."""
+    """``SET POS 100 GTO 1\\n`` from ``set_line(POS=100, GTO=1)`` (order kept: the URCap applies them in
+    turn)."""
     if not values:
         raise ValueError("SET needs at least one variable")
     parts = []
@@ -45,7 +46,8 @@ class Reply:
 
 
 class LineParser:
-    """Bytes in, reply lines out; a line that is neither ``ack`` nor ``VAR INT`` raises ValueError naming it."""
+    """Bytes in, reply lines out; a line that is neither ``ack`` nor ``VAR INT`` raises ValueError naming
+    it."""
 
     def __init__(self) -> None:
         self._buf = bytearray()

@@ -86,3 +86,12 @@ def test_targets_on_driver_internals_run_to_a_verdict(capsys: pytest.CaptureFixt
         "13 aio state() MSG over CAN",
     }
     assert set(verdicts.values()) <= {"PASS", "FAIL"}
+
+
+def test_robotiq_poll_counts_its_bytes_and_silences() -> None:
+    from benchmarks import robotiq
+
+    req, rep, wire = robotiq.poll_wire_seconds()
+    assert (req, rep) == (8, 11)  # 09 03 07 D0 00 03 CRC; 09 03 06 + 6 data bytes + CRC
+    assert abs(wire - (19 * 10 / 115200 + 2 * 0.00175)) < 1e-9
+    assert robotiq.cpu_per_poll(20) > 0
