@@ -27,6 +27,7 @@ from __future__ import annotations
 import logging
 import threading
 import time
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
@@ -447,6 +448,30 @@ class RobotiqGripper(Gripper):
     def _close(self) -> None:
         self._client.close()
 
+    # -- reconnection (reconnect=true): a fresh link on the same URL ---------------------------------------
+
+    _connect: Callable[[], RobotiqClient] | None = None  # set by RobotiqBackend.open
+
+    def _link_alive(self) -> bool:
+        return self._client.alive
+
+    def _reconnect(self) -> None:
+        old = self._client
+        if old.alive:
+            new = old  # the link never broke (a serial line): the device answering again is the reconnection
+        else:
+            old.close()  # a serial port must be free before it is opened again
+            if self._connect is None:
+                raise ConnectionLost("no way to reopen this link", device=self.name, command="reconnect")
+            new = self._connect()
+        try:
+            new.read_status(command="reconnect")
+        except BaseException:
+            if new is not old:
+                new.close()
+            raise
+        self._client = new
+
     # -- servo: a stream of rPR targets --------------------------------------------------------------------
 
     def _servo_begin(self) -> None:
@@ -493,23 +518,34 @@ class RobotiqBackend:
             raise URLError(f"{url.url}: slave must be 1..247, not {common['slave']}")
         if common["read_function"] not in (3, 4):
             raise URLError(f"{url.url}: read_function must be 3 or 4")
+        # Every setting is taken once, here; reconnection reuses this connector (never a re-parse of the URL).
+        connect: Callable[[], RobotiqClient]
         if url.transport == "serial":
-            if not url.serial_port:
+            port, baudrate = url.serial_port, settings.int("baudrate", t.baudrate)
+            if not port:
                 raise URLError(f"{url.url}: a serial URL needs a port")
-            client = RobotiqClient.serial(
-                url.serial_port, baudrate=settings.int("baudrate", t.baudrate), device=url.url, **common
-            )
+
+            def connect() -> RobotiqClient:
+                return RobotiqClient.serial(port, baudrate=baudrate, device=url.url, **common)
+
         elif url.transport == "tcp":
-            if not url.host:
+            host, tcp_port = url.host, url.port or t.tcp_port
+            if not host:
                 raise URLError(f"{url.url}: a tcp URL needs a host")
-            client = RobotiqClient.tcp(url.host, url.port or t.tcp_port, device=url.url, **common)
+
+            def connect() -> RobotiqClient:
+                return RobotiqClient.tcp(host, tcp_port, device=url.url, **common)
+
         else:
             raise URLError(
                 f"{url.url}: robotiq speaks over serial or tcp (a forwarder), not {url.transport!r}"
             )
+        client = connect()
         try:
             client.read_status(command="open")  # a gripper answers, or the open fails here
-            return RobotiqGripper(client, profile, url.url, timeout=common["timeout"])
+            gripper = RobotiqGripper(client, profile, url.url, timeout=common["timeout"])
+            gripper._connect = connect
+            return gripper
         except BaseException:
             client.close()
             raise

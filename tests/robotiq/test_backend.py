@@ -175,3 +175,12 @@ def test_profiles_and_urls_are_checked() -> None:
         grippers.open("sim://robotiq-2f85?slave=300")
     with pytest.raises(URLError):
         grippers.open("robotiq+udp://127.0.0.1:1")
+
+
+def test_reconnect_after_the_forwarder_dropped_the_connection() -> None:
+    with grippers.open("sim://robotiq-2f85?activated=true&reconnect=true&timeout=0.3") as g:
+        assert abs(g.move(0.05).width - 0.05) < 1e-3
+        first = g.driver
+        g.simulator.faults.request_close()
+        _until(lambda: g.driver is not first and g.connected)
+        assert abs(g.move(0.03).width - 0.03) < 1e-3
