@@ -39,6 +39,7 @@ from grippers.drivers.robotiq.registers import (
     DEFAULT_SLAVE,
     FORWARDER_PORT,
     MAJOR_FAULTS,
+    URCAP_PORT,
     ActivationState,
     Command,
     Fault,
@@ -47,6 +48,7 @@ from grippers.drivers.robotiq.registers import (
     fault_name,
     fault_text,
 )
+from grippers.drivers.robotiq.urcap import UrcapClient
 
 from ..errors import URLError
 from ..gripper import Capability, DeviceInfo, GraspResult, GraspState, Gripper, GripperState, MotionResult
@@ -162,7 +164,9 @@ class RobotiqProfile(ProfileBase):
 class RobotiqGripper(Gripper):
     capabilities = frozenset({Capability.CURRENT_CONTROL, Capability.CALIBRATION})
 
-    def __init__(self, client: RobotiqClient, profile: RobotiqProfile, url: str, *, timeout: float) -> None:
+    def __init__(
+        self, client: RobotiqClient | UrcapClient, profile: RobotiqProfile, url: str, *, timeout: float
+    ) -> None:
         super().__init__(profile, url, timeout=timeout)
         self._client = client
         self._maps = profile.robotiq
@@ -175,7 +179,7 @@ class RobotiqGripper(Gripper):
         self._latched = False  # fast_stop(): the device has no fast-stop state, the library keeps it
 
     @property
-    def driver(self) -> RobotiqClient:
+    def driver(self) -> RobotiqClient | UrcapClient:
         return self._client
 
     # -- maps --------------------------------------------------------------------------------------------
@@ -450,7 +454,7 @@ class RobotiqGripper(Gripper):
 
     # -- reconnection (reconnect=true): a fresh link on the same URL ---------------------------------------
 
-    _connect: Callable[[], RobotiqClient] | None = None  # set by RobotiqBackend.open
+    _connect: Callable[[], RobotiqClient | UrcapClient] | None = None  # set by RobotiqBackend.open
 
     def _link_alive(self) -> bool:
         return self._client.alive
@@ -519,26 +523,32 @@ class RobotiqBackend:
         if common["read_function"] not in (3, 4):
             raise URLError(f"{url.url}: read_function must be 3 or 4")
         # Every setting is taken once, here; reconnection reuses this connector (never a re-parse of the URL).
-        connect: Callable[[], RobotiqClient]
+        # The URCap's ASCII socket is TCP too: its port (63352) or ?protocol=urcap selects it.
+        protocol = settings.str("protocol", "urcap" if url.port == URCAP_PORT else "rtu")
+        if protocol not in ("rtu", "urcap") or (protocol == "urcap" and url.transport != "tcp"):
+            raise URLError(f"{url.url}: protocol must be rtu, or urcap over tcp, not {protocol!r}")
+        connect: Callable[[], RobotiqClient | UrcapClient]
         if url.transport == "serial":
             port, baudrate = url.serial_port, settings.int("baudrate", t.baudrate)
             if not port:
                 raise URLError(f"{url.url}: a serial URL needs a port")
-
-            def connect() -> RobotiqClient:
-                return RobotiqClient.serial(port, baudrate=baudrate, device=url.url, **common)
-
+            connect = lambda: RobotiqClient.serial(port, baudrate=baudrate, device=url.url, **common)  # noqa: E731
         elif url.transport == "tcp":
-            host, tcp_port = url.host, url.port or t.tcp_port
+            host = url.host
             if not host:
                 raise URLError(f"{url.url}: a tcp URL needs a host")
-
-            def connect() -> RobotiqClient:
-                return RobotiqClient.tcp(host, tcp_port, device=url.url, **common)
-
+            if protocol == "urcap":
+                urcap_port, timeout, slave = url.port or URCAP_PORT, common["timeout"], common["slave"]
+                connect = lambda: UrcapClient(  # noqa: E731
+                    host, urcap_port, device=url.url, timeout=timeout, slave=slave
+                )
+            else:
+                tcp_port = url.port or t.tcp_port
+                connect = lambda: RobotiqClient.tcp(host, tcp_port, device=url.url, **common)  # noqa: E731
         else:
             raise URLError(
-                f"{url.url}: robotiq speaks over serial or tcp (a forwarder), not {url.transport!r}"
+                f"{url.url}: robotiq speaks over serial or tcp (a forwarder or the URCap), "
+                f"not {url.transport!r}"
             )
         client = connect()
         try:
@@ -574,12 +584,17 @@ class RobotiqBackend:
             model.command = Command(act=True)
         transport = settings.str("transport", "tcp")
         if listen is None:
-            listen = {"tcp": "tcp://127.0.0.1:0", "pty": "pty", "serial": "pty"}.get(transport)
+            listen = {
+                "tcp": "tcp://127.0.0.1:0",
+                "pty": "pty",
+                "serial": "pty",
+                "urcap": "urcap://127.0.0.1:0",
+            }.get(transport)
             if listen is None:
-                raise URLError(f"{settings.url}: transport must be tcp or pty, not {transport!r}")
+                raise URLError(f"{settings.url}: transport must be tcp, pty or urcap, not {transport!r}")
         server = serve(model, listen, time_scale=settings.positive("time_scale", sim.time_scale))
         if params.slave != DEFAULT_SLAVE:
-            server.url += f"?slave={params.slave}"
+            server.url += f"{'&' if '?' in server.url else '?'}slave={params.slave}"
         return server
 
     def simulate(self, profile: ProfileBase, settings: Settings) -> Any:

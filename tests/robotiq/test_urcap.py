@@ -27,3 +27,33 @@ def test_replies_split_across_reads() -> None:
         p.feed(b"nak\n")
     with pytest.raises(ValueError, match="no end of line"):
         p.feed(b"x" * 300)
+
+
+def test_the_simulated_urcap_answers_the_lines_public_drivers_send() -> None:
+    import socket
+
+    from grippers.drivers.robotiq.sim import RobotiqModel, serve
+
+    server = serve(RobotiqModel(), "urcap://127.0.0.1:0")
+    try:
+        server.pause()
+        with socket.create_connection(("127.0.0.1", server.port), timeout=5) as s:
+            p = LineParser()
+
+            def ask(line: bytes) -> str:
+                s.sendall(line)
+                while True:
+                    got = p.feed(s.recv(100))
+                    if got:
+                        return got[0].raw
+
+            assert ask(b"SET ACT 1\n") == "ack"
+            assert ask(b"GET STA\n") == "STA 1"  # activation in progress
+            server.step(1.5)
+            assert ask(b"GET STA\n") == "STA 3"
+            assert ask(b"SET POS 120 SPE 255 FOR 10 GTO 1\n") == "ack"
+            assert ask(b"GET PRE\n") == "PRE 120"
+            server.step(2.0)
+            assert ask(b"GET OBJ\n") == "OBJ 3" and ask(b"GET POS\n") == "POS 120"
+    finally:
+        server.close()

@@ -85,6 +85,7 @@ class RobotiqModel:
         self._now = 0.0
         self._last_request: float | None = None
         self.requests = 0
+        self.writes = 0  # requests that wrote the request block
 
     # -- units ---------------------------------------------------------------------------------------------
 
@@ -272,6 +273,7 @@ class RobotiqModel:
             start, n = req.write_address - COMMAND_ADDRESS, len(req.values)
             if start < 0 or start + n > BLOCK_SIZE:
                 return modbus.exception_response(slave, fc, ExceptionCode.ILLEGAL_DATA_ADDRESS)
+            self.writes += 1
             regs = list(self.command.registers()) + [0] * BLOCK_SIZE
             regs[start : start + n] = req.values
             self._write(Command.from_registers(regs[:3]), now)

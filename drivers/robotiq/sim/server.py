@@ -24,17 +24,23 @@ from typing import Any
 from ...closing import Closing
 from ...simkit import FaultHooks, SimClock, apply_fault, first_half, flip_last_byte
 from ...urls import format_host
-from ..modbus import RequestParser
+from .. import urcap
+from ..modbus import READ_HOLDING, WRITE_MULTIPLE, Request, RequestParser
+from ..registers import COMMAND_ADDRESS, STATUS_ADDRESS, Command
 from .model import RobotiqModel
 
 __all__ = ["RobotiqSimServer", "serve"]
 
 
 class _Link:
-    def __init__(self, write: Callable[[bytes], None], parser: RequestParser, name: str) -> None:
+    """One client: how to write to it, and what its bytes are (RTU requests, or URCap lines)."""
+
+    def __init__(self, write: Callable[[bytes], None], name: str, *, urcap: bool = False) -> None:
         self.write = write
-        self.parser = parser
         self.name = name
+        self.urcap = urcap
+        self.parser = RequestParser(None)  # every slave id: the model answers its own, stays silent on others
+        self.lines = bytearray()
 
 
 class RobotiqSimServer(Closing):
@@ -100,7 +106,7 @@ class RobotiqSimServer(Closing):
         os.set_blocking(self._master, False)
         self.path = os.ttyname(self._slave)
         self.url = f"{family}+serial://{self.path}"
-        link = _Link(self._write_pty, RequestParser(None), f"pty {self.path}")
+        link = _Link(self._write_pty, f"pty {self.path}")
         self._links[self._master] = link
         self._selector.register(self._master, selectors.EVENT_READ, self._read_pty)
 
@@ -124,12 +130,17 @@ class RobotiqSimServer(Closing):
     def _open_tcp(self, listen: str, family: str) -> None:
         from ...urls import parse_url
 
-        url = parse_url(listen, bare_family=family, listen=True)
+        self._urcap = listen.startswith("urcap://")
+        url = parse_url(
+            "tcp://" + listen.partition("://")[2] if self._urcap else listen, bare_family=family, listen=True
+        )
         host, port = url.host or "127.0.0.1", url.port or 0
         self._listener = socket.create_server((host, port))
         self._listener.setblocking(False)
         self.port = self._listener.getsockname()[1]
         self.url = f"{family}+tcp://{format_host(host, self.port)}"
+        if self._urcap:
+            self.url += "?protocol=urcap"
         self._selector.register(self._listener, selectors.EVENT_READ, self._accept)
 
     def _accept(self) -> None:
@@ -140,7 +151,7 @@ class RobotiqSimServer(Closing):
             return
         sock.setblocking(True)
         sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-        link = _Link(functools.partial(self._send_tcp, sock), RequestParser(None), f"tcp {peer}")
+        link = _Link(functools.partial(self._send_tcp, sock), f"tcp {peer}", urcap=self._urcap)
         self._links[sock] = link
         self._selector.register(sock, selectors.EVENT_READ, functools.partial(self._read_tcp, sock))
 
@@ -167,11 +178,58 @@ class RobotiqSimServer(Closing):
 
     # -- the loop ------------------------------------------------------------------------------------------
 
-    def _received(self, link: _Link, data: bytes) -> None:
+    def _replies(self, link: _Link, data: bytes) -> list[bytes]:
+        if link.urcap:
+            return self._urcap_replies(link, data)
+        out = []
         for req in link.parser.feed(data):
             with self.lock:
                 reply = self.model.handle(req, self.now())
-            if reply is None or self.faults.silent:
+            if reply is not None:
+                out.append(reply)
+        return out
+
+    def _urcap_replies(self, link: _Link, data: bytes) -> list[bytes]:
+        """The URCap's socket in front of the same model: SET is a write of the request block, GET a read of
+        the status (docs/protocols-robotiq.md §5). A line it does not understand gets no answer."""
+        link.lines += data
+        out = []
+        while b"\n" in link.lines:
+            raw, _, rest = bytes(link.lines).partition(b"\n")
+            link.lines = bytearray(rest)
+            try:
+                verb, arg = urcap.parse_command(raw.decode("ascii", "replace"))
+            except ValueError:
+                continue
+            with self.lock:
+                now, slave = self.now(), self.model.p.slave
+                if verb == "SET":
+                    assert isinstance(arg, dict)
+                    c = self.model.command
+                    fields = {"ACT": c.act, "GTO": c.gto, "ATR": c.atr, "ARD": c.ard}
+                    fields.update({k: bool(v) for k, v in arg.items() if k in fields})
+                    cmd = Command(
+                        act=fields["ACT"], gto=fields["GTO"], atr=fields["ATR"], ard=fields["ARD"],
+                        position=arg.get("POS", c.position), speed=arg.get("SPE", c.speed),
+                        force=arg.get("FOR", c.force),
+                    )  # fmt: skip
+                    req = Request(slave, WRITE_MULTIPLE, COMMAND_ADDRESS, 3, COMMAND_ADDRESS, cmd.registers())
+                    self.model.handle(req, now)
+                    out.append(b"ack\n")
+                else:
+                    self.model.handle(Request(slave, READ_HOLDING, STATUS_ADDRESS, 3), now)
+                    st, c = self.model.status(), self.model.command
+                    value = {
+                        "ACT": int(st.act), "GTO": int(st.gto), "STA": int(st.sta), "OBJ": int(st.obj),
+                        "FLT": st.fault, "PRE": st.position_echo, "POS": st.position, "SPE": c.speed,
+                        "FOR": c.force,
+                    }[str(arg)]  # fmt: skip
+                    out.append(f"{arg} {value}\n".encode())
+        return out
+
+    def _received(self, link: _Link, data: bytes) -> None:
+        for reply in self._replies(link, data):
+            if self.faults.silent:
                 continue
             reply = self.faults.take_garbage() + reply
             out, delay = apply_fault(reply, self.faults.take(), corrupt=flip_last_byte, truncate=first_half)
@@ -230,6 +288,6 @@ class RobotiqSimServer(Closing):
 def serve(
     model: RobotiqModel, listen: str = "tcp://127.0.0.1:0", *, time_scale: float = 1.0
 ) -> RobotiqSimServer:
-    """Start a simulator: ``listen`` is ``pty`` (the RTU line) or ``tcp://HOST:PORT`` (a forwarder; port 0:
-    any free port)."""
+    """Start a simulator: ``listen`` is ``pty`` (the RTU line), ``tcp://HOST:PORT`` (a forwarder; port 0: any
+    free port) or ``urcap://HOST:PORT`` (the URCap's ASCII socket in front of the same model)."""
     return RobotiqSimServer(model, listen, time_scale=time_scale)
