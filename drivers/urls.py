@@ -6,7 +6,8 @@
     wsg+serial://PORT-OR-PYSERIAL-URL[?baudrate=N&stopbits=2]
     wsg+can://INTERFACE/CHANNEL[?bitrate=N&send_id=0x000&recv_id=0x001]
     stepfoc+can://INTERFACE/CHANNEL[?node=N&bitrate=N]      stepfoc+serial://PORT[?baudrate=N]
-    robotiq+serial://PORT[?slave=9]      robotiq+tcp://HOST[:54321][?slave=9]      robotiq+tcp://HOST:63352 (URCap)
+    robotiq+serial://PORT[?slave=9]         robotiq+tcp://HOST[:54321][?slave=9]   (54321: a UR forwarder)
+    robotiq+tcp://HOST:63352                 (Robotiq's URCap socket; or ?protocol=urcap)
     sim://PROFILE[?part_width_mm=40&transport=tcp]          (an in-process simulated gripper)
     zenoh://NAME?connect=tcp/HOST:7447                       (a gripper served by `grippers serve`)
 

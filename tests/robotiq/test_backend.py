@@ -184,3 +184,11 @@ def test_reconnect_after_the_forwarder_dropped_the_connection() -> None:
         g.simulator.faults.request_close()
         _until(lambda: g.driver is not first and g.connected)
         assert abs(g.move(0.03).width - 0.03) < 1e-3
+
+
+def test_the_gripper_sim_fixture_serves_a_robotiq(gripper_sim: Any) -> None:
+    url = gripper_sim("robotiq-2f140", part_width_mm=60, activated=True)
+    with grippers.open(url) as g:
+        assert g.profile.name == "robotiq-2f140"
+        r = g.grasp(0.06)
+        assert r.grasped and abs(r.width - 0.060) < 1e-3
