@@ -261,7 +261,9 @@ class RobotiqGripper(Gripper):
             )
         return st
 
-    def _poll(self, command: str, motion: int, timeout: float, done: Any) -> Status:
+    def _poll(
+        self, command: str, motion: int, timeout: float, done: Any, *, activating: bool = False
+    ) -> Status:
         """Poll the status until ``done(status)``; ends early, never as success, on a newer motion or a stop
         from this process, a fault, rGTO or rACT cleared by someone else, close(), or the timeout."""
         deadline = time.monotonic() + timeout
@@ -276,7 +278,7 @@ class RobotiqGripper(Gripper):
             error = self._fault_error(st, command)
             if error is not None:
                 raise error
-            if not st.act or (command != "home" and not (st.gto and st.sta == ActivationState.COMPLETE)):
+            if not st.act or (not activating and not (st.gto and st.sta == ActivationState.COMPLETE)):
                 raise CommandFailed(
                     f"{command} aborted: rGTO or rACT was cleared (another program?) at "
                     f"{self._width_of(st.position) * 1000:.1f} mm",
@@ -316,11 +318,12 @@ class RobotiqGripper(Gripper):
             raise error
         motion = self._begin("superseded by a newer motion before it ended (home)")
         self._mode, self._held = "home", False
-        if st.act or st.fault:
-            self._client.write_command(Command(), command="home")  # rACT 0: a rising edge is needed
-        self._last = Command(act=True, speed=self._last.speed, force=self._last.force or 255)
-        self._client.write_command(self._last, command="home")
-        self._poll("home", motion, timeout, lambda s: s.sta == ActivationState.COMPLETE)
+        if not (st.act and st.sta == ActivationState.IN_PROGRESS and not st.fault):  # else: wait for that one
+            if st.act or st.fault:
+                self._client.write_command(Command(), command="home")  # rACT 0: a rising edge is needed
+            self._last = Command(act=True, speed=self._last.speed, force=self._last.force or 255)
+            self._client.write_command(self._last, command="home")
+        self._poll("home", motion, timeout, lambda s: s.sta == ActivationState.COMPLETE, activating=True)
         self._mode = "idle"
 
     def _move(self, width: float, speed: float, timeout: float) -> MotionResult:
@@ -391,7 +394,8 @@ class RobotiqGripper(Gripper):
             self._last = Command(act=True, speed=self._last.speed, force=self._last.force)
             self._client.write_command(self._last, command="acknowledge")
             bound = self._motion_timeout(2 * self.limits.stroke, self.limits.min_speed)
-            self._poll("home", motion, bound, lambda s: s.sta == ActivationState.COMPLETE)
+            complete = lambda s: s.sta == ActivationState.COMPLETE  # noqa: E731
+            self._poll("acknowledge", motion, bound, complete, activating=True)
         self._latched = False
 
     # -- state and info ----------------------------------------------------------------------------------
@@ -411,9 +415,7 @@ class RobotiqGripper(Gripper):
 
     def _state(self) -> GripperState:
         st = self._client.read_status(command="state")
-        faults = tuple(fault_name(st.fault) for _ in (0,) if st.fault) + (
-            ("fast_stop",) if self._latched else ()
-        )
+        faults = ((fault_name(st.fault),) if st.fault else ()) + (("fast_stop",) if self._latched else ())
         return GripperState(
             width=self._width_of(st.position),
             speed=None,
