@@ -17,8 +17,10 @@ import time
 from collections.abc import Callable
 from typing import Any, Protocol
 
+from ..dissect import FROM_GRIPPER, TO_GRIPPER
 from ..errors import CommandFailed, ConnectionLost, GripperTimeout
 from . import modbus
+from .dissect import log_frame, wire_debug
 from .modbus import READ_HOLDING, READ_INPUT, READ_WRITE, ExceptionCode, ResponseParser
 from .registers import (
     BAUDRATE,
@@ -189,6 +191,8 @@ class RobotiqClient:
                 self.link.write(request)
                 if self.trace:
                     self.trace("tx", request)
+                if wire_debug():
+                    log_frame(self.device, TO_GRIPPER, request)
                 reply = self._read_reply(command)
             except ConnectionLost as exc:
                 self._lost = exc
@@ -226,6 +230,8 @@ class RobotiqClient:
                 self.trace("rx", data)
             replies = self._parser.feed(data)
             if replies:
+                if wire_debug():
+                    log_frame(self.device, FROM_GRIPPER, replies[0].raw)
                 return replies[0]
 
     def read_status(self, *, command: str = "status") -> Status:

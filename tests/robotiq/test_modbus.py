@@ -159,3 +159,34 @@ def test_builders_refuse_what_no_frame_holds() -> None:
         modbus.write_request(300, COMMAND_ADDRESS, [1])
     with pytest.raises(ValueError):
         Command(position=256)
+
+
+def test_frames_are_dissected_for_the_monitor_and_the_wire_log() -> None:
+    from grippers.drivers.dissect import FROM_GRIPPER, TO_GRIPPER, render_line
+    from grippers.drivers.robotiq.dissect import ModbusStream
+
+    (req,) = ModbusStream(TO_GRIPPER).feed(CLOSE_FULL)
+    assert "rACT|rGTO rPR=255 rSP=255 rFR=255" in render_line(req) and req["node"] == 9
+    replies = ModbusStream(FROM_GRIPPER)
+    assert replies.feed(GRASPED_04[:5]) == []
+    (rep,) = replies.feed(GRASPED_04[5:])
+    assert rep["fields"]["gOBJ"] == "CONTACT_CLOSING" and rep["fields"]["gPO"] == 0xBD
+
+
+def test_the_client_logs_each_frame_decoded(caplog: pytest.LogCaptureFixture) -> None:
+    import logging
+
+    from grippers.drivers.robotiq.client import RobotiqClient
+    from grippers.drivers.robotiq.sim import RobotiqModel, serve
+
+    server = serve(RobotiqModel())
+    try:
+        client = RobotiqClient.tcp("127.0.0.1", server.port, timeout=2)
+        with caplog.at_level(logging.DEBUG, logger="grippers.wire"):
+            client.read_status()
+        client.close()
+    finally:
+        server.close()
+    lines = [r.getMessage() for r in caplog.records if r.name == "grippers.wire"]
+    assert any("read holding registers 0x07D0 x3" in ln for ln in lines)
+    assert any("gSTA=RESET" in ln for ln in lines)
