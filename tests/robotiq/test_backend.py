@@ -192,3 +192,19 @@ def test_the_gripper_sim_fixture_serves_a_robotiq(gripper_sim: Any) -> None:
         assert g.profile.name == "robotiq-2f140"
         r = g.grasp(0.06)
         assert r.grasped and abs(r.width - 0.060) < 1e-3
+
+
+def test_the_asyncio_face_drives_a_robotiq() -> None:
+    import asyncio
+
+    import grippers.aio
+
+    async def main() -> float:
+        g = await grippers.aio.open("sim://robotiq-2f85?activated=true&time_scale=10")
+        try:
+            await g.move(0.04)
+            return (await g.state()).width
+        finally:
+            await g.close()
+
+    assert abs(asyncio.run(main()) - 0.04) < 1e-3
