@@ -62,6 +62,8 @@ if TYPE_CHECKING:
 log = logging.getLogger(__name__)
 
 POLL_PERIOD = 0.005  # s between status polls in a motion wait (an exchange takes ~5 ms at 115200 baud)
+START_S = 0.2  # a motion not seen moving after this long has ended (the SDK's "wait to start moving" bound)
+END_COUNTS = 3  # gPO this close to the target's end position: the fingers are there (the unit's own counts)
 FALLBACK_PROFILE = "robotiq-2f85"
 
 
@@ -299,10 +301,22 @@ class RobotiqGripper(Gripper):
         motion = self._begin(f"superseded by a newer motion before it ended ({command})")
         self._client.write_command(cmd, command=command)
         self._last = cmd
+        sent = time.monotonic()
+        m = self._maps
+        end = min(max(position, m.open_count), m.closed_count)  # where the fingers can stop for this rPR
+        seen_moving = False
 
         def done(st: Status) -> bool:
-            # The echo says the status belongs to this request (manual, "position request echo").
-            return st.position_echo == position and st.obj != ObjectDetection.MOVING
+            # The echo says the status belongs to this request (manual, "position request echo"). gOBJ may
+            # still carry the previous motion's end for a cycle, so an end is taken once the fingers were
+            # seen moving, or stand at this target, or after START_S (the SDK waits 200 ms for a start).
+            nonlocal seen_moving
+            if st.position_echo != position:
+                return False
+            if st.obj == ObjectDetection.MOVING:
+                seen_moving = True
+                return False
+            return seen_moving or abs(st.position - end) <= END_COUNTS or time.monotonic() - sent >= START_S
 
         return self._poll(command, motion, timeout, done)
 
