@@ -208,3 +208,41 @@ def test_the_asyncio_face_drives_a_robotiq() -> None:
             await g.close()
 
     assert abs(asyncio.run(main()) - 0.04) < 1e-3
+
+
+class _ScriptedClient:
+    """Answers status reads from a script, as a device whose gOBJ lags the write by a cycle."""
+
+    slave = 9
+    alive = True
+
+    def __init__(self, statuses: list[tuple[int, int, int]]) -> None:
+        self.statuses = statuses  # (gOBJ, gPR, gPO) after the write
+        self.written: list[Command] = []
+
+    def read_status(self, *, command: str = "") -> Any:
+        from grippers.drivers.robotiq.registers import ObjectDetection, Status
+
+        obj, echo, pos = self.statuses.pop(0) if self.written and len(self.statuses) > 1 else self.statuses[0]
+        return Status(
+            True, bool(self.written), ActivationState.COMPLETE, ObjectDetection(obj), 0, 0, echo, pos, 0
+        )
+
+    def write_command(self, cmd: Command, *, command: str = "") -> None:
+        self.written.append(cmd)
+
+    def close(self) -> None:
+        pass
+
+
+def test_a_stale_gobj_after_the_write_is_not_taken_for_the_end_of_the_motion() -> None:
+    from grippers.backends.robotiq import RobotiqGripper
+    from grippers.profiles import load_profile
+
+    # Before: open (gPO 3); then the first status still says "at position" at gPO 3, then moving, then there.
+    client = _ScriptedClient([(3, 0, 3), (3, 230, 3), (0, 230, 120), (3, 230, 230)])
+    g = RobotiqGripper(client, load_profile("robotiq-2f85"), "robotiq+serial:///dev/scripted", timeout=0.5)  # type: ignore[arg-type]
+    try:
+        assert g.move(0.0).width < 1e-3  # not 85 mm, which the stale status claimed
+    finally:
+        g.close()
