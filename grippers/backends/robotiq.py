@@ -107,7 +107,7 @@ Byte = Annotated[int, Field(ge=0, le=255)]
 
 
 class RobotiqTransport(_Section):
-    timeout_s: Timeout = 0.5
+    timeout_s: Timeout = 1.0
     slave: Annotated[int, Field(ge=1, le=247)] = DEFAULT_SLAVE
     baudrate: Annotated[int, Field(gt=0)] = BAUDRATE
     tcp_port: Annotated[int, Field(ge=1, le=65535)] = FORWARDER_PORT

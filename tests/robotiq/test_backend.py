@@ -153,7 +153,7 @@ def test_servo_streams_position_requests(g: Any) -> None:
 
 
 def test_slave_id_and_a_silent_or_corrupt_device() -> None:
-    with grippers.open("sim://robotiq-hande?slave=3&timeout=0.3") as g:
+    with grippers.open("sim://robotiq-hande?slave=3&timeout=0.5") as g:
         assert g.driver.slave == 3 and g.info().extra["slave"] == 3
         g.simulator.faults.silent = True
         with pytest.raises(GripperTimeout, match="no answer from slave 3"):
@@ -178,7 +178,7 @@ def test_profiles_and_urls_are_checked() -> None:
 
 
 def test_reconnect_after_the_forwarder_dropped_the_connection() -> None:
-    with grippers.open("sim://robotiq-2f85?activated=true&reconnect=true&timeout=0.3") as g:
+    with grippers.open("sim://robotiq-2f85?activated=true&reconnect=true&timeout=0.5") as g:
         assert abs(g.move(0.05).width - 0.05) < 1e-3
         first = g.driver
         g.simulator.faults.request_close()
