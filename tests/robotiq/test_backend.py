@@ -246,3 +246,27 @@ def test_a_stale_gobj_after_the_write_is_not_taken_for_the_end_of_the_motion() -
         assert g.move(0.0).width < 1e-3  # not 85 mm, which the stale status claimed
     finally:
         g.close()
+
+
+@pytest.mark.parametrize("code", range(1, 16))
+def test_every_gflt_code_maps_to_one_typed_outcome(code: int) -> None:
+    from grippers.backends.robotiq import RobotiqGripper
+    from grippers.drivers.robotiq.registers import FAULT_NAMES, ObjectDetection, Status
+    from grippers.profiles import load_profile
+
+    g = RobotiqGripper(
+        _ScriptedClient([(3, 0, 3)]),  # type: ignore[arg-type]
+        load_profile("robotiq-2f85"),
+        "robotiq+serial:///dev/scripted",
+        timeout=0.5,
+    )
+    st = Status(True, True, ActivationState.COMPLETE, ObjectDetection.MOVING, code, 0, 0, 3, 0)
+    err = g._fault_error(st, "move")
+    if code in (Fault.ACTION_DELAYED, Fault.NO_COMMUNICATION):
+        assert err is None  # transient: the wait goes on
+    elif code == Fault.ACTIVATION_BIT:
+        assert isinstance(err, RobotiqNotActivated)
+    else:
+        assert isinstance(err, RobotiqFault) and err.status == code and err.command == "move"
+        assert (err.status_name in FAULT_NAMES.values()) == (code in FAULT_NAMES)
+    g.close()
