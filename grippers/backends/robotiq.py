@@ -48,6 +48,7 @@ from grippers.drivers.robotiq.registers import (
     fault_name,
     fault_text,
 )
+from grippers.drivers.robotiq.session import FaultClass, MotionTracker, classify_fault
 from grippers.drivers.robotiq.urcap import UrcapClient
 
 from ..errors import URLError
@@ -62,8 +63,6 @@ if TYPE_CHECKING:
 log = logging.getLogger(__name__)
 
 POLL_PERIOD = 0.005  # s between status polls in a motion wait (an exchange takes ~5 ms at 115200 baud)
-START_S = 0.2  # a motion not seen moving after this long has ended (the SDK's "wait to start moving" bound)
-END_COUNTS = 3  # gPO this close to the target's end position: the fingers are there (the unit's own counts)
 FALLBACK_PROFILE = "robotiq-2f85"
 
 
@@ -230,16 +229,17 @@ class RobotiqGripper(Gripper):
 
     def _fault_error(self, st: Status, command: str) -> CommandFailed | None:
         """The typed error for the fault ``st`` shows, or None where the wait goes on (a delayed action, the
-        watchdog's note, which the next write clears)."""
-        if st.fault in (Fault.NONE, Fault.ACTION_DELAYED, Fault.NO_COMMUNICATION):
+        watchdog's note, which the next write clears): drivers/robotiq/session.py classifies."""
+        kind = classify_fault(st.fault)
+        if kind in (FaultClass.NONE, FaultClass.TRANSIENT):
             return None
-        if st.fault == Fault.ACTIVATION_BIT:
+        if kind is FaultClass.NOT_ACTIVATED:
             return not_activated_error(
                 "the gripper is not activated (gFLT 0x07): call home() to activate it",
                 device=self.name,
                 command=command,
             )
-        hint = " (acknowledge() re-activates the gripper)" if st.fault in MAJOR_FAULTS else ""
+        hint = " (acknowledge() re-activates the gripper)" if kind is FaultClass.MAJOR else ""
         return RobotiqFault(
             f"gripper fault 0x{st.fault:02X}: {fault_text(st.fault)}{hint}",
             status=st.fault,
@@ -301,23 +301,9 @@ class RobotiqGripper(Gripper):
         motion = self._begin(f"superseded by a newer motion before it ended ({command})")
         self._client.write_command(cmd, command=command)
         self._last = cmd
-        sent = time.monotonic()
         m = self._maps
-        end = min(max(position, m.open_count), m.closed_count)  # where the fingers can stop for this rPR
-        seen_moving = False
-
-        def done(st: Status) -> bool:
-            # The echo says the status belongs to this request (manual, "position request echo"). gOBJ may
-            # still carry the previous motion's end for a cycle, so an end is taken once the fingers were
-            # seen moving, or stand at this target, or after START_S (the SDK waits 200 ms for a start).
-            nonlocal seen_moving
-            if st.position_echo != position:
-                return False
-            if st.obj == ObjectDetection.MOVING:
-                seen_moving = True
-                return False
-            return seen_moving or abs(st.position - end) <= END_COUNTS or time.monotonic() - sent >= START_S
-
+        tracker = MotionTracker(position, time.monotonic(), m.open_count, m.closed_count)
+        done = lambda st: tracker.update(st, time.monotonic())  # noqa: E731
         return self._poll(command, motion, timeout, done)
 
     # -- the interface -----------------------------------------------------------------------------------
