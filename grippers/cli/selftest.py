@@ -85,9 +85,13 @@ def _bounded(text: str, name: str, low: float, high: float) -> float:
     from grippers.errors import LimitError
 
     try:
-        return finite(text.strip(), name, low=low, high=high)
+        number = float(text)  # text is parsed here: the library's rule takes numbers, not strings
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{name} must be a number, not {text!r}") from None
+    try:
+        return finite(number, name, low=low, high=high)
     except LimitError as exc:
-        raise argparse.ArgumentTypeError(f"{exc.message} (allowed: {low:g} to {high:g})") from None
+        raise argparse.ArgumentTypeError(exc.message) from None
 
 
 def time_scale(text: str) -> float:
