@@ -112,3 +112,33 @@ def test_ctrl_c_in_a_timed_move_stops_the_jaws(monkeypatch: pytest.MonkeyPatch) 
         signal.signal(signal.SIGINT, previous)
         clock.set_rate(SCALE)
         server.close()
+
+
+def test_stops_motions_on_error_stops_only_when_the_block_fails() -> None:
+    # The helper every command that starts motions without waiting can use (grippers/cli/common.py).
+    import grippers
+    from grippers.cli.common import stops_motions_on_error
+    from grippers.errors import CommandFailed
+
+    clock = GearClock(SCALE)
+    model = get_backend("stepfoc").sim_model(load_profile("msg-150"), 0, None)
+    server = serve_can(model, f"can://virtual/stops-{time.monotonic_ns()}", clock=clock)
+    gripper = grippers.open(server.url, profile="msg-150")
+    try:
+        gripper.home()
+        clock.set_rate(0.0)  # from here the jaws cannot finish a move: "still running" is certain
+        with stops_motions_on_error(gripper):
+            left_alone = gripper.move(0.08, wait=False)
+        assert not left_alone.done()  # a block that ends normally leaves its motion running
+        with pytest.raises(RuntimeError, match="the command failed"), stops_motions_on_error(gripper):
+            handle = gripper.move(0.03, wait=False)
+            raise RuntimeError("the command failed")
+        assert handle.done()
+        with pytest.raises(CommandFailed, match="aborted by RuntimeError"):
+            handle.wait(0)
+        with server.lock:
+            assert model.phase is not Phase.MOVING
+    finally:
+        clock.set_rate(SCALE)
+        gripper.close()
+        server.close()

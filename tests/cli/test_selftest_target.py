@@ -192,3 +192,24 @@ def _umask() -> int:
     mask = os.umask(0o022)
     os.umask(mask)
     return mask
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ("--time-scale", "1e308"),  # was an errno tuple after homing and moving
+        ("--time-scale", "1e400"),
+        ("--time-scale", "nan"),
+        ("--time-scale", "0"),
+        ("--time-scale", "1e-300"),
+        ("--tolerance", "1e308"),  # every speed would pass
+        ("--tolerance", "0"),
+    ],
+)
+def test_absurd_numbers_are_usage_errors_before_moving(wsg_sim, capsys, argv: tuple[str, ...]) -> None:
+    server = wsg_sim("tcp://127.0.0.1:0")
+    with pytest.raises(SystemExit) as exited:
+        main(["selftest", server.url, "--yes", *argv])
+    err = capsys.readouterr().err
+    assert exited.value.code == 2 and f"argument {argv[0]}" in err and len(err.strip().splitlines()) == 1
+    assert server.model.referenced is False
