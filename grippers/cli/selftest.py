@@ -415,8 +415,6 @@ def _document(run: _Run, args: argparse.Namespace, info: Any, written: str | Non
 def _target(args: argparse.Namespace, gripper: Any) -> ProfileTarget | None:
     """``--write-profile FILE``, checked before anything moves (grippers/cli/selftest_target.py)."""
     if not args.write_profile:
-        if args.force:
-            raise UsageError("--force goes with --write-profile FILE")
         return None
     from .selftest_target import check_target
 
@@ -441,6 +439,8 @@ def _print_table(run: _Run) -> None:
 def run(args: argparse.Namespace) -> int:
     if not args.yes and not sys.stdin.isatty():
         raise UsageError("selftest moves the gripper: add --yes to run it without a terminal to ask on")
+    if args.force and not args.write_profile:
+        raise UsageError("--force goes with --write-profile FILE")
     scale = _time_scale(args)
     with opened_gripper(args) as gripper:
         target = _target(args, gripper)
