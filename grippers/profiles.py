@@ -41,10 +41,10 @@ MAX_FORCE_N = 100_000.0
 MAX_TIMEOUT_S = 3600.0  # an exchange that takes longer than an hour is not an exchange
 MAX_TIME_SCALE = 1_000_000.0
 MAX_PROFILE_BYTES = 1 << 20  # 1 MiB: every shipped profile is under 2 kB; a bigger file is not a profile
-# How many ``extends`` a profile may stand on (docs/profiles.md says so). Each level searches the profile path and
-# validates its base, so a chain of 300 took two minutes to load (and ``profiles list`` loads every file): no real
-# family tree of grippers is deeper than a handful (vendor, model, variant, site), so a deeper one is refused by
-# name, in one short line (issue 33 §3: each level used to prefix its own file to the message).
+# How many ``extends`` a profile may stand on (docs/profiles.md says so). Each level searches the profile path
+# and validates its base, so a chain of 300 took two minutes to load (and ``profiles list`` loads every file):
+# no real family tree of grippers is deeper than a handful (vendor, model, variant, site), so a deeper one is
+# refused by name, in one short line (issue 33 §3: each level used to prefix its own file to the message).
 MAX_EXTENDS_DEPTH = 16
 
 NonNegative = Annotated[float, Field(ge=0, allow_inf_nan=False)]
@@ -569,7 +569,7 @@ def _index_files() -> Iterator[_Indexed]:
 
 
 class _ChainTooDeep(ProfileError):
-    """More than :data:`MAX_EXTENDS_DEPTH` levels: raised once, at the level that passes the cap, naming the top."""
+    """More than :data:`MAX_EXTENDS_DEPTH` levels: raised once, where the cap is passed, naming the top."""
 
 
 def _load(path: Path, chain: tuple[str, ...]) -> tuple[ProfileBase, tuple[tuple[str, Stamp], ...]]:
@@ -651,7 +651,7 @@ def load_file(path: str | os.PathLike[str]) -> ProfileBase:
 
 
 def extends_chain(path: str | os.PathLike[str]) -> list[str]:
-    """The files a profile file is built from, as absolute paths: itself first, then its base, the base's base.
+    """The files a profile file is built from, as absolute paths: itself first, its base, the base's base.
 
     For a writer that must not replace a file its own result would stand on (``selftest --write-profile``
     onto the base's file left a profile extending itself, issue 33 §1). Raises the file's ProfileError."""

@@ -18,7 +18,6 @@ from collections.abc import Sequence
 from typing import Any
 
 from . import logs
-from .output import EXIT_INTERRUPTED
 
 # name -> module (relative to this package) or "module:attribute"; order is the order shown in --help.
 SUBCOMMANDS: dict[str, str] = {
@@ -115,6 +114,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(f"grippers{''.join(' ' + c for c in command)}: interrupted", file=sys.stderr)
         except KeyboardInterrupt:  # a second Ctrl-C while saying so: the exit code still says it
             pass
+        from .output import EXIT_INTERRUPTED  # loaded by then, with the subcommands, but for the first ms
+
         return EXIT_INTERRUPTED
 
 

@@ -33,7 +33,9 @@ def test_a_deeper_chain_is_a_profile_error(tmp_path: Path, monkeypatch: pytest.M
     assert "wsg50" in names
 
 
-def test_the_error_is_one_short_line_naming_the_top_file(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+def test_the_error_is_one_short_line_naming_the_top_file(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     # Issue 33 §3: every level prefixed its own file ("a.toml: extends 'b': b.toml: extends 'c': ..."), so a
     # chain of 20 gave an error of 870 characters.
     _chain(tmp_path, MAX_EXTENDS_DEPTH + 4)
