@@ -46,10 +46,10 @@ class GripperSims:
     def __call__(self, profile: str | os.PathLike[str] = "wsg50", **settings: Any) -> SimURL:
         from urllib.parse import urlencode
 
-        from .backends import get_backend
-        from .errors import URLError
-        from .profiles import load_profile
-        from .settings import Settings
+        from ..backends import get_backend
+        from ..errors import URLError
+        from ..profiles import load_profile
+        from ..settings import Settings
 
         chosen = load_profile(profile)
         backend = get_backend(chosen.family)
