@@ -421,6 +421,20 @@ class ConformanceSuite:
         g.release(timeout=self.motion_bound_s)
         assert g.state().grasp is not GraspState.HOLDING, g.state()
 
+    def test_a_move_blocked_by_a_part_is_reported_blocked_never_done(self, conformance: Conformance) -> None:
+        """A plain move() that a part stops short of its target raises MotionBlocked (a CommandFailed),
+        never a result as if it had arrived."""
+        blocked = getattr(grippers, "MotionBlocked", CommandFailed)
+        part = 0.4 * grippers.load_profile(conformance.target.profile).mechanics.stroke_mm / 1000
+        g = conformance.homed(part_m=part)
+        g.release(timeout=self.motion_bound_s)
+        lim = g.limits
+        target = lim.min_width + 0.1 * (lim.max_width - lim.min_width)
+        exc = _raises_typed(blocked, f"move to {target:g} m across a {part:g} m part", g.move, target)
+        assert "superseded" not in str(exc), exc
+        state = conformance.until_still(g)
+        assert state.width > target + conformance.tolerance, f"the jaws passed the part: {state}"
+
     def test_a_grasp_without_a_part_reports_not_grasped(self, conformance: Conformance) -> None:
         g = conformance.homed()
         lim = g.limits
