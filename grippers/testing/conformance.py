@@ -323,18 +323,19 @@ class ConformanceSuite:
 
     def test_the_newer_motion_wins(self, conformance: Conformance) -> None:
         """A motion started while another runs supersedes it: the older handle raises CommandFailed
-        "superseded by ..." and never returns the newer motion's result; the newer one completes."""
+        "superseded by move ..." at once (settled when the newer call returns) and never returns the newer
+        motion's result; the newer one completes."""
         g = conformance.homed(hold=True)
         older, start, _ = conformance.long_motion(g)
         lo, hi = g.limits.min_width, g.limits.max_width
         middle = (lo + hi) / 2
         newer = g.move(middle, g.limits.max_speed, wait=False)
         assert isinstance(newer, MotionHandle)
+        assert older.done(), "the older motion's handle is still open once the newer motion was started"
+        exc = _raises_typed(CommandFailed, "the superseded motion's handle", older.wait, 0)
+        assert "superseded by move" in str(exc), f"the older motion ended with {exc!r}, not as superseded"
         result = newer.wait(self.motion_bound_s)
         assert abs(result.width - middle) < conformance.tolerance, f"the newer move reported {result}"
-        assert older.done(), "the older motion's handle is still open after the newer motion ended"
-        exc = _raises_typed(CommandFailed, "the superseded motion's handle", older.wait, 0)
-        assert "superseded" in str(exc), f"the older motion ended with {exc!r}, not as superseded"
 
     def test_state_is_readable_while_a_motion_runs(self, conformance: Conformance) -> None:
         g = conformance.homed(hold=True)
