@@ -63,6 +63,7 @@ _LAZY = {
     "load_profile": ".profiles",
     # Added to grippers/errors.py by the remote (Zenoh) layer: a peer refused by the server's access rules.
     "AccessDenied": ".errors",
+    **{"record": ".recorder", "Recorder": ".recorder", "RecordingError": ".recording"},  # issue 31 §3
 }
 
 __all__ = [
@@ -93,6 +94,7 @@ __all__ = [
     "Limits",
     "Profile",
     "load_profile",
+    *("record", "Recorder", "RecordingError"),
 ]
 
 

@@ -11,7 +11,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from grippers.cli.recording import read
+from grippers.recording import read
 
 pytest.importorskip("matplotlib")
 
@@ -124,7 +124,7 @@ def test_record_ctrl_c_before_the_gripper_opened_leaves_no_empty_file(tmp_path: 
     """A Ctrl-C (or any failure) while the gripper is being opened: nothing was recorded, and the file the
     sink created at start (to find a bad path early) is removed rather than left empty (it read as "not a
     grippers recording" later)."""
-    from grippers.cli.recording import open_sink
+    from grippers.recording import open_sink
 
     for name in ("a.jsonl", "b.csv"):
         sink = open_sink(tmp_path / name)
@@ -139,7 +139,7 @@ def test_record_ctrl_c_before_the_gripper_opened_leaves_no_empty_file(tmp_path: 
 def test_csv_starts_with_its_columns_for_plain_readers(cli, tmp_path: Path) -> None:
     import csv
 
-    from grippers.cli.recording import COLUMNS, RECORD_SCHEMA_ID
+    from grippers.recording import COLUMNS, RECORD_SCHEMA_ID
 
     out = tmp_path / "grasp.csv"
     assert cli("record", URL, "-o", str(out), "--do", "home").returncode == 0
@@ -197,7 +197,7 @@ def test_mcap_opens_in_an_independent_reader(cli, tmp_path: Path) -> None:
     rosbags_reader = pytest.importorskip("rosbags.rosbag2")
     from rosbags.typesys import Stores, get_typestore
 
-    from grippers.cli.recording_mcap import JOINT_STATE_DEFINITION
+    from grippers.recording_mcap import JOINT_STATE_DEFINITION
 
     out = tmp_path / "run.mcap"
     r = cli("record", URL, "-o", str(out), "--rate", "100", "--do", "home", "--do", "grasp 40 --force 20")
