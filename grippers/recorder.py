@@ -93,6 +93,7 @@ class Recorder:
         self._queue: queue.Queue[Any] = queue.Queue()
         self._count = threading.Lock()
         self._closed = False
+        self._finished = threading.Event()  # set by the writer when the file is closed
         self.start = time.time()
         head = {
             "grippers": [{"name": n, "target": str(g.url)} for n, g in self.grippers.items()],
@@ -193,7 +194,10 @@ class Recorder:
                 if item is not _END:
                     sink.add(item)
         finally:
-            sink.close()
+            try:
+                sink.close()
+            finally:
+                self._finished.set()
 
     # -- the end ------------------------------------------------------------------------------------------
 
@@ -210,15 +214,17 @@ class Recorder:
                 interrupted = exc
         self._closed = True
         self._queue.put(_END)
+        # An Event, not Thread.join(): a join interrupted by Ctrl-C can mark a running thread stopped
+        # (CPython's bpo-45274 handling), and the wait would end before the file is finished.
         deadline = time.monotonic() + CLOSE_BOUND_S
-        while self._writer.is_alive() and time.monotonic() < deadline:
+        while not self._finished.is_set() and time.monotonic() < deadline:
             try:
-                self._writer.join(min(0.2, max(0.0, deadline - time.monotonic())))
+                self._finished.wait(min(0.2, max(0.0, deadline - time.monotonic())))
             except KeyboardInterrupt as exc:
                 interrupted = exc
         if interrupted is not None:
             raise interrupted
-        if self._writer.is_alive():
+        if not self._finished.is_set():
             raise RecordingError(f"{self.path}: the file was not finished within {CLOSE_BOUND_S:g} s")
         if self.error is not None:
             raise self.error

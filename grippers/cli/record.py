@@ -16,6 +16,7 @@ import argparse
 import logging
 import re
 import shlex
+import signal
 import sys
 import threading
 import time
@@ -192,8 +193,16 @@ def _sleep(seconds: float, rec: Any) -> None:
         time.sleep(min(0.05, left))
 
 
+def _ending(exc: BaseException) -> None:
+    """After the first Ctrl-C the command is ending: further ones are ignored, so they cut neither the stops,
+    the file nor the closes short (each is bounded), nor turn exit 130 into a death by SIGINT. (A join
+    interrupted by Ctrl-C can also take a running thread for ended: CPython's bpo-45274 handling.)"""
+    if isinstance(exc, KeyboardInterrupt) and threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
 def _stop_all(grippers: dict[str, Any], names: list[str]) -> None:
-    """Stop these grippers at once, each in its own thread, bounded; a second Ctrl-C does not end it."""
+    """Stop these grippers at once, each in its own thread, bounded."""
 
     def stop(name: str) -> None:
         try:
@@ -204,13 +213,9 @@ def _stop_all(grippers: dict[str, Any], names: list[str]) -> None:
     threads = [threading.Thread(target=stop, args=(n,), name=f"grippers-record-stop-{n}") for n in names]
     for t in threads:
         t.start()
-    deadline = time.monotonic() + STOP_BOUND
+    deadline = time.monotonic() + STOP_BOUND  # SIGINT is ignored by now (_ending): join is not interrupted
     for t in threads:
-        while t.is_alive() and time.monotonic() < deadline:
-            try:
-                t.join(0.1)
-            except KeyboardInterrupt:
-                pass  # already stopping; the process ends once the stop has been sent
+        t.join(max(0.0, deadline - time.monotonic()))
 
 
 def run_step(step: Step, grippers: dict[str, Any], rec: Any) -> BaseException | None:
@@ -237,15 +242,28 @@ def run_step(step: Step, grippers: dict[str, Any], rec: Any) -> BaseException | 
             return
         rec.event(step.text, "done", _detail(result), gripper=name)
 
-    workers = {n: threading.Thread(target=work, args=(n,), name=f"grippers-record-{n}") for n in names}
-    for t in workers.values():
-        t.start()
+    # Events, not Thread.is_alive(): a join interrupted by Ctrl-C can mark a running thread stopped
+    # (CPython's bpo-45274 handling), and that gripper would be left moving.
+    ended = {n: threading.Event() for n in names}
+
+    def worker(name: str) -> None:
+        try:
+            work(name)
+        finally:
+            ended[name].set()
+
+    for n in names:
+        threading.Thread(target=worker, args=(n,), name=f"grippers-record-{n}", daemon=True).start()
     try:
-        for t in workers.values():
-            while t.is_alive():
-                t.join(0.05)
-    except BaseException:
-        _stop_all(grippers, [n for n, t in workers.items() if t.is_alive()])
+        for event in ended.values():
+            while not event.wait(0.05):
+                pass
+    except BaseException as exc:
+        _ending(exc)
+        _stop_all(grippers, [n for n, e in ended.items() if not e.is_set()])
+        deadline = time.monotonic() + STOP_BOUND  # their calls end "aborted by stop()", stamped "failed"
+        for event in ended.values():
+            event.wait(max(0.0, deadline - time.monotonic()))
         raise
     return next((errors[n] for n in names if n in errors), None)
 
@@ -275,7 +293,11 @@ def run(args: argparse.Namespace) -> int:
         for name, url in targets.items():
             grippers[name] = open_gripper(argparse.Namespace(**{**vars(args), "target": url}))
         names_of(grippers)  # checked before the file gets its header
-        header = {"target": " ".join(targets.values()), "do": list(args.do)}
+        header = {
+            "target": " ".join(targets.values()),
+            "grippers": [{"name": n, "target": u} for n, u in targets.items()],  # as typed
+            "do": list(args.do),
+        }
         rec = Recorder(args.output, grippers, rate_hz=args.rate, header=header, sink=sink)
         log.info("recording %s to %s (Ctrl-C ends it)", header["target"], ", ".join(rec.files))
         for step in plan:
@@ -289,7 +311,8 @@ def run(args: argparse.Namespace) -> int:
         elif rec.error is None:
             _sleep(TAIL if plan else DEFAULT_DURATION, rec)
         failed = finish(rec) or failed  # a full disk, a file-size limit: the file named, its rows readable
-    except BaseException:
+    except BaseException as exc:
+        _ending(exc)
         if rec is not None and (error := finish(rec)) is not None:
             print(error_line("record", error), file=sys.stderr)  # said; the first exception is raised
         raise
