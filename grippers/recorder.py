@@ -28,7 +28,7 @@ from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from .recording import DEFAULT_NAME, RecordingError, open_sink
+from .recording import DEFAULT_NAME, RecordingError, Sink, open_sink
 
 if TYPE_CHECKING:
     from .gripper import Gripper, StateStream
@@ -81,10 +81,10 @@ class Recorder:
         *,
         rate_hz: float = 50.0,
         header: Mapping[str, Any] | None = None,
-        sink: Any = None,
+        sink: Sink | None = None,
     ) -> None:
         self.grippers = names_of(grippers)
-        self._sink = sink if sink is not None else open_sink(path)
+        self._sink: Sink = sink if sink is not None else open_sink(path)
         self.path = str(self._sink.path)
         self.format: str = self._sink.format
         self.files: list[str] = list(self._sink.files)
@@ -133,9 +133,11 @@ class Recorder:
         self._queue.put(row)
 
     def event(self, command: str, phase: str, detail: str | None = None, gripper: str | None = None) -> None:
-        """A command row stamped now: ``phase`` is ``start``, ``done`` or ``failed``; ``gripper`` None: all."""
+        """A command row stamped now: ``phase`` is ``start``, ``done`` or ``failed``; ``gripper`` None: all
+        of them (or none, as for a wait)."""
         if gripper is not None and gripper not in self.grippers:
-            raise RecordingError(f"{gripper!r}: not a gripper of this recording ({', '.join(self.grippers)})")
+            known = ", ".join(self.grippers)
+            raise RecordingError(f"{gripper!r}: not a gripper of this recording ({known})")
         row = {
             "t_s": round(time.time() - self.start, 6),
             "gripper": gripper,
@@ -162,7 +164,7 @@ class Recorder:
     @property
     def error(self) -> RecordingError | None:
         """The write error that ended the recording (naming the file), if one did."""
-        return self._sink.error  # type: ignore[no-any-return]
+        return self._sink.error
 
     def _write(self, head: dict[str, Any]) -> None:
         sink = self._sink

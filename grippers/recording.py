@@ -167,7 +167,8 @@ class Sink:
         self._fh.flush()
 
     def close(self) -> None:
-        """Finish the file (MCAP: the summary and footer) and close it; after an error, close what is there."""
+        """Finish the file (MCAP: the summary and footer) and close it; after an error, close what is
+        there."""
         self._guard(self._mcap.finish if self._mcap is not None else self._flush_text)
         self._close_quietly()
 
@@ -233,6 +234,8 @@ def _flag(value: Any) -> bool | None:
         return value
     text = str(value).strip().lower()
     return {"true": True, "false": False, "1": True, "0": False}.get(text)
+
+
 def _row(obj: Any, where: str) -> dict[str, Any]:
     """One row, checked: a mapping, a known kind, a finite time, numbers finite or empty, text as text."""
     if not isinstance(obj, Mapping):
@@ -257,8 +260,6 @@ def _row(obj: Any, where: str) -> dict[str, Any]:
     faults = obj.get("faults")
     row["faults"] = faults.split() if isinstance(faults, str) else faults if isinstance(faults, list) else []
     return row
-
-
 
 
 def _read_text(path: str | Path) -> tuple[str, str | None]:

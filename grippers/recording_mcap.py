@@ -20,9 +20,9 @@ from __future__ import annotations
 import json
 import math
 import struct
-from collections.abc import Iterable, Mapping
+from collections.abc import Mapping
 from pathlib import Path
-from typing import IO, Any
+from typing import Any
 
 JOINT_STATE = "sensor_msgs/msg/JointState"
 JOINT_TOPIC = "/joint_states"
@@ -147,7 +147,10 @@ class McapSink:
         stamp = self._start_ns + int(float(row["t_s"]) * 1e9)
         plain = {k: v for k, v in row.items() if v is not None}
         self._raw.add_message(
-            self._json_channel, log_time=stamp, data=json.dumps(plain).encode(), publish_time=stamp,
+            self._json_channel,
+            log_time=stamp,
+            data=json.dumps(plain).encode(),
+            publish_time=stamp,
             sequence=self._seq,
         )
         self._seq += 1
@@ -226,7 +229,7 @@ def read_mcap(path: str | Path) -> tuple[dict[str, Any], list[dict[str, Any]], s
             cut = "it has no summary (the writer did not finish)"
     except OSError as exc:
         raise ValueError(f"{path}: cannot read: {exc.strerror or exc}") from None
-    except Exception as exc:  # the mcap reader's own errors, struct errors, bad JSON: one line, the file named
+    except Exception as exc:  # the reader's own errors, struct errors, bad JSON: one line, the file named
         raise ValueError(
             f"{path}: not a readable MCAP recording: {' '.join(str(exc).split()) or type(exc).__name__}"
         ) from None

@@ -1,4 +1,4 @@
-"""``grippers record [NAME=]URL... -o FILE.csv|FILE.jsonl|FILE.mcap [--do '[NAME:] grasp 40 --force 20' ...]``:
+"""``grippers record [NAME=]URL... -o FILE.csv|.jsonl|.mcap [--do '[NAME:] grasp 40 --force 20' ...]``:
 states and commands of one or several grippers over time, in one file, in SI-derived units (mm, mm/s, N, A),
 for tuning a grasp, for ``grippers plot`` and (MCAP) for ROS 2 tools and Foxglove.
 
@@ -156,7 +156,8 @@ def parse_do(text: str, names: list[str] | None = None) -> Step:
     if match and match.group(1) not in DO_COMMANDS:
         gripper, body = match.group(1), match.group(2)
         if gripper not in names:
-            raise UsageError(f"--do {text!r}: no gripper named {gripper!r} (the names are {', '.join(names)})")
+            known = ", ".join(names)
+            raise UsageError(f"--do {text!r}: no gripper named {gripper!r} (the names are {known})")
     try:
         words = shlex.split(body)
     except ValueError as exc:  # "No closing quotation": the user's quoting, a usage error (exit 2)

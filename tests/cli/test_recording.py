@@ -281,9 +281,8 @@ def test_plot_draws_the_complete_part_of_a_file_cut_short(cli, tmp_path: Path, s
 def test_plot_says_not_reported_instead_of_an_empty_panel(cli, tmp_path: Path) -> None:
     pytest.importorskip("matplotlib")
     out = tmp_path / "msg.jsonl"
-    with grippers.open(MSG) as g, grippers.record(out, g) as rec:
-        with rec.command("home"):
-            g.home()
+    with grippers.open(MSG) as g, grippers.record(out, g) as rec, rec.command("home"):
+        g.home()
     assert all(r["speed_mm_s"] is None for r in _states(load(out).rows))  # the MSG reports no speed
     svg = tmp_path / "msg.svg"
     assert cli("plot", str(out), "-o", str(svg)).returncode == 0
@@ -294,10 +293,9 @@ def test_plot_of_two_grippers_and_two_files_on_one_time_axis(cli, tmp_path: Path
     pytest.importorskip("matplotlib")
     both, later = tmp_path / "both.csv", tmp_path / "later.jsonl"
     with grippers.open(WSG) as left, grippers.open(MSG) as right:
-        with grippers.record(both, {"left": left, "right": right}) as rec:
-            with rec.command("home"):
-                left.home()
-                right.home()
+        with grippers.record(both, {"left": left, "right": right}) as rec, rec.command("home"):
+            left.home()
+            right.home()
         with grippers.record(later, left):
             _wait_rows_in_process(later, lambda rows: len(_states(rows)) >= 3)
     svg = tmp_path / "all.svg"
@@ -388,7 +386,8 @@ def test_record_result_schema_lists_the_grippers() -> None:
 
     validate(
         json.loads(
-            '{"schema": "grippers.record-result/1", "target": "a b", "grippers": [{"name": "a", "target": "a"}],'
+            '{"schema": "grippers.record-result/1", "target": "a b",'
+            ' "grippers": [{"name": "a", "target": "a"}],'
             ' "output": "x.csv", "format": "csv", "files": ["x.csv"], "states": 1, "command_events": 0,'
             ' "failed": null}'
         )
