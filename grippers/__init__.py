@@ -45,6 +45,8 @@ if TYPE_CHECKING:
     )
     from .motions import MotionHandle
     from .profiles import Limits, Profile, load_profile
+    from .recorder import Recorder, record
+    from .recording import RecordingError
 
 _LAZY = {
     "open": ".api",

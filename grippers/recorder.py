@@ -84,6 +84,7 @@ class Recorder:
         sink: Sink | None = None,
     ) -> None:
         self.grippers = names_of(grippers)
+        # ``sink``: an output opened already with open_sink(), as the CLI does before it opens the grippers
         self._sink: Sink = sink if sink is not None else open_sink(path)
         self.path = str(self._sink.path)
         self.format: str = self._sink.format
@@ -169,22 +170,20 @@ class Recorder:
     def _write(self, head: dict[str, Any]) -> None:
         sink = self._sink
         every = MCAP_FLUSH_S if self.format == "mcap" else TEXT_FLUSH_S
-        sink.begin(head)
         flushed, dirty = time.monotonic(), False
         main = threading.main_thread()
         try:
+            sink.begin(head)
             while True:
                 try:
                     item = self._queue.get(timeout=0.2)
                 except queue.Empty:
                     item = None
-                    if not main.is_alive():  # the program ended without close(): finish the file
-                        break
-                if item is _END:
-                    break
-                if item is not None:
+                if item is not None and item is not _END:
                     sink.add(item)
                     dirty = True
+                if item is _END or not main.is_alive():  # close(), or the program ended without it
+                    break
                 if dirty and self._queue.empty() and time.monotonic() - flushed >= every:
                     sink.flush()
                     flushed, dirty = time.monotonic(), False

@@ -392,3 +392,21 @@ def test_record_result_schema_lists_the_grippers() -> None:
             ' "failed": null}'
         )
     )
+
+
+def test_a_program_that_ends_without_closing_leaves_a_finished_file(tmp_path: Path) -> None:
+    """The writer thread finishes the file when the main thread has ended (a program without close() or
+    with); it used to wait on its queue, fed by the stream, and the program never exited."""
+    pytest.importorskip("mcap_ros2")
+    out = tmp_path / "forgot.mcap"
+    script = (
+        "import sys, grippers\n"
+        "g = grippers.open(sys.argv[2])\n"
+        "rec = grippers.record(sys.argv[1], g)\n"
+        "for _ in range(3): g.state()\n"
+    )
+    proc = subprocess.run(
+        [sys.executable, "-c", script, str(out), WSG], capture_output=True, text=True, timeout=120, env=ENV
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert load(out).cut is None
