@@ -96,7 +96,9 @@ __all__ = [
     "Limits",
     "Profile",
     "load_profile",
-    *("record", "Recorder", "RecordingError"),
+    "record",
+    "Recorder",
+    "RecordingError",
 ]
 
 
