@@ -18,10 +18,11 @@ covers both cases).
 from __future__ import annotations
 
 import errno
+from typing import Any
 
 import can  # every module that imports this one speaks CAN through python-can already
 
-__all__ = ["LINK_ERRNOS", "describe_failure", "is_link_failure", "standard_message"]
+__all__ = ["LINK_ERRNOS", "describe_failure", "is_link_failure", "open_bus", "standard_message"]
 
 # errno values that mean "the interface itself is gone or down", not "this one frame failed"
 LINK_ERRNOS = frozenset({errno.ENETDOWN, errno.ENODEV, errno.ENXIO, errno.ENETUNREACH})
@@ -55,3 +56,29 @@ def standard_message(arbitration_id: int, data: bytes, remote: bool) -> can.Mess
     """A python-can message of an 11-bit identifier: the only frame format the STEPFOC firmware speaks
     (its client and its simulator build their frames here)."""
     return can.Message(arbitration_id=arbitration_id, data=data, is_extended_id=False, is_remote_frame=remote)
+
+
+# Interfaces whose python-can module needs a package python-can does not install itself, and the extra that
+# brings it: gs_usb (candleLight, CANable in candleLight firmware) imports ``usb`` (pyusb) and ``gs_usb``.
+NEEDS_EXTRA = {"gs_usb": ("pyusb and gs-usb", "grippers[usb]")}
+
+
+def open_bus(**kwargs: Any) -> can.BusABC:
+    """``can.Bus(**kwargs)``, with a missing optional package named with the extra that installs it.
+
+    python-can says "Cannot import module can.interfaces.gs_usb for CAN interface 'gs_usb': No module named
+    'usb'" (a CanInterfaceNotImplementedError); the user needs to know what to install. The same exception
+    type is raised, so callers' handling (a ConnectionLost naming the device) is unchanged."""
+    interface = str(kwargs.get("interface") or "")
+    try:
+        return can.Bus(**kwargs)
+    except (can.CanInterfaceNotImplementedError, ImportError) as exc:
+        needs = NEEDS_EXTRA.get(interface)
+        if needs is None:
+            raise
+        packages, extra = needs
+        text = str(exc)
+        raise can.CanInterfaceNotImplementedError(
+            f"the {interface} interface needs {packages}: pip install '{extra}' "
+            f"(python-can: {' '.join(text.split())})"
+        ) from exc

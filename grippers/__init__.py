@@ -45,6 +45,8 @@ if TYPE_CHECKING:
     )
     from .motions import MotionHandle
     from .profiles import Limits, Profile, load_profile
+    from .recorder import Recorder, record
+    from .recording import RecordingError
 
 _LAZY = {
     "open": ".api",
@@ -63,6 +65,7 @@ _LAZY = {
     "load_profile": ".profiles",
     # Added to grippers/errors.py by the remote (Zenoh) layer: a peer refused by the server's access rules.
     "AccessDenied": ".errors",
+    **{"record": ".recorder", "Recorder": ".recorder", "RecordingError": ".recording"},  # issue 31 §3
 }
 
 __all__ = [
@@ -93,6 +96,9 @@ __all__ = [
     "Limits",
     "Profile",
     "load_profile",
+    "record",
+    "Recorder",
+    "RecordingError",
 ]
 
 

@@ -37,7 +37,7 @@ from typing import TYPE_CHECKING, Any, Generic, Protocol, TypeVar, overload
 
 import can
 
-from ..canlink import describe_failure, standard_message
+from ..canlink import describe_failure, open_bus, standard_message
 from ..closing import Closing
 from ..errors import (
     CommandFailed,
@@ -303,7 +303,7 @@ class StepfocBus(Closing):
 
     def _open_bus(self) -> can.BusABC:
         try:
-            return can.Bus(**self._open_args)
+            return open_bus(**self._open_args)
         except (can.CanError, OSError, ValueError, ImportError) as exc:
             raise ConnectionLost(
                 f"cannot open the CAN bus: {exc}", device=self.device, command="open"

@@ -19,7 +19,7 @@ from typing import Any, Protocol
 import can
 import serial
 
-from ..canlink import describe_failure
+from ..canlink import describe_failure, open_bus
 from ..errors import ConnectionLost, GripperTimeout
 from .protocol import can_frames
 
@@ -362,7 +362,7 @@ class CanTransport:
             if bitrate is not None:
                 kwargs["bitrate"] = bitrate
             try:
-                bus = can.Bus(interface=interface, channel=channel, **kwargs)
+                bus = open_bus(interface=interface, channel=channel, **kwargs)
             except (can.CanError, OSError, ValueError, ImportError) as exc:
                 raise ConnectionLost(
                     f"cannot open CAN bus: {exc}", device=f"can://{interface}/{channel}"

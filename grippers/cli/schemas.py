@@ -278,6 +278,13 @@ class ServeDocument(_Strict):
     grippers: list[ServedGripper]
 
 
+class PlottedRecording(_Strict):
+    recording: str
+    grippers: list[str]
+    states: int
+    cut: str | None = Field(description="why a file cut short was read only up to its last complete row")
+
+
 class PlotDocument(_Strict):
     """``grippers plot FILE -o IMAGE --json``: what was drawn from what."""
 
@@ -286,6 +293,7 @@ class PlotDocument(_Strict):
     output: str
     states: int
     commands: int
+    recordings: list[PlottedRecording] = Field(default=[], description="what was read from each file")
 
 
 class SelftestLine(_Strict):
@@ -312,11 +320,17 @@ class SelftestDocument(_Strict):
     written_profile: str | None = Field(description="the --write-profile file, when written")
 
 
+class RecordedGripper(_Strict):
+    name: str
+    target: str
+
+
 class RecordResultDocument(_Strict):
-    """``grippers record ... --json``: what was recorded where (the files' header is grippers.record/1)."""
+    """``grippers record ... --json``: what was recorded where (the files' header is grippers.record/2)."""
 
     schema_: Literal["grippers.record-result/1"] = Field(alias="schema")
-    target: str
+    target: str = Field(description="the URLs recorded, separated by spaces")
+    grippers: list[RecordedGripper] = Field(default=[], description="each gripper's name in the file")
     output: str
     format: Literal["csv", "jsonl", "mcap"]
     files: list[str] = Field(description="every file written: a CSV's header goes to FILE.csv.json")

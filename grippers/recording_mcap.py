@@ -5,7 +5,8 @@ state in CDR (message encoding ``cdr``, schema encoding ``ros2msg``: the rosbag2
 conventions, https://mcap.dev/spec/registry), one joint whose position is the jaw width in m, velocity in m/s
 and effort in N (empty when the device reports no force); and ``/grippers/record``, every row of the
 recording (states and commands) as JSON, which :func:`read_mcap` reads back for ``grippers plot``. The
-recording's header is an MCAP metadata record named ``grippers.record``.
+recording's header is an MCAP metadata record named ``grippers.record``. Several grippers in one recording:
+one JointState channel each, ``/NAME/joint_states``; the JSON channel names the gripper in every row.
 
 The JointState schema is the message definition text as ROS 2 Jazzy ships it, with its dependencies appended
 the way rosbag2 writes them (a line of 80 ``=``, then ``MSG: package/Type``): sensor_msgs/msg/JointState.msg
@@ -18,9 +19,10 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Iterable, Mapping
+import struct
+from collections.abc import Mapping
 from pathlib import Path
-from typing import IO, Any
+from typing import Any
 
 JOINT_STATE = "sensor_msgs/msg/JointState"
 JOINT_TOPIC = "/joint_states"
@@ -99,42 +101,77 @@ def _modules() -> tuple[Any, Any]:
     return Writer, CompressionType
 
 
-class McapSink:
-    """An MCAP file opened before the gripper moves (so a bad path fails first) and written at the end."""
+FLUSH_CHUNK = 64 * 1024  # bytes: a chunk is finished at least this often (and at every flush())
 
-    def __init__(self, fh: IO[bytes]) -> None:
+
+def joint_topic(name: str, grippers: int) -> str:
+    """``/joint_states`` for one gripper (as ``grippers ros2`` publishes it), ``/NAME/joint_states`` for
+    each of several (as ``grippers ros2 --namespace NAME`` does)."""
+    return JOINT_TOPIC if grippers <= 1 else f"/{name}{JOINT_TOPIC}"
+
+
+class McapSink:
+    """An MCAP file opened before the gripper moves (so a bad path fails first), written as rows come.
+
+    Chunked, with every :meth:`flush` finishing the chunk in progress: a file cut short (a crash, a full
+    disk) keeps every finished chunk, which :func:`read_mcap` reads; :meth:`finish` writes the summary."""
+
+    def __init__(self, path: str | Path) -> None:
         writer_class, compression = _modules()
-        self._fh = fh
-        # Uncompressed: a recording is small, and every MCAP reader opens it without a codec package.
-        self._ros = writer_class(fh, compression=compression.NONE)
+        self._fh = open(path, "wb")  # noqa: SIM115 (closed by close())
+        try:
+            # Uncompressed: a recording is small, and every MCAP reader opens it without a codec package.
+            self._ros = writer_class(self._fh, chunk_size=FLUSH_CHUNK, compression=compression.NONE)
+        except BaseException:
+            self._fh.close()
+            raise
         # mcap-ros2-support writes CDR channels only; the JSON channel goes through the same MCAP writer.
         self._raw = self._ros._writer
+        self._joint: Any = None
+        self._json_channel = 0
+        self._start_ns = 0
+        self._grippers = 1
+        self._seq = 0
+
+    def begin(self, header: Mapping[str, Any]) -> None:
         self._joint = self._ros.register_msgdef(JOINT_STATE, JOINT_STATE_DEFINITION)
         # The JSON channel carries no schema record (schema id 0, which the MCAP spec allows): rosbag2-style
         # readers (rosbags) know only ROS schema encodings and refuse a file with a "jsonschema" one.
         self._json_channel = self._raw.register_channel(JSON_TOPIC, "json", 0)
-
-    def write(self, header: Mapping[str, Any], rows: Iterable[Mapping[str, Any]]) -> None:
         self._raw.add_metadata(METADATA_NAME, {"json": json.dumps(dict(header))})
-        start_ns = int(float(header.get("start_unix", 0.0)) * 1e9)
-        for seq, row in enumerate(rows):
-            stamp = start_ns + int(float(row["t_s"]) * 1e9)
-            plain = {k: v for k, v in row.items() if v is not None}
-            self._raw.add_message(
-                self._json_channel,
-                log_time=stamp,
-                data=json.dumps(plain).encode(),
-                publish_time=stamp,
-                sequence=seq,
-            )
-            if row.get("kind") == "state":
-                self._ros.write_message(
-                    JOINT_TOPIC, self._joint, _joint_state(row, stamp), log_time=stamp, publish_time=stamp
-                )
-        self._ros.finish()
-        self._fh.close()
+        self._start_ns = int(float(header.get("start_unix", 0.0)) * 1e9)
+        self._grippers = max(1, len(header.get("grippers", ())))
+        self.flush()
 
-    def abandon(self) -> None:
+    def add(self, row: Mapping[str, Any]) -> None:
+        stamp = self._start_ns + int(float(row["t_s"]) * 1e9)
+        plain = {k: v for k, v in row.items() if v is not None}
+        self._raw.add_message(
+            self._json_channel,
+            log_time=stamp,
+            data=json.dumps(plain).encode(),
+            publish_time=stamp,
+            sequence=self._seq,
+        )
+        self._seq += 1
+        if row.get("kind") == "state":
+            topic = joint_topic(str(row.get("gripper")), self._grippers)
+            self._ros.write_message(
+                topic, self._joint, _joint_state(row, stamp), log_time=stamp, publish_time=stamp
+            )
+
+    def flush(self) -> None:
+        flush = getattr(self._raw, "flush", None)  # mcap >= 1.2; older ones finish chunks by size only
+        if flush is not None:
+            flush()
+        else:
+            self._fh.flush()
+
+    def finish(self) -> None:
+        self._ros.finish()
+        self._fh.flush()
+
+    def close(self) -> None:
         self._fh.close()
 
 
@@ -153,33 +190,47 @@ def _joint_state(row: Mapping[str, Any], stamp_ns: int) -> dict[str, Any]:
     }
 
 
-def read_mcap(path: str | Path) -> tuple[dict[str, Any], list[dict[str, Any]]]:
-    """(header, rows) of an MCAP recording: the ``grippers.record`` metadata and the JSON channel's rows.
+def read_mcap(path: str | Path) -> tuple[dict[str, Any], list[dict[str, Any]], str | None]:
+    """(header, rows, cut) of an MCAP recording: the ``grippers.record`` metadata, the JSON channel's rows,
+    and why the rest was left out of a file cut short (None: the file is whole).
 
+    The file is read record by record from its start, not through its summary: a file whose writer was
+    killed or ran out of disk has no summary, and every chunk before the cut still holds its rows.
     Raises ValueError (with the file named) for anything that is not such a recording."""
     try:
-        from mcap.reader import make_reader
+        from mcap.exceptions import McapError
+        from mcap.records import Channel, Footer, Message, Metadata
+        from mcap.stream_reader import CRCValidationError, StreamReader
     except ImportError:
         raise McapMissing("reading MCAP needs the record extra: pip install 'grippers[record]'") from None
     header: dict[str, Any] = {}
     rows: list[dict[str, Any]] = []
+    json_channels: set[int] = set()
+    whole = False
+    cut: str | None = None
     try:
         with open(path, "rb") as fh:
-            reader = make_reader(fh)
-            for meta in reader.iter_metadata():
-                if meta.name == METADATA_NAME:
-                    loaded = json.loads(meta.metadata.get("json", "{}"))
-                    header = loaded if isinstance(loaded, dict) else {}
-            fh.seek(0)
-            reader = make_reader(fh)
-            for _, _, message in reader.iter_messages(topics=[JSON_TOPIC]):
-                rows.append(json.loads(message.data))
+            try:
+                for record in StreamReader(fh, validate_crcs=True, record_size_limit=1 << 30).records:
+                    if isinstance(record, Metadata) and record.name == METADATA_NAME:
+                        loaded = json.loads(record.metadata.get("json", "{}"))
+                        header = loaded if isinstance(loaded, dict) else {}
+                    elif isinstance(record, Channel) and record.topic == JSON_TOPIC:
+                        json_channels.add(record.id)
+                    elif isinstance(record, Message) and record.channel_id in json_channels:
+                        rows.append(json.loads(record.data))
+                    elif isinstance(record, Footer):
+                        whole = True
+            except (EOFError, McapError, CRCValidationError, struct.error) as exc:
+                if not header:  # not even the start of a recording
+                    raise
+                cut = f"it ends inside a record ({' '.join(str(exc).split()) or type(exc).__name__})"
+        if not whole and cut is None:
+            cut = "it has no summary (the writer did not finish)"
     except OSError as exc:
         raise ValueError(f"{path}: cannot read: {exc.strerror or exc}") from None
-    except (
-        Exception
-    ) as exc:  # the mcap reader's own errors, struct errors, bad JSON: one line, the file named
+    except Exception as exc:  # the reader's own errors, struct errors, bad JSON: one line, the file named
         raise ValueError(
             f"{path}: not a readable MCAP recording: {' '.join(str(exc).split()) or type(exc).__name__}"
         ) from None
-    return header, rows
+    return header, rows, cut
