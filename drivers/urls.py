@@ -21,9 +21,14 @@ The rules, each one a :class:`~grippers.drivers.errors.URLError` naming the URL 
 - A host is a name, an IPv4 address or a bracketed IPv6 address (``[fe80::1%25eth0]``: the zone is written
   ``%25``, RFC 6874, and handed to the socket as ``fe80::1%eth0``); the port is 1..65535 (0, "any free port",
   only in a listen URL). A user name, a path or a fragment after the host is refused, never silently dropped.
-- A CAN URL is ``INTERFACE/CHANNEL``; everything after the first ``/`` is the channel, so a serial-line CAN
-  adapter keeps its device path (``wsg+can://slcan//dev/ttyACM0@115200``) and a multicast channel may be an
-  IPv6 address full of colons.
+- A CAN URL is ``INTERFACE/CHANNEL``; everything after the first ``/`` is the channel, so a multicast channel
+  may be an IPv6 address full of colons. The interfaces whose channel is a serial port
+  (:data:`SERIAL_CHANNEL_INTERFACES`: python-can's slcan, serial, seeedstudio, robotell) keep a device path's
+  leading slash: ``stepfoc+can://slcan/dev/ttyACM0`` and ``slcan//dev/ttyACM0`` both open ``/dev/ttyACM0``
+  (the first form, the documented one, opened the relative ``dev/ttyACM0``); ``slcan/COM3``, a pyserial URL
+  (``slcan/socket://h:4000``) and an explicitly relative ``./x`` stay as written. Every other interface's
+  channel is a name or an address (``socketcan/can0``, ``udp_multicast/239.74.163.2``, ``pcan/PCAN_USBBUS1``)
+  and is never given one.
 - A serial port may itself be a pyserial URL (``wsg+serial://socket://host:4000``, ``wsg+serial://loop://``);
   our parameters follow the LAST ``?``. A device path is written with its leading slash
   (``wsg+serial:///dev/ttyUSB0``).
@@ -46,6 +51,7 @@ from .errors import URLError
 from .numbers import finite
 
 __all__ = [
+    "SERIAL_CHANNEL_INTERFACES",
     "TRANSPORTS",
     "ConnectionURL",
     "URLError",
@@ -62,6 +68,10 @@ __all__ = [
 ]
 
 TRANSPORTS = ("tcp", "udp", "serial", "can")
+# python-can 4.6's interfaces whose channel is a serial port (pyserial's ``serial_for_url`` or ``Serial``:
+# can/interfaces/slcan.py, serial/serial_can.py, seeedstudio/seeedstudio.py, robotell.py). The others take an
+# interface name (socketcan), an address (udp_multicast, socketcand), a device index or a vendor channel.
+SERIAL_CHANNEL_INTERFACES = frozenset({"slcan", "serial", "seeedstudio", "robotell"})
 _FAMILY = re.compile(r"[a-z][a-z0-9_-]*\Z")
 _CONTROL = re.compile(r"[\x00-\x1f\x7f]")
 _SHOWN = 200  # characters of a URL quoted in an error message: a megabyte of hostile text stays one line
@@ -157,7 +167,23 @@ def parse_url(url: str, *, bare_family: str | None = None, listen: bool = False)
     channel = _decoded(url, raw_channel, "channel")
     if not interface or not (channel or listen):
         raise URLError(f"{shown(url)}: a CAN URL names INTERFACE/CHANNEL, e.g. {family}+can://socketcan/can0")
+    channel = _device_path(interface, channel)
     return ConnectionURL(url, family, transport, interface=interface, channel=channel or None, params=params)
+
+
+def _device_path(interface: str, channel: str) -> str:
+    """A serial-line adapter's channel with the leading slash the URL's ``/`` separator took away.
+
+    ``slcan/dev/ttyACM0``: the first ``/`` separates interface and channel, so the channel reads
+    ``dev/ttyACM0``, a path relative to the working directory that no user means. A channel already absolute
+    (``slcan//dev/ttyACM0``), a port name without a slash (``COM3``, ``ttyACM0``), a pyserial URL
+    (``socket://h:4000``) or an explicitly relative path (``./x``) is left as written.
+    """
+    if interface.lower() not in SERIAL_CHANNEL_INTERFACES or "/" not in channel:
+        return channel
+    if channel.startswith(("/", "./", "../")) or "://" in channel:
+        return channel
+    return "/" + channel
 
 
 def parse_query(url: str, query: str) -> dict[str, str]:
