@@ -41,8 +41,10 @@ The rules, each one a :class:`~grippers.drivers.errors.URLError` naming the URL 
 
 from __future__ import annotations
 
+import difflib
 import ipaddress
 import re
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import Any
 from urllib.parse import parse_qsl, quote, unquote, unquote_plus
@@ -221,13 +223,31 @@ def with_params(url: str, **values: Any) -> str:
     return f"{base}?{'&'.join(ours + kept)}"
 
 
-def refuse_unknown(url: str, params: dict[str, str], known: tuple[str, ...] | frozenset[str]) -> None:
-    """A misspelt parameter is an error, not a default silently used instead of what the user wrote."""
-    unknown = sorted(set(params) - set(known))
-    if unknown:
-        raise URLError(
-            f"{shown(url)}: unknown parameter(s) {', '.join(unknown)} (known: {', '.join(sorted(known))})"
-        )
+def refuse_unknown(
+    url: str,
+    params: Iterable[str],
+    known: Iterable[str],
+    *,
+    what: str = "parameter(s)",
+    known_as: str = "known",
+) -> None:
+    """A misspelt parameter is an error, not a default silently used instead of what the user wrote.
+
+    The message names each unknown one, the closest known name where there is one (``nod``: did you mean
+    ``node``?), and every known name."""
+    names = sorted(set(known))
+    unknown = sorted(set(params) - set(names))
+    if not unknown:
+        return
+    hints = []
+    for name in unknown:
+        close = difflib.get_close_matches(name, names, n=1, cutoff=0.6)
+        if close:
+            hints.append(f"{name}: did you mean {close[0]}?")
+    hint = f"; {'; '.join(hints)}" if hints else ""
+    raise URLError(
+        f"{shown(url)}: unknown {what} {', '.join(unknown)}{hint} ({known_as}: {', '.join(names) or 'none'})"
+    )
 
 
 def format_host(host: str, port: int | None = None) -> str:

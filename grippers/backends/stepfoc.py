@@ -800,9 +800,9 @@ class StepfocBackend:
         t = profile.transport
         timeout = settings.positive("timeout", t.timeout_s)
         current_limit = profile.effective_max_current_ma
-        link: _Link
+        connect: Callable[[], _Link]
         if url.transport == "can":
-            link = _CanLink(
+            can = (
                 settings.str("interface", url.interface),
                 settings.str("channel", url.channel),
                 settings.int("bitrate", t.can_bitrate),
@@ -811,12 +811,14 @@ class StepfocBackend:
                 timeout,
                 settings.int("port", None),
             )
+            connect = lambda: _CanLink(*can)  # noqa: E731
         elif url.transport == "serial":
-            link = _UartLink(
-                url.serial_port or "", settings.int("baudrate", t.baudrate), current_limit, timeout
-            )
+            uart = (url.serial_port or "", settings.int("baudrate", t.baudrate), current_limit, timeout)
+            connect = lambda: _UartLink(*uart)  # noqa: E731
         else:
             raise URLError(f"{url.url}: the STEPFOC family runs on can or serial, not {url.transport}")
+        settings.check()  # a misspelt setting (nod=3) is refused before the bus is opened or polled
+        link = connect()
         try:
             link.status()  # is anything there? a silent node raises GripperTimeout naming it
             return MsgGripper(link, profile, url.url, timeout=timeout, profile_assumed=assumed)

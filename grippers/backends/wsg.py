@@ -456,6 +456,7 @@ class WsgBackend:
                 "recv_id": settings.int("recv_id", t.can_recv_id),
             }
             connect = lambda: WsgClient.can(**can, **common)  # noqa: E731
+        settings.check()  # a misspelt setting is refused here, before anything is opened or sent
         client = connect()
         try:
             info = client.system_info()
