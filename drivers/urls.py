@@ -362,7 +362,7 @@ def to_int(value: Any, name: str, url: str = "") -> int:
 def to_float(value: Any, name: str, url: str = "") -> float:
     """A finite number: no setting (timeout, time scale, a width) means anything as nan or inf, and a nan
     timeout would make every deadline comparison false, i.e. a wait without end."""
-    return finite(value, name, device=url or "settings", error=URLError)
+    return finite(value, name, device=url or "settings", error=URLError, text=True)
 
 
 def to_bool(value: Any, name: str, url: str = "") -> bool:
