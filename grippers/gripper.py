@@ -408,7 +408,12 @@ class Gripper(ServoFace, OptionalFeatures, ConnectionHooks, ABC):
                 self._streams.remove(s)
 
     def close(self) -> None:
-        """Stop streams, let running motions end (bounded), release the transport. Idempotent.
+        """Close the connection: stop streams, let running motions end (bounded), release the transport.
+        Idempotent.
+
+        It does not move the jaws: in Robotiq's and ur_rtde's vocabulary ``close()`` closes the gripper, here
+        it ends the session, and the next call raises "the gripper is closed". To close the jaws on a part,
+        :meth:`grasp`; to a width, :meth:`move` (docs/api.md, "Vocabulary").
 
         Marked closed first, under the lock: a second close() (another thread, atexit) returns at once, no
         stream or handle is registered behind our back, and a backend's motion wait that polls (MSG) sees
