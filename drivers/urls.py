@@ -53,10 +53,12 @@ from .errors import URLError
 from .numbers import finite
 
 __all__ = [
+    "BUS_OPTIONS",
     "SERIAL_CHANNEL_INTERFACES",
     "TRANSPORTS",
     "ConnectionURL",
     "URLError",
+    "bus_options",
     "format_host",
     "is_url",
     "parse_query",
@@ -208,6 +210,27 @@ def parse_query(url: str, query: str) -> dict[str, str]:
             raise URLError(f"{shown(url)}: {key} given twice ({params[key][:40]!r} and {value[:40]!r})")
         params[key] = value
     return params
+
+
+BUS_OPTIONS = ("bitrate", "port")
+
+
+def bus_options(url: ConnectionURL) -> dict[str, int]:
+    """The python-can bus options a CAN URL's query carries, for a command that opens the bus itself
+    (``grippers probe``, ``grippers monitor``), read the way the backends read them.
+
+    ``port``: python-can's ``udp_multicast`` bus is one UDP port for every group on Linux, so a bus of one's
+    own is a port of one's own; a probe or monitor that dropped ``?port=`` watched python-can's default port
+    and reported another process's nodes as found (issue 33 §3). ``bitrate`` is left out for the interfaces
+    that have none (virtual, udp_multicast)."""
+    options = {k: to_int(url.params[k], k, url.url) for k in BUS_OPTIONS if k in url.params}
+    if "port" in options and not 1 <= options["port"] <= 65535:
+        raise URLError(f"{shown(url.url)}: port must lie within 1..65535, not {options['port']}")
+    if "bitrate" in options and options["bitrate"] <= 0:
+        raise URLError(f"{shown(url.url)}: bitrate must be above 0, not {options['bitrate']}")
+    if (url.interface or "").lower() in ("virtual", "udp_multicast"):
+        options.pop("bitrate", None)
+    return options
 
 
 def with_params(url: str, **values: Any) -> str:

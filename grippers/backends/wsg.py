@@ -480,6 +480,7 @@ class WsgBackend:
                 "bitrate": settings.int("bitrate", t.can_bitrate),
                 "send_id": settings.int("send_id", t.can_send_id),
                 "recv_id": settings.int("recv_id", t.can_recv_id),
+                "port": settings.int("port", None),  # udp_multicast's port (drivers/urls.py bus_options)
             }
             connect = lambda: WsgClient.can(**can, **common)  # noqa: E731
         settings.check()  # a misspelt setting is refused here, before anything is opened or sent
