@@ -55,7 +55,9 @@ class NotReferenced(CommandFailed):
         command: str | None = None,
     ) -> None:
         if message is None:
-            message = f"{command or 'the motion'} refused: the gripper is not referenced; call home() first"
+            said = f" ({status_name})" if status_name else ""  # the device's own word, for logs and searches
+            what = command or "the motion"
+            message = f"{what} refused: the gripper is not referenced; call home() first{said}"
         super().__init__(message, status=status, status_name=status_name, device=device, command=command)
 
     def renamed(self, command: str) -> NotReferenced:
@@ -93,7 +95,8 @@ class MotionBlocked(CommandFailed):
         if message is None:
             where = "" if width is None else f" at {width * 1000:.1f} mm"
             short = "" if target is None else f", short of its target {target * 1000:g} mm"
-            message = f"{command or 'the motion'} blocked by an obstacle{where}{short}"
+            said = f" ({status_name})" if status_name else ""
+            message = f"{command or 'the motion'} blocked by an obstacle{where}{short}{said}"
         super().__init__(message, status=status, status_name=status_name, device=device, command=command)
 
     def renamed(self, command: str) -> MotionBlocked:
