@@ -624,7 +624,8 @@ class MsgGripper(Gripper):
         """A move or release that ended on an object short of its target is :class:`MotionBlocked` (it
         returned success with state HOLDING, issue 31 §1). The firmware keeps pushing with the motion's
         current until the next command; the error says where the jaws stand."""
-        if st.detection in (Detection.CLOSING_OBJECT, Detection.OPENING_OBJECT):
+        short = abs(self._width_of(st.position) - target) > MotionBlocked.MARGIN
+        if short and st.detection in (Detection.CLOSING_OBJECT, Detection.OPENING_OBJECT):
             raise MotionBlocked(
                 width=self._width_of(st.position), target=target, device=self.name, command=command
             )

@@ -171,7 +171,10 @@ class WsgGripper(Gripper):
             if exc.status == Status.E_NOT_INITIALIZED:
                 raise NotReferenced(**kw) from exc
             if exc.status == Status.E_AXIS_BLOCKED and target is not None:
-                raise MotionBlocked(width=self._client.width() / 1000, target=target, **kw) from exc
+                width = self._client.width() / 1000
+                if abs(width - target) <= MotionBlocked.MARGIN:
+                    return  # stopped on the part where it was sent: the target was reached
+                raise MotionBlocked(width=width, target=target, **kw) from exc
             raise
 
     def _move(self, width: float, speed: float, timeout: float) -> MotionResult:

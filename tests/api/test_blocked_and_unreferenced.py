@@ -129,3 +129,15 @@ def test_the_typed_errors_cross_the_remote_wire_with_their_fields() -> None:
     back = protocol.decode_error(protocol.encode_error(refused, "grasp"), "grasp", "client-side")
     assert isinstance(back, NotReferenced) and back.command == "grasp" and back.status == 3
     assert "call home() first" in str(back)
+
+
+@pytest.mark.parametrize("short", [0.0005, 0.003])
+def test_a_move_that_ends_on_the_part_at_its_target_reached_it(homed: grippers.Gripper, short: float) -> None:
+    """The one margin (MotionBlocked.MARGIN) on every family: touching the part where the jaws were sent
+    is arriving; stopping 3 mm short is being blocked."""
+    if short <= MotionBlocked.MARGIN:
+        result = homed.move(PART - short)
+        assert result.width == pytest.approx(PART, abs=0.002)
+    else:
+        with pytest.raises(MotionBlocked):
+            homed.move(PART - short)
