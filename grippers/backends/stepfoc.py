@@ -613,7 +613,11 @@ class MsgGripper(Gripper):
 
     def _referenced(self, command: str, st: _Status | None = None) -> None:
         """Refuse a motion of an uncalibrated gripper before anything is sent: the firmware would ignore it
-        (the jaws stay put), and the wait would end as a stall: "move aborted ... the motion stalled"."""
+        (the jaws stay put), and the wait would end as a stall: "move aborted ... the motion stalled".
+
+        The STEPFOC firmware moves only when ``action_status == 1 && calibrated && activated``
+        (PCrnjak/STEPFOC-stepper-controller, ``src/motor_control.cpp`` ``Gripper_mode``, line 2240 at
+        6e71832); the simulator follows it (drivers/stepfoc/sim/model.py ``_apply_motion``)."""
         if self._calibrated is not True or st is not None:
             st = st or self._link.status()
             self._calibrated = bool(st.calibrated)
