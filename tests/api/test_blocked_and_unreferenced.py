@@ -141,3 +141,15 @@ def test_a_move_that_ends_on_the_part_at_its_target_reached_it(homed: grippers.G
     else:
         with pytest.raises(MotionBlocked):
             homed.move(PART - short)
+
+
+def test_the_msg_over_uart_follows_the_same_rule() -> None:
+    url = f"sim://msg-150?transport=pty&part_width_mm={PART * 1000:g}&time_scale={TIME_SCALE}"
+    with grippers.open(url) as g:
+        with pytest.raises(NotReferenced, match="grasp refused"):
+            g.grasp(0.030)
+        g.home()
+        g.release()
+        with pytest.raises(MotionBlocked) as caught:
+            g.move(0.0)
+        assert caught.value.width == pytest.approx(PART, abs=0.003)
