@@ -82,3 +82,19 @@ def test_the_driver_and_the_probe_open_the_absolute_path(interface: str) -> None
 def test_a_network_channel_gets_no_slash(interface: str, channel: str) -> None:
     for scheme in ("stepfoc+can", "wsg+can"):
         assert parse_url(f"{scheme}://{interface}/{channel}").channel == channel
+
+
+def test_the_documented_slcan_urls_open_an_absolute_device_path() -> None:
+    """The docs' own slcan URLs (docs/getting-started-msg.md), read as grippers.open reads them."""
+    import re
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2]
+    text = "\n".join(
+        p.read_text(encoding="utf-8") for p in [root / "README.md", *(root / "docs").glob("*.md")]
+    )
+    urls = re.findall(r"(?:stepfoc|wsg)\+can://(?:slcan|serial|seeedstudio|robotell)/[^\s`'\")]+", text)
+    assert urls, "the docs show a serial-line CAN adapter's URL"
+    for url in urls:
+        channel = parse_url(url).channel
+        assert channel is not None and channel.startswith("/dev/"), (url, channel)
