@@ -22,13 +22,17 @@ def finite(
     device: str | None = None,
     command: str | None = None,
     error: type[GripperError] = LimitError,
+    text: bool = False,
 ) -> float:
     """``value`` as a finite float within ``[low, high]`` (each bound optional), or ``error`` naming ``name``.
 
-    Booleans are refused: ``True`` is an ``int`` to Python but never a width or a speed a user meant.
+    Booleans are refused: ``True`` is an ``int`` to Python but never a width or a speed a user meant. So is
+    text (``move('0.05')`` moved, issue 31 §1): ``float()`` parses a str, but a program passing one has mixed
+    up its values (a field read from a form or a file and never converted), and ``'50'`` meant in mm would
+    be taken as 50 m. ``text=True`` is for values that are text by nature: a URL's query, a cell of a CSV.
     """
-    if isinstance(value, bool):
-        raise error(f"{name} must be a number, not {value!r}", device=device, command=command)
+    if isinstance(value, bool) or (not text and is_text(value)):
+        raise error(f"{name} must be a number, not {_short(value)}", device=device, command=command)
     try:
         number = float(value)
     except OverflowError:  # float(10**400)
@@ -50,6 +54,11 @@ def _num(value: float | None) -> str:
     if value is not None and float(value).is_integer() and abs(value) < 2**53:
         return str(int(value))
     return f"{value:g}"
+
+
+def is_text(value: Any) -> bool:
+    """A str or bytes: something ``float()`` would parse, not a number a program computed."""
+    return isinstance(value, str | bytes | bytearray)
 
 
 def _short(value: Any) -> str:

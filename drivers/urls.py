@@ -23,9 +23,14 @@ The rules, each one a :class:`~grippers.drivers.errors.URLError` naming the URL 
 - A host is a name, an IPv4 address or a bracketed IPv6 address (``[fe80::1%25eth0]``: the zone is written
   ``%25``, RFC 6874, and handed to the socket as ``fe80::1%eth0``); the port is 1..65535 (0, "any free port",
   only in a listen URL). A user name, a path or a fragment after the host is refused, never silently dropped.
-- A CAN URL is ``INTERFACE/CHANNEL``; everything after the first ``/`` is the channel, so a serial-line CAN
-  adapter keeps its device path (``wsg+can://slcan//dev/ttyACM0@115200``) and a multicast channel may be an
-  IPv6 address full of colons.
+- A CAN URL is ``INTERFACE/CHANNEL``; everything after the first ``/`` is the channel, so a multicast channel
+  may be an IPv6 address full of colons. The interfaces whose channel is a serial port
+  (:data:`SERIAL_CHANNEL_INTERFACES`: python-can's slcan, serial, seeedstudio, robotell) keep a device path's
+  leading slash: ``stepfoc+can://slcan/dev/ttyACM0`` and ``slcan//dev/ttyACM0`` both open ``/dev/ttyACM0``
+  (the first form, the documented one, opened the relative ``dev/ttyACM0``); ``slcan/COM3``, a pyserial URL
+  (``slcan/socket://h:4000``) and an explicitly relative ``./x`` stay as written. Every other interface's
+  channel is a name or an address (``socketcan/can0``, ``udp_multicast/239.74.163.2``, ``pcan/PCAN_USBBUS1``)
+  and is never given one.
 - A serial port may itself be a pyserial URL (``wsg+serial://socket://host:4000``, ``wsg+serial://loop://``);
   our parameters follow the LAST ``?``. A device path is written with its leading slash
   (``wsg+serial:///dev/ttyUSB0``).
@@ -38,8 +43,10 @@ The rules, each one a :class:`~grippers.drivers.errors.URLError` naming the URL 
 
 from __future__ import annotations
 
+import difflib
 import ipaddress
 import re
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import Any
 from urllib.parse import parse_qsl, quote, unquote, unquote_plus
@@ -48,9 +55,12 @@ from .errors import URLError
 from .numbers import finite
 
 __all__ = [
+    "BUS_OPTIONS",
+    "SERIAL_CHANNEL_INTERFACES",
     "TRANSPORTS",
     "ConnectionURL",
     "URLError",
+    "bus_options",
     "format_host",
     "is_url",
     "parse_query",
@@ -64,6 +74,10 @@ __all__ = [
 ]
 
 TRANSPORTS = ("tcp", "udp", "serial", "can")
+# python-can 4.6's interfaces whose channel is a serial port (pyserial's ``serial_for_url`` or ``Serial``:
+# can/interfaces/slcan.py, serial/serial_can.py, seeedstudio/seeedstudio.py, robotell.py). The others take an
+# interface name (socketcan), an address (udp_multicast, socketcand), a device index or a vendor channel.
+SERIAL_CHANNEL_INTERFACES = frozenset({"slcan", "serial", "seeedstudio", "robotell"})
 _FAMILY = re.compile(r"[a-z][a-z0-9_-]*\Z")
 _CONTROL = re.compile(r"[\x00-\x1f\x7f]")
 _SHOWN = 200  # characters of a URL quoted in an error message: a megabyte of hostile text stays one line
@@ -159,7 +173,23 @@ def parse_url(url: str, *, bare_family: str | None = None, listen: bool = False)
     channel = _decoded(url, raw_channel, "channel")
     if not interface or not (channel or listen):
         raise URLError(f"{shown(url)}: a CAN URL names INTERFACE/CHANNEL, e.g. {family}+can://socketcan/can0")
+    channel = _device_path(interface, channel)
     return ConnectionURL(url, family, transport, interface=interface, channel=channel or None, params=params)
+
+
+def _device_path(interface: str, channel: str) -> str:
+    """A serial-line adapter's channel with the leading slash the URL's ``/`` separator took away.
+
+    ``slcan/dev/ttyACM0``: the first ``/`` separates interface and channel, so the channel reads
+    ``dev/ttyACM0``, a path relative to the working directory that no user means. A channel already absolute
+    (``slcan//dev/ttyACM0``), a port name without a slash (``COM3``, ``ttyACM0``), a pyserial URL
+    (``socket://h:4000``) or an explicitly relative path (``./x``) is left as written.
+    """
+    if interface.lower() not in SERIAL_CHANNEL_INTERFACES or "/" not in channel:
+        return channel
+    if channel.startswith(("/", "./", "../")) or "://" in channel:
+        return channel
+    return "/" + channel
 
 
 def parse_query(url: str, query: str) -> dict[str, str]:
@@ -184,6 +214,27 @@ def parse_query(url: str, query: str) -> dict[str, str]:
     return params
 
 
+BUS_OPTIONS = ("bitrate", "port")
+
+
+def bus_options(url: ConnectionURL) -> dict[str, int]:
+    """The python-can bus options a CAN URL's query carries, for a command that opens the bus itself
+    (``grippers probe``, ``grippers monitor``), read the way the backends read them.
+
+    ``port``: python-can's ``udp_multicast`` bus is one UDP port for every group on Linux, so a bus of one's
+    own is a port of one's own; a probe or monitor that dropped ``?port=`` watched python-can's default port
+    and reported another process's nodes as found (issue 33 §3). ``bitrate`` is left out for the interfaces
+    that have none (virtual, udp_multicast)."""
+    options = {k: to_int(url.params[k], k, url.url) for k in BUS_OPTIONS if k in url.params}
+    if "port" in options and not 1 <= options["port"] <= 65535:
+        raise URLError(f"{shown(url.url)}: port must lie within 1..65535, not {options['port']}")
+    if "bitrate" in options and options["bitrate"] <= 0:
+        raise URLError(f"{shown(url.url)}: bitrate must be above 0, not {options['bitrate']}")
+    if (url.interface or "").lower() in ("virtual", "udp_multicast"):
+        options.pop("bitrate", None)
+    return options
+
+
 def with_params(url: str, **values: Any) -> str:
     """``url`` with these query parameters set, first and in this order; the others kept as written.
 
@@ -197,13 +248,31 @@ def with_params(url: str, **values: Any) -> str:
     return f"{base}?{'&'.join(ours + kept)}"
 
 
-def refuse_unknown(url: str, params: dict[str, str], known: tuple[str, ...] | frozenset[str]) -> None:
-    """A misspelt parameter is an error, not a default silently used instead of what the user wrote."""
-    unknown = sorted(set(params) - set(known))
-    if unknown:
-        raise URLError(
-            f"{shown(url)}: unknown parameter(s) {', '.join(unknown)} (known: {', '.join(sorted(known))})"
-        )
+def refuse_unknown(
+    url: str,
+    params: Iterable[str],
+    known: Iterable[str],
+    *,
+    what: str = "parameter(s)",
+    known_as: str = "known",
+) -> None:
+    """A misspelt parameter is an error, not a default silently used instead of what the user wrote.
+
+    The message names each unknown one, the closest known name where there is one (``nod``: did you mean
+    ``node``?), and every known name."""
+    names = sorted(set(known))
+    unknown = sorted(set(params) - set(names))
+    if not unknown:
+        return
+    hints = []
+    for name in unknown:
+        close = difflib.get_close_matches(name, names, n=1, cutoff=0.6)
+        if close:
+            hints.append(f"{name}: did you mean {close[0]}?")
+    hint = f"; {'; '.join(hints)}" if hints else ""
+    raise URLError(
+        f"{shown(url)}: unknown {what} {', '.join(unknown)}{hint} ({known_as}: {', '.join(names) or 'none'})"
+    )
 
 
 def format_host(host: str, port: int | None = None) -> str:
@@ -318,7 +387,7 @@ def to_int(value: Any, name: str, url: str = "") -> int:
 def to_float(value: Any, name: str, url: str = "") -> float:
     """A finite number: no setting (timeout, time scale, a width) means anything as nan or inf, and a nan
     timeout would make every deadline comparison false, i.e. a wait without end."""
-    return finite(value, name, device=url or "settings", error=URLError)
+    return finite(value, name, device=url or "settings", error=URLError, text=True)
 
 
 def to_bool(value: Any, name: str, url: str = "") -> bool:

@@ -503,7 +503,8 @@ class AsyncGripper:
             await asyncio.sleep(delay)
 
     async def close(self) -> None:
-        """Close the gripper (on a worker: it joins the gripper's own threads, bounded), then the workers."""
+        """Close the connection (on a worker: it joins the gripper's own threads, bounded), then the workers.
+        It does not move the jaws (:meth:`grippers.Gripper.close`)."""
         if self._closed:
             return
         self._closed = True

@@ -46,6 +46,9 @@ def open(target: str | os.PathLike[str], **overrides: Any) -> Gripper:  # noqa: 
         profile = load_profile(text)
         url = parse_url(overrides.pop("url", None) or profile.url)
     settings = Settings(url.url, url.params, overrides)
+    from .reconnect import SETTINGS as RECONNECT_SETTINGS
+
+    settings.expect(*RECONNECT_SETTINGS)  # taken once the gripper is open (_finish), known before it connects
     from_query = settings.str("profile", None)
     if chosen is None:
         chosen = from_query

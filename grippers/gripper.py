@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, TypeVar
 
 from .connection import ConnectionHooks
-from .errors import FastStopActive, GripperError
+from .errors import FastStopActive, GripperError, MotionBlocked, NotReferenced
 from .features import OptionalFeatures
 from .motions import MotionHandle, MotionSupervisor, wait_seconds
 from .profiles import ProfileBase
@@ -65,6 +65,18 @@ class StartedRead:
     itself (``done`` gets its GripperTimeout), and the caller arms no timer of its own."""
     command: str = "state"
     """The device command named in that timeout's message."""
+
+
+def _named(name: str, call: Callable[[], T]) -> T:
+    """``call()``, with a refusal for an unreferenced axis or an obstacle named after the command the user
+    called: a backend raises them from the primitive it was in (a grasp's opening move is ``_move``), and
+    "call home() before move" after a ``grasp()`` sends the user looking in the wrong place."""
+    try:
+        return call()
+    except (NotReferenced, MotionBlocked) as exc:
+        if exc.command == name:
+            raise
+        raise exc.renamed(name) from exc
 
 
 class Gripper(ServoFace, OptionalFeatures, ConnectionHooks, ABC):
@@ -220,7 +232,7 @@ class Gripper(ServoFace, OptionalFeatures, ConnectionHooks, ABC):
         self, name: str, call: Callable[[], T], wait: bool, *, timeout: float = 0.0, what: str = ""
     ) -> T | MotionHandle[T]:
         """Run a backend motion under the one rule (grippers/motions.py): supersede, abort, Ctrl-C stops."""
-        return self._motions.run(name, call, wait, timeout=timeout, what=what)
+        return self._motions.run(name, lambda: _named(name, call), wait, timeout=timeout, what=what)
 
     def home(self, timeout: float | None = None, *, wait: bool = True) -> None | MotionHandle[None]:
         """Reference the axis (WSG homing) or calibrate the stroke (MSG); blocks until done."""
@@ -396,7 +408,12 @@ class Gripper(ServoFace, OptionalFeatures, ConnectionHooks, ABC):
                 self._streams.remove(s)
 
     def close(self) -> None:
-        """Stop streams, let running motions end (bounded), release the transport. Idempotent.
+        """Close the connection: stop streams, let running motions end (bounded), release the transport.
+        Idempotent.
+
+        It does not move the jaws: in Robotiq's and ur_rtde's vocabulary ``close()`` closes the gripper, here
+        it ends the session, and the next call raises "the gripper is closed". To close the jaws on a part,
+        :meth:`grasp`; to a width, :meth:`move` (docs/api.md, "Vocabulary").
 
         Marked closed first, under the lock: a second close() (another thread, atexit) returns at once, no
         stream or handle is registered behind our back, and a backend's motion wait that polls (MSG) sees

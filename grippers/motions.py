@@ -33,6 +33,8 @@ import time
 from collections.abc import Callable
 from typing import Any, Generic, TypeVar, cast
 
+from grippers.drivers.numbers import is_text
+
 from .errors import CommandFailed, GripperError, GripperTimeout, LimitError
 
 T = TypeVar("T")
@@ -48,6 +50,10 @@ def wait_seconds(timeout: Any, command: str, device: str | None = None) -> float
     """
     if timeout is None:
         return None
+    if isinstance(timeout, bool) or is_text(timeout):  # the one rule for numbers (drivers/numbers.py)
+        raise LimitError(
+            f"timeout must be a number of seconds, not {timeout!r}", device=device, command=command
+        )
     try:
         seconds = float(timeout)
     except (TypeError, ValueError, OverflowError):

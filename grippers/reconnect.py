@@ -35,6 +35,17 @@ POLL = 0.02  # s between the no-traffic checks of the driver's own "lost" flag
 MISSED_HEARTBEATS = 2  # consecutive heartbeat timeouts that count as a lost link (a silent CAN node)
 
 
+# The settings from_settings() takes, once the gripper is open: grippers.open expects them before it connects,
+# so a misspelt one is refused before any I/O too (Settings.check).
+SETTINGS = (
+    "reconnect",
+    "reconnect_backoff_s",
+    "reconnect_backoff_max_s",
+    "heartbeat_s",
+    "acknowledge_on_reconnect",
+)
+
+
 @dataclasses.dataclass(frozen=True)
 class ReconnectPolicy:
     backoff_s: float = 0.1

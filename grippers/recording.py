@@ -226,7 +226,7 @@ def _number(value: Any, where: str, key: str) -> float | None:
         return None
     if isinstance(value, str):
         value = value.strip()
-    return finite(value, f"{where}: {key}", error=RecordingError)
+    return finite(value, f"{where}: {key}", error=RecordingError, text=True)  # a cell of a CSV is text
 
 
 def _flag(value: Any) -> bool | None:

@@ -11,7 +11,7 @@ from collections.abc import Callable
 from typing import Any, TypeVar
 
 from .errors import URLError
-from .urls import to_bool, to_float, to_int
+from .urls import refuse_unknown, to_bool, to_float, to_int
 
 T = TypeVar("T")
 _text = str  # the builtin, for use inside Settings (whose method ``str`` hides it in the class body)
@@ -49,6 +49,7 @@ class Settings:
         self.url = url
         self._values: dict[str, Any] = {**query, **overrides}
         self._known: set[str] = set()
+        self._expected: set[str] = set()
 
     def _take(self, name: str, default: T, convert: Callable[[Any, str, str], T]) -> T:
         self._known.add(name)
@@ -95,9 +96,26 @@ class Settings:
         for key, value in values.items():
             self._values.setdefault(key, value)
 
+    def expect(self, *names: _text) -> None:
+        """Names that are taken later, after the device answered (``reconnect=`` and its kin, taken once the
+        gripper exists): known to :meth:`check` before they are taken."""
+        self._expected.update(names)
+
+    def check(self) -> None:
+        """Refuse now what no one has taken and no one will: a backend calls this when it has taken its
+        settings and before its first I/O (issue 31 §1: ``nod=3`` on a silent bus was reported as
+        "poll: no reply" after the timeout, never as the URLError :func:`grippers.open` promises)."""
+        self._refuse(set(self._values) - self._expected)
+
     def finish(self) -> None:
         """Refuse what no one took: a typo must not silently fall back to a default."""
-        if self._values:
-            unknown = ", ".join(sorted(self._values))
-            known = ", ".join(sorted(self._known)) or "none"
-            raise URLError(f"{self.url}: unknown setting(s) {unknown} (this backend takes: {known})")
+        self._refuse(set(self._values))
+
+    def _refuse(self, unknown: set[_text]) -> None:
+        refuse_unknown(
+            self.url,
+            unknown,
+            (self._known | self._expected) - unknown,
+            what="setting(s)",
+            known_as="this backend takes",
+        )

@@ -49,7 +49,7 @@ _FROM_URL_PARAMETERS: dict[str, tuple[str, ...]] = {
     "tcp": (),
     "udp": ("local_port",),
     "serial": ("baudrate", "bytesize", "parity", "stopbits"),
-    "can": ("bitrate", "extended", "recv_id", "send_id"),
+    "can": ("bitrate", "extended", "port", "recv_id", "send_id"),
 }
 _MIN_PERIOD_MS = 10  # docs/protocols.md §1: auto-update period minimum
 
@@ -129,6 +129,7 @@ class WsgConnection(CallbackEngine, MotionExchanges):
         send_id: int = DEFAULT_CAN_SEND_ID,
         recv_id: int = DEFAULT_CAN_RECV_ID,
         extended_id: bool | None = None,
+        port: int | None = None,
         **kw: Any,
     ) -> Self:
         transport = CanTransport(
@@ -139,6 +140,7 @@ class WsgConnection(CallbackEngine, MotionExchanges):
             send_id=send_id,
             recv_id=recv_id,
             extended_id=extended_id,
+            port=port,
         )
         return cls(transport, **kw)
 
@@ -185,6 +187,7 @@ class WsgConnection(CallbackEngine, MotionExchanges):
             send_id=num("send_id", DEFAULT_CAN_SEND_ID),
             recv_id=num("recv_id", DEFAULT_CAN_RECV_ID),
             extended_id=to_bool(query["extended"], "extended", url) if "extended" in query else None,
+            port=num("port", 0) if "port" in query else None,
             **kw,
         )
 

@@ -351,6 +351,7 @@ class CanTransport:
         recv_id: int = DEFAULT_CAN_RECV_ID,
         extended_id: bool | None = None,
         send_timeout: float = 1.0,
+        port: int | None = None,
     ) -> None:
         self.send_id = send_id
         self.recv_id = recv_id
@@ -361,6 +362,8 @@ class CanTransport:
             kwargs: dict[str, Any] = {}
             if bitrate is not None:
                 kwargs["bitrate"] = bitrate
+            if port is not None:  # python-can's udp_multicast: a private port is a bus of one's own
+                kwargs["port"] = port
             try:
                 bus = open_bus(interface=interface, channel=channel, **kwargs)
             except (can.CanError, OSError, ValueError, ImportError) as exc:

@@ -19,7 +19,15 @@ from grippers.drivers.stepfoc.can_protocol import Detection, GripperStatus
 from grippers.drivers.stepfoc.motion import CalibrationTracker, MotionTracker, Reading, Verdict
 from grippers.drivers.stepfoc.speed import speed_byte_for, variant
 
-from ..errors import CommandFailed, ConnectionLost, GripperTimeout, ProtocolError, URLError
+from ..errors import (
+    CommandFailed,
+    ConnectionLost,
+    GripperTimeout,
+    MotionBlocked,
+    NotReferenced,
+    ProtocolError,
+    URLError,
+)
 from ..gripper import (
     Capability,
     DeviceInfo,
@@ -417,6 +425,10 @@ class MsgGripper(Gripper):
         )
         self._mode = "idle"  # what the last motion was, to name what the detection bits mean
         self._held = False  # a grasp found its part; detection 3 afterwards means the part was lost
+        # The calibrated bit as last read (None: not read since open or a reconnection). The firmware ignores
+        # a motion frame until it is calibrated (Gripper_mode, docs/protocols.md §2), so a motion
+        # asks first, unless a read already said so: the bit is lost only at power-off (a reconnection).
+        self._calibrated: bool | None = None
         self._waits = 0  # motion waits in progress (state().moving trusts the bits while one runs)
         self._waits_lock = threading.Lock()
         self._seen_position: int | None = None  # the last position read and when it last changed
@@ -509,6 +521,7 @@ class MsgGripper(Gripper):
                 )
             self._check_current(motion, command)
             st = self._link.status()
+            self._calibrated = bool(st.calibrated)
             self._check_current(motion, command)  # a stop sent while this poll ran
             self._check_device(st, command)
             now = time.monotonic()
@@ -526,6 +539,8 @@ class MsgGripper(Gripper):
             if verdict is Verdict.RETRY:
                 raise _Retry(st)
             if verdict is Verdict.STALLED:
+                if not st.calibrated and command != "home":  # powered off and on behind our back
+                    raise NotReferenced(device=self.name, command=command)
                 raise CommandFailed(
                     f"{command} aborted: the jaws stopped at {self._width_of(st.position) * 1000:.1f} mm "
                     "without reaching the target (the driver was idled or the motion stalled)",
@@ -596,11 +611,36 @@ class MsgGripper(Gripper):
         # 30 s of control ticks, then a full run): give it room, bounded.
         return max(super()._motion_timeout(distance, speed), 65.0)
 
+    def _referenced(self, command: str, st: _Status | None = None) -> None:
+        """Refuse a motion of an uncalibrated gripper before anything is sent: the firmware would ignore it
+        (the jaws stay put), and the wait would end as a stall: "move aborted ... the motion stalled".
+
+        The STEPFOC firmware moves only when ``action_status == 1 && calibrated && activated``
+        (PCrnjak/STEPFOC-stepper-controller, ``src/motor_control.cpp`` ``Gripper_mode``, line 2240 at
+        6e71832); the simulator follows it (drivers/stepfoc/sim/model.py ``_apply_motion``)."""
+        if self._calibrated is not True or st is not None:
+            st = st or self._link.status()
+            self._calibrated = bool(st.calibrated)
+        if not self._calibrated:
+            raise NotReferenced(device=self.name, command=command)
+
+    def _blocked(self, command: str, st: _Status, target: float) -> None:
+        """A move or release that ended on an object short of its target is :class:`MotionBlocked` (it
+        returned success with state HOLDING, issue 31 §1). The firmware keeps pushing with the motion's
+        current until the next command; the error says where the jaws stand."""
+        short = abs(self._width_of(st.position) - target) > MotionBlocked.MARGIN
+        if short and st.detection in (Detection.CLOSING_OBJECT, Detection.OPENING_OBJECT):
+            raise MotionBlocked(
+                width=self._width_of(st.position), target=target, device=self.name, command=command
+            )
+
     def _move(self, width: float, speed: float, timeout: float) -> MotionResult:
+        self._referenced("move")
         self._mode, self._held = "move", False
         st = self._go_and_wait(
             "move", self._position_byte(width), speed, self._maps.default_current_ma, timeout
         )
+        self._blocked("move", st, width)
         return MotionResult(self._width_of(st.position), self._grasp_state(st))
 
     def _grasp(self, width: float, speed: float, force: float, timeout: float) -> GraspResult:
@@ -610,7 +650,9 @@ class MsgGripper(Gripper):
         target = min(max(target, self.limits.min_width), self.limits.max_width)
         # Jaws already past the part (after a calibration they rest closed): open to the far side first,
         # or the grasp would start where no part can be met.
-        start = self._width_of(self._link.status().position)
+        before = self._link.status()
+        self._referenced("grasp", before)
+        start = self._width_of(before.position)
         past = start > width + travel / 2 if m.inside_grip else start < width - travel / 2
         if past:
             approach = width - travel if m.inside_grip else width + travel
@@ -642,10 +684,12 @@ class MsgGripper(Gripper):
         return self.limits.min_width if self._maps.inside_grip else self.limits.max_width
 
     def _release(self, width: float, speed: float, timeout: float) -> MotionResult:
+        self._referenced("release")
         self._mode, self._held = "release", False
         st = self._go_and_wait(
             "release", self._position_byte(width), speed, self._maps.default_current_ma, timeout
         )
+        self._blocked("release", st, width)
         self._mode = "idle"
         return MotionResult(self._width_of(st.position), GraspState.IDLE)
 
@@ -702,6 +746,7 @@ class MsgGripper(Gripper):
 
     def _state_of(self, st: _Status) -> GripperState:
         """The state a status read says, whichever face read it."""
+        self._calibrated = bool(st.calibrated)
         return GripperState(
             width=self._width_of(st.position),
             speed=None,
@@ -786,6 +831,7 @@ class MsgGripper(Gripper):
         # A gripper that was power-cycled has lost its calibration (docs/protocols.md §2) and anything
         # it held.
         self._mode, self._held = "idle", False
+        self._calibrated = None
 
 
 class StepfocBackend:
@@ -800,9 +846,9 @@ class StepfocBackend:
         t = profile.transport
         timeout = settings.positive("timeout", t.timeout_s)
         current_limit = profile.effective_max_current_ma
-        link: _Link
+        connect: Callable[[], _Link]
         if url.transport == "can":
-            link = _CanLink(
+            can = (
                 settings.str("interface", url.interface),
                 settings.str("channel", url.channel),
                 settings.int("bitrate", t.can_bitrate),
@@ -811,12 +857,14 @@ class StepfocBackend:
                 timeout,
                 settings.int("port", None),
             )
+            connect = lambda: _CanLink(*can)  # noqa: E731
         elif url.transport == "serial":
-            link = _UartLink(
-                url.serial_port or "", settings.int("baudrate", t.baudrate), current_limit, timeout
-            )
+            uart = (url.serial_port or "", settings.int("baudrate", t.baudrate), current_limit, timeout)
+            connect = lambda: _UartLink(*uart)  # noqa: E731
         else:
             raise URLError(f"{url.url}: the STEPFOC family runs on can or serial, not {url.transport}")
+        settings.check()  # a misspelt setting (nod=3) is refused before the bus is opened or polled
+        link = connect()
         try:
             link.status()  # is anything there? a silent node raises GripperTimeout naming it
             return MsgGripper(link, profile, url.url, timeout=timeout, profile_assumed=assumed)

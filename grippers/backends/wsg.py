@@ -11,7 +11,8 @@ import logging
 import math
 import time
 import uuid
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from typing import Any
 
 from grippers.drivers.errors import CommandFailed, GripperError
@@ -26,7 +27,7 @@ from grippers.drivers.wsg.commands import (
 )
 from grippers.drivers.wsg.protocol import Status
 
-from ..errors import URLError
+from ..errors import MotionBlocked, NotReferenced, URLError
 from ..gripper import (
     Capability,
     DeviceInfo,
@@ -151,15 +152,42 @@ class WsgGripper(Gripper):
     def _home(self, timeout: float) -> None:
         self._client.home(timeout=timeout)
 
+    @contextmanager
+    def _typed(self, command: str, target: float | None = None) -> Iterator[None]:
+        """The device's refusals that every family reports alike (issue 31 §1), as their typed errors:
+        E_NOT_INITIALIZED (manual 4.0.x §3.2: a motion before homing) is :class:`NotReferenced`, and
+        E_AXIS_BLOCKED on a pre-position or release (§3.2.2: the fingers met an obstacle; with stop-on-block
+        they stop there) is :class:`MotionBlocked` with the width where they stopped. ``target`` None: a
+        grasp, where meeting something is the point (its E_AXIS_BLOCKED, if any, passes unchanged)."""
+        try:
+            yield
+        except CommandFailed as exc:
+            kw: dict[str, Any] = {
+                "status": exc.status,
+                "status_name": exc.status_name,
+                "device": self.name,
+                "command": command,
+            }
+            if exc.status == Status.E_NOT_INITIALIZED:
+                raise NotReferenced(**kw) from exc
+            if exc.status == Status.E_AXIS_BLOCKED and target is not None:
+                width = self._client.width() / 1000
+                if abs(width - target) <= MotionBlocked.MARGIN:
+                    return  # stopped on the part where it was sent: the target was reached
+                raise MotionBlocked(width=width, target=target, **kw) from exc
+            raise
+
     def _move(self, width: float, speed: float, timeout: float) -> MotionResult:
-        self._client.preposition(width * 1000, speed * 1000, timeout=timeout)
+        with self._typed("move", width):
+            self._client.preposition(width * 1000, speed * 1000, timeout=timeout)
         return MotionResult(
             self._client.width() / 1000, _GRASP.get(self._client.grasping_state(), GraspState.IDLE)
         )
 
     def _grasp(self, width: float, speed: float, force: float, timeout: float) -> GraspResult:
         try:
-            self._client.grip(width * 1000, speed * 1000, force=force, timeout=timeout)
+            with self._typed("grasp"):
+                self._client.grip(width * 1000, speed * 1000, force=force, timeout=timeout)
         except CommandFailed as exc:
             if exc.status != Status.E_CMD_FAILED:
                 raise
@@ -182,7 +210,8 @@ class WsgGripper(Gripper):
         )
 
     def _release(self, width: float, speed: float, timeout: float) -> MotionResult:
-        self._client.release(width * 1000, speed * 1000, timeout=timeout)
+        with self._typed("release", width):
+            self._client.release(width * 1000, speed * 1000, timeout=timeout)
         return MotionResult(
             self._client.width() / 1000, _GRASP.get(self._client.grasping_state(), GraspState.IDLE)
         )
@@ -454,8 +483,10 @@ class WsgBackend:
                 "bitrate": settings.int("bitrate", t.can_bitrate),
                 "send_id": settings.int("send_id", t.can_send_id),
                 "recv_id": settings.int("recv_id", t.can_recv_id),
+                "port": settings.int("port", None),  # udp_multicast's port (drivers/urls.py bus_options)
             }
             connect = lambda: WsgClient.can(**can, **common)  # noqa: E731
+        settings.check()  # a misspelt setting is refused here, before anything is opened or sent
         client = connect()
         try:
             info = client.system_info()

@@ -258,6 +258,8 @@ def _live_can_records(args: argparse.Namespace, writer: Writer | None) -> Iterat
     kwargs: dict[str, Any] = {"interface": args.interface, "channel": args.channel}
     if args.bitrate:
         kwargs["bitrate"] = args.bitrate
+    if getattr(args, "bus_port", None) is not None:  # ?port= of the URL (apply_url)
+        kwargs["port"] = args.bus_port
     decoder = CanDecoder(args.protocol, args.wsg_id)
     end = None if args.duration is None else time.monotonic() + args.duration
     with can.Bus(**kwargs) as bus:
@@ -399,6 +401,10 @@ def apply_url(args: argparse.Namespace) -> None:
             args.protocol = url.family
         if url.family == "wsg" and "send_id" in url.params:
             args.wsg_id = can_id(url.params["send_id"])
+        from grippers.drivers.urls import bus_options
+
+        if "port" in url.params:  # a udp_multicast bus of its own (issue 33 §3: it watched the default port)
+            args.bus_port = bus_options(url)["port"]
     elif url.family == "wsg" and url.transport == "tcp":
         if args.to is None:
             args.to = (url.host, url.port or WsgTransport().tcp_port)

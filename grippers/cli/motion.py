@@ -102,7 +102,7 @@ def _preflight(gripper: Gripper, command: str, args: argparse.Namespace) -> None
     """Each CLI call is a new connection that cannot know what earlier calls left behind; a device would
     answer a motion with a bare E_ACCESS_DENIED (FAST STOP) or E_NOT_INITIALIZED (not referenced), so the
     state is read first and the error says what to do."""
-    from grippers.errors import GripperError
+    from grippers.errors import NotReferenced
     from grippers.gripper import FastStopActive
 
     # Values beyond the limits are a usage error whatever state the gripper is in: say that first.
@@ -128,8 +128,8 @@ def _preflight(gripper: Gripper, command: str, args: argparse.Namespace) -> None
                 if args.target.startswith("sim:")
                 else f"run `grippers home {args.target}` first, or add --home"
             )
-            raise GripperError(
-                f"not referenced: {how}",
+            raise NotReferenced(  # the API's error for it, with the command line's way out
+                f"{command} refused: not referenced: {how}",
                 device=gripper.name,
                 command=command,
             )

@@ -13,6 +13,7 @@ import os
 from dataclasses import dataclass, field
 from typing import Any
 
+from grippers.drivers.urls import BUS_OPTIONS, bus_options, refuse_unknown
 from grippers.errors import URLError
 from grippers.urls import ConnectionURL, format_host, parse_url, to_int
 
@@ -148,7 +149,16 @@ def expand(
             plan.candidates.append(Candidate(url, location_of(url), group=group))
     else:  # can
         interface, channel = u.interface, u.channel
-        extra = f"&bitrate={bitrate}" if bitrate else ""
+        # The bus options the URL carries (?port= of a udp_multicast bus, ?bitrate=) go to every candidate:
+        # dropped, the probe searched python-can's default port and found another process's nodes.
+        try:
+            refuse_unknown(text, u.params, BUS_OPTIONS)
+            options = bus_options(u)
+        except URLError as exc:
+            raise TargetError(exc.message) from None
+        if bitrate:
+            options["bitrate"] = bitrate  # -b wins over the URL, as flags do everywhere
+        extra = "".join(f"&{k}={v}" for k, v in options.items())
         for node in STEPFOC_NODES:
             url = f"stepfoc+can://{interface}/{channel}?node={node}{extra}"
             # Each node gets its own bus connection, so the nodes are asked in parallel.

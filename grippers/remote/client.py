@@ -63,6 +63,7 @@ class ZenohBackend:
         )
         timeout = settings.positive("timeout", DEFAULT_TIMEOUT)
         label = settings.str("label", f"{socket.gethostname()} pid {os.getpid()}")
+        settings.check()  # a misspelt setting is refused before the session opens
         return RemoteGripper(url.url, name, config, timeout=timeout, label=label, profile=profile)
 
 

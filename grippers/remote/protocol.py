@@ -15,7 +15,7 @@ from typing import Any
 
 from grippers.drivers.numbers import finite
 
-from ..errors import GripperError, ProtocolError
+from ..errors import CommandFailed, GripperError, ProtocolError
 
 PROTOCOL_VERSION = 1
 PREFIX = "grippers"
@@ -243,7 +243,7 @@ def encode_error(exc: BaseException, command: str) -> bytes:
             "command": exc.command or command,
             "device": exc.device,
         }
-        for extra in ("status", "status_name", "holder"):
+        for extra in ("status", "status_name", "holder", "width", "target"):  # MotionBlocked: width, target
             if getattr(exc, extra, None) is not None:
                 doc[extra] = getattr(exc, extra)
     else:  # a bug on the server: said as such, never as a device error
@@ -288,9 +288,15 @@ def decode_error(data: bytes, command: str, device: str) -> GripperError:
     if cls is None:
         return GripperError(f"{name}: {message}", device=device, command=cmd)
     kwargs: dict[str, Any] = {"device": device, "command": cmd}
-    if cls.__name__ == "CommandFailed":
+    if issubclass(cls, CommandFailed):  # and its kinds (NotReferenced, MotionBlocked) keep the device's code
         kwargs["status"] = doc.get("status")
         kwargs["status_name"] = doc.get("status_name")
+    if cls.__name__ == "MotionBlocked":
+        for extra in ("width", "target"):
+            value = doc.get(extra)
+            kwargs[extra] = (
+                float(value) if isinstance(value, int | float) and not isinstance(value, bool) else None
+            )
     if cls.__name__ == "AccessDenied":
         kwargs["holder"] = doc.get("holder")
     try:
