@@ -19,7 +19,8 @@ The semantics on the common interface (docs/getting-started-robotiq.md says the 
   stop); the library latches it until ``acknowledge()`` (``info().extra["fast_stop"]`` says so).
 - ``acknowledge()`` clears the fast-stop latch and, after a major fault (0x0A-0x0F), re-activates as the
   manual prescribes (rACT cleared, then set), which sweeps the fingers and releases any part.
-- a motion before the activation raises :func:`not_activated_error`'s error at once, not a timeout.
+- a motion before the activation raises :class:`~grippers.NotReferenced` at once, not a timeout; a move
+  stopped by an obstacle short of its target raises :class:`~grippers.MotionBlocked`, as on every family.
 """
 
 from __future__ import annotations
@@ -51,7 +52,7 @@ from grippers.drivers.robotiq.registers import (
 from grippers.drivers.robotiq.session import FaultClass, MotionTracker, classify_fault
 from grippers.drivers.robotiq.urcap import UrcapClient
 
-from ..errors import URLError
+from ..errors import MotionBlocked, NotReferenced, URLError
 from ..gripper import Capability, DeviceInfo, GraspResult, GraspState, Gripper, GripperState, MotionResult
 from ..profiles import Length, ProfileBase, Timeout, TimeScale
 
@@ -69,26 +70,9 @@ FALLBACK_PROFILE = "robotiq-2f85"
 # -- errors: the lead maps these two onto the library-wide classes when they land (one line each) ----------
 
 
-class RobotiqNotActivated(CommandFailed):
-    """A motion asked of a gripper that is not activated (``home()`` activates it)."""
-
-
-class RobotiqMotionBlocked(CommandFailed):
-    """A plain move stopped by an obstacle before its target; ``width`` is where the fingers stopped (m)."""
-
-    def __init__(self, message: str, *, width: float, **kw: Any) -> None:
-        self.width = width
-        super().__init__(message, **kw)
-
-
-def not_activated_error(message: str, *, device: str, command: str) -> CommandFailed:
-    """The error for a motion before activation (to become the library's NotReferenced)."""
-    return RobotiqNotActivated(message, status_name="not_activated", device=device, command=command)
-
-
-def motion_blocked_error(message: str, *, width: float, device: str, command: str) -> CommandFailed:
-    """The error for a move stopped by an obstacle (to become the library's MotionBlocked)."""
-    return RobotiqMotionBlocked(message, width=width, status_name="blocked", device=device, command=command)
+def not_activated_error(message: str, *, device: str, command: str) -> NotReferenced:
+    """A motion before activation: the library's one error for a motion before ``home()`` (issue 31 §1)."""
+    return NotReferenced(message, status_name="not_activated", device=device, command=command)
 
 
 class RobotiqFault(CommandFailed):
@@ -330,15 +314,10 @@ class RobotiqGripper(Gripper):
         self._mode, self._held = "move", False
         st = self._go("move", self._position_byte(width), speed, None, timeout)
         self._mode = "idle"
-        if st.obj in (ObjectDetection.CONTACT_CLOSING, ObjectDetection.CONTACT_OPENING):
-            at = self._width_of(st.position)
-            raise motion_blocked_error(
-                f"stopped by an obstacle at {at * 1000:.1f} mm before {width * 1000:.1f} mm "
-                f"(gOBJ {int(st.obj)})",
-                width=at,
-                device=self.name,
-                command="move",
-            )
+        at = self._width_of(st.position)
+        contact = st.obj in (ObjectDetection.CONTACT_CLOSING, ObjectDetection.CONTACT_OPENING)
+        if contact and abs(at - width) > MotionBlocked.MARGIN:  # the rule every family follows (errors.py)
+            raise MotionBlocked(width=at, target=width, status=int(st.obj), device=self.name, command="move")
         return MotionResult(self._width_of(st.position), GraspState.IDLE)
 
     def _grasp(self, width: float, speed: float, force: float, timeout: float) -> GraspResult:

@@ -37,7 +37,6 @@ import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from typing import Any, TypeVar
-from urllib.parse import parse_qsl, urlencode
 
 import pytest
 
@@ -52,6 +51,7 @@ from grippers import (
     LimitError,
     URLError,
 )
+from grippers.drivers.urls import parse_query, with_params
 from grippers.motions import MotionHandle
 
 from . import GripperSims, SimURL
@@ -82,10 +82,11 @@ class Target:
         name, _, query = rest.partition("?")
         if not name:
             raise URLError(f"conformance target {text!r}: no profile name (sim://NAME?setting=value)")
-        return cls(name, dict(parse_qsl(query, keep_blank_values=True)))
+        return cls(name, parse_query(text, query))  # the one URL grammar's query rules
 
     def __str__(self) -> str:
-        return f"sim://{self.profile}" + (f"?{urlencode(self.settings)}" if self.settings else "")
+        base = f"sim://{self.profile}"
+        return with_params(base, **self.settings) if self.settings else base
 
 
 class Conformance:
@@ -123,7 +124,7 @@ class Conformance:
     def open(self, url: str, **query: str) -> grippers.Gripper:
         """``grippers.open`` on a simulator's URL (plus ``query``), closed after the check."""
         if query:
-            url = f"{url}{'&' if '?' in url else '?'}{urlencode(query)}"
+            url = with_params(url, **query)
         g = grippers.open(url)
         self.grippers.append(g)
         return g

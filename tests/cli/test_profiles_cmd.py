@@ -8,7 +8,10 @@ import subprocess
 import sys
 from pathlib import Path
 
-BUILTIN = {"wsg25", "wsg32", "wsg50", "wsg70", "msg-100", "msg-150", "msg-200"}
+BUILTIN = {
+    *("wsg25", "wsg32", "wsg50", "wsg70", "msg-100", "msg-150", "msg-200"),
+    *("robotiq-2f85", "robotiq-2f140", "robotiq-hande"),
+}
 
 
 def test_list_and_show(cli, cli_json) -> None:

@@ -12,6 +12,8 @@ TARGETS = {
     "wsg-udp": "sim://wsg50?transport=udp",
     "msg-can": "sim://msg-150",  # STEPFOC CAN on a python-can virtual bus
     "msg-pty": "sim://msg-150?transport=pty",  # the STEPFOC UART on a pseudo-terminal
+    "robotiq-tcp": "sim://robotiq-2f85",  # Modbus RTU over TCP, as a UR tool forwarder serves it
+    "robotiq-pty": "sim://robotiq-2f85?transport=pty",  # Modbus RTU on an RS-485 line (a pseudo-terminal)
 }
 
 

@@ -10,7 +10,8 @@ from typing import Any
 import pytest
 
 import grippers
-from grippers.backends.robotiq import RobotiqFault, RobotiqMotionBlocked, RobotiqNotActivated
+from grippers import MotionBlocked, NotReferenced
+from grippers.backends.robotiq import RobotiqFault
 from grippers.drivers.robotiq.registers import MAJOR_FAULTS, ActivationState, Command, Fault
 from grippers.errors import CommandFailed, FastStopActive, GripperTimeout, URLError
 from grippers.gripper import GraspState
@@ -35,7 +36,7 @@ def g(request: pytest.FixtureRequest) -> Iterator[Any]:
 
 def test_a_motion_before_activation_is_a_clear_error_then_home_activates(g: Any) -> None:
     assert not g.state().referenced
-    with pytest.raises(RobotiqNotActivated, match="not activated.*home"):
+    with pytest.raises(NotReferenced, match="not activated.*home"):
         g.move(0.04)
     g.simulator.pause()
     handle = g.home(wait=False)
@@ -80,7 +81,7 @@ def test_a_plain_move_stopped_by_a_part_says_where(g: Any) -> None:
     g.home()
     with g.simulator.lock:
         g.simulator.model.part_width_mm = 50.0
-    with pytest.raises(RobotiqMotionBlocked) as err:
+    with pytest.raises(MotionBlocked) as err:
         g.move(0.02)
     assert isinstance(err.value, CommandFailed) and abs(err.value.width - 0.050) < 0.5e-3
 
@@ -265,7 +266,7 @@ def test_every_gflt_code_maps_to_one_typed_outcome(code: int) -> None:
     if code in (Fault.ACTION_DELAYED, Fault.NO_COMMUNICATION):
         assert err is None  # transient: the wait goes on
     elif code == Fault.ACTIVATION_BIT:
-        assert isinstance(err, RobotiqNotActivated)
+        assert isinstance(err, NotReferenced)
     else:
         assert isinstance(err, RobotiqFault) and err.status == code and err.command == "move"
         assert (err.status_name in FAULT_NAMES.values()) == (code in FAULT_NAMES)
