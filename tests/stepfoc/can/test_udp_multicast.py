@@ -112,10 +112,12 @@ def test_a_sent_frame_is_logged_once_although_the_bus_hands_it_back(caplog: pyte
     channel = f"udp_multicast/{GROUP}?port={private_port()}"
     server = serve_can([MsgModel(node=13)], f"can://{channel}", time_scale=20.0)
     try:
-        with caplog.at_level(logging.DEBUG, logger="grippers.wire"):
-            with open_node(f"stepfoc+can://{channel}&node=13", timeout=2.0) as node:
-                node.poll()
-                wire = [r.getMessage() for r in caplog.records if r.name == "grippers.wire"]
+        with (
+            caplog.at_level(logging.DEBUG, logger="grippers.wire"),
+            open_node(f"stepfoc+can://{channel}&node=13", timeout=2.0) as node,
+        ):
+            node.poll()
+            wire = [r.getMessage() for r in caplog.records if r.name == "grippers.wire"]
     finally:
         server.close()
     polls = [line for line in wire if "gripper_command poll" in line]
