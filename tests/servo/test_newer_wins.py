@@ -58,30 +58,64 @@ def _at(g: grippers.Gripper, width: float) -> bool:
     return abs(st.width - width) < 1.5e-3 and not st.moving
 
 
+def _stepped_until(what: str, g: grippers.Gripper, predicate: Callable[[], bool]) -> None:
+    """Move the simulator's paused clock on, 20 ms of device time at a time, until ``predicate()``: the
+    device is then in the middle of what it does, and stays there until the clock moves again."""
+    clock = g.simulator.clock
+    for _ in range(500):
+        if predicate():
+            return
+        clock.step(0.02)
+    raise AssertionError(f"{what}: not within 10 simulated s")
+
+
+def _supersede(g: grippers.Gripper, first: str, second: str, target: float) -> Any:
+    """Give the second command without waiting for it (its registration supersedes the first at once);
+    a handle to wait on afterwards, or None (servo)."""
+    if second == "servo":
+        g.servo(target)
+        return None
+    if second == "move":
+        return g.move(target, wait=False)
+    if second == "grasp":
+        if first == "grasp":
+            # the part lies in the first grasp's way: the move that supersedes it is the newer command
+            return g.move(target, wait=False)
+        return g.grasp(0.04, wait=False)
+    return g.home(wait=False)
+
+
 @pytest.mark.parametrize(("first", "second"), list(itertools.product(COMMANDS, COMMANDS)))
 def test_the_newer_command_wins(gripper: grippers.Gripper, first: str, second: str) -> None:
+    """The simulator's clock is held still from the first command's start until the second has been
+    given (issue 33 §5): with a running clock, a busy machine could let the first command end before the
+    second arrived ("DID NOT RAISE" for wsg-home-move)."""
     g = gripper
     lo, hi = g.limits.min_width, g.limits.max_width
     middle = (lo + hi) / 2
     slow = max(g.limits.min_speed * 2, 0.005)
     g.move(middle)  # from the middle, every first command has a long way to go
     g.stop()  # ends a servoing left by the previous case
-    handle = _start(g, first, lo + 0.002 if first != "grasp" else 0.0, slow)
-    _until(f"{first} under way", lambda: abs(g.state().width - middle) > 1e-3)
-
     target = hi - 0.005
-    if second == "servo":
-        g.servo(target)
-    elif second == "move":
-        result = g.move(target)
+    g.simulator.clock.pause()
+    try:
+        handle = _start(g, first, lo + 0.002 if first != "grasp" else 0.0, slow)
+        _stepped_until(f"{first} under way", g, lambda: abs(g.state().width - middle) > 1e-3)
+        newer = _supersede(g, first, second, target)
+    finally:
+        g.simulator.clock.resume()
+
+    if second == "move":
+        result = newer.wait()
         assert abs(result.width - target) < 1.5e-3
     elif second == "grasp":
         if first == "grasp":
-            g.move(target)  # the first grasp ended; the part lies between the jaws again for the second
-        result = g.grasp(0.04)
+            newer.wait()  # the first grasp ended; the part lies between the jaws again for the second
+            newer = g.grasp(0.04, wait=False)
+        result = newer.wait()
         assert result.grasped, result
-    else:
-        g.home()
+    elif second == "home":
+        newer.wait()
 
     if handle is not None:
         with pytest.raises(CommandFailed, match="superseded"):
