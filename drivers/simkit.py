@@ -35,18 +35,34 @@ class SimClock:
         # (wall origin, simulated seconds when paused or None): one tuple, so now() reads it whole
         self._state: tuple[float, float | None] = (time.monotonic(), None)
         self._lock = threading.Lock()
+        self._creep = 0.0
 
     def now(self) -> float:
         t0, held = self._state
-        if held is not None:
-            return held
-        return self.start + (time.monotonic() - t0) * self.time_scale
+        if held is None:
+            return self.start + (time.monotonic() - t0) * self.time_scale
+        if self._creep:
+            with self._lock:
+                t0, held = self._state
+                if held is not None:
+                    held += self._creep
+                    self._state = (t0, held)
+                    return held
+            return self.now()
+        return held
 
-    def pause(self) -> None:
-        """Hold simulated time where it is (the device stands still) until :meth:`resume`."""
+    def pause(self, *, creep: float = 0.0) -> None:
+        """Hold simulated time where it is (the device stands still) until :meth:`resume`.
+
+        ``creep``: simulated seconds each reading of the held clock moves it on. Frames never reach a real
+        device at one instant, and a model that tells two frames apart by time needs them apart: the MSG's
+        firmware takes a poll within one control tick (160-200 us) of a new command as cancelling that
+        command's at-position reset, so a held MSG is read with a creep longer than a tick."""
         with self._lock:
             if self._state[1] is None:
-                self._state = (self._state[0], self.now())
+                t0 = self._state[0]
+                self._state = (t0, self.start + (time.monotonic() - t0) * self.time_scale)
+            self._creep = max(0.0, float(creep))
 
     def step(self, simulated_seconds: float) -> None:
         """Move a paused clock on by ``simulated_seconds`` (it stays paused)."""
@@ -62,6 +78,7 @@ class SimClock:
             held = self._state[1]
             if held is not None:
                 self._state = (time.monotonic() - (held - self.start) / self.time_scale, None)
+            self._creep = 0.0
 
     def wall(self, simulated_seconds: float) -> float:
         """Wall-clock seconds that ``simulated_seconds`` of device time take."""

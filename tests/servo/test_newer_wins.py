@@ -17,6 +17,7 @@ import pytest
 
 import grippers
 from grippers import CommandFailed
+from tests.simhold import MSG_CREEP_S, held, step_until
 
 COMMANDS = ("move", "grasp", "home", "servo")
 URLS = {
@@ -58,17 +59,6 @@ def _at(g: grippers.Gripper, width: float) -> bool:
     return abs(st.width - width) < 1.5e-3 and not st.moving
 
 
-def _stepped_until(what: str, g: grippers.Gripper, predicate: Callable[[], bool]) -> None:
-    """Move the simulator's paused clock on, 20 ms of device time at a time, until ``predicate()``: the
-    device is then in the middle of what it does, and stays there until the clock moves again."""
-    clock = g.simulator.clock
-    for _ in range(500):
-        if predicate():
-            return
-        clock.step(0.02)
-    raise AssertionError(f"{what}: not within 10 simulated s")
-
-
 def _supersede(g: grippers.Gripper, first: str, second: str, target: float) -> Any:
     """Give the second command without waiting for it (its registration supersedes the first at once);
     a handle to wait on afterwards, or None (servo)."""
@@ -97,13 +87,10 @@ def test_the_newer_command_wins(gripper: grippers.Gripper, first: str, second: s
     g.move(middle)  # from the middle, every first command has a long way to go
     g.stop()  # ends a servoing left by the previous case
     target = hi - 0.005
-    g.simulator.clock.pause()
-    try:
+    with held(g, creep=MSG_CREEP_S if g.profile.name.startswith("msg") else 0.0) as clock:
         handle = _start(g, first, lo + 0.002 if first != "grasp" else 0.0, slow)
-        _stepped_until(f"{first} under way", g, lambda: abs(g.state().width - middle) > 1e-3)
+        step_until(clock, lambda: abs(g.state().width - middle) > 1e-3, f"{first} under way")
         newer = _supersede(g, first, second, target)
-    finally:
-        g.simulator.clock.resume()
 
     if second == "move":
         result = newer.wait()
