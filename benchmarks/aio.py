@@ -199,7 +199,10 @@ def _pair_latencies(url: str, pairs: int, batch: int) -> list[tuple[float, float
     from grippers.aio import AsyncGripper, _Workers
 
     out: list[tuple[float, float]] = []
-    g = grippers.open(url, profile="msg-150") if url.startswith("stepfoc+") else grippers.open(url)
+    # A generous timeout: a moment the machine stalls the simulator is measured as a slow call, not lost
+    # as an error that ends the whole target (a 0.5 s poll timeout did, once, beside other test suites).
+    extra: dict[str, Any] = {"profile": "msg-150"} if url.startswith("stepfoc+") else {}
+    g = grippers.open(url, timeout=5.0, **extra)
 
     def threaded_batch() -> float:
         for _ in range(3):
