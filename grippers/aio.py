@@ -194,8 +194,8 @@ async def _awaited_read(
 
     Where the driver keeps the time itself (``started.timeout`` None), a timer of this loop still bounds the
     wait at ``backstop`` seconds: the driver's clock runs on its reader, and a reader that stalls (a bus read
-    by another event loop that ended, issue 33 §2) must not leave this await pending for ever. About 2 us
-    a call (docs/performance.md, target 13).
+    by another event loop that ended, issue 33 §2) must not leave this await pending for ever. A few
+    microseconds a call (docs/performance.md, target 13).
     """
 
     bound = backstop if started.timeout is None else started.timeout
@@ -584,8 +584,9 @@ def open(  # noqa: A001 - mirrors grippers.open
 
     Takes what :func:`grippers.open` takes (a URL, a profile name or file, keyword overrides).
     ``read_on_loop``: where the transport allows it (an MSG on a SocketCAN or ``udp_multicast`` bus), the
-    event loop reads it itself while the gripper is open, so a reply reaches its task with no thread
-    hand-over; the threaded calls under it then depend on the loop running, as python-can's ``Notifier``
-    with a loop does. False keeps the driver's reader thread.
+    event loop reads it itself while the gripper is open and the loop runs, so a reply reaches its task with
+    no thread hand-over; a loop that stops reading (blocked, idle, ended) hands the bus back to the driver's
+    reader thread after 0.2 s, so the other users of the bus wait at most that long
+    (drivers/stepfoc/can_reader.py). False keeps the driver's reader thread.
     """
     return _Opening(target, overrides, read_on_loop)
