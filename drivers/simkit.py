@@ -20,17 +20,65 @@ R = TypeVar("R")
 
 
 class SimClock:
-    """Simulated seconds since start: wall time multiplied by ``time_scale`` (tests use 10-100)."""
+    """Simulated seconds since start: wall time multiplied by ``time_scale`` (tests use 10-100).
+
+    A test that needs the device to be in the middle of something when it acts (a motion still running when
+    a newer one arrives) holds the clock still with :meth:`pause` and moves it on with :meth:`step` or
+    :meth:`resume`, instead of racing the scaled clock against the scheduler on a busy machine (issue 33 §5).
+    """
 
     def __init__(self, time_scale: float = 1.0, *, start: float = 0.0) -> None:
         if not time_scale > 0:
             raise ValueError(f"time_scale must be positive, not {time_scale!r}")
         self.time_scale = float(time_scale)
         self.start = float(start)  # simulated seconds at creation (a model prepared in simulated time)
-        self._t0 = time.monotonic()
+        # (wall origin, simulated seconds when paused or None): one tuple, so now() reads it whole
+        self._state: tuple[float, float | None] = (time.monotonic(), None)
+        self._lock = threading.Lock()
+        self._creep = 0.0
 
     def now(self) -> float:
-        return self.start + (time.monotonic() - self._t0) * self.time_scale
+        t0, held = self._state
+        if held is None:
+            return self.start + (time.monotonic() - t0) * self.time_scale
+        if self._creep:
+            with self._lock:
+                t0, held = self._state
+                if held is not None:
+                    held += self._creep
+                    self._state = (t0, held)
+                    return held
+            return self.now()
+        return held
+
+    def pause(self, *, creep: float = 0.0) -> None:
+        """Hold simulated time where it is (the device stands still) until :meth:`resume`.
+
+        ``creep``: simulated seconds each reading of the held clock moves it on. Frames never reach a real
+        device at one instant, and a model that tells two frames apart by time needs them apart: the MSG's
+        firmware takes a poll within one control tick (160-200 us) of a new command as cancelling that
+        command's at-position reset, so a held MSG is read with a creep longer than a tick."""
+        with self._lock:
+            if self._state[1] is None:
+                t0 = self._state[0]
+                self._state = (t0, self.start + (time.monotonic() - t0) * self.time_scale)
+            self._creep = max(0.0, float(creep))
+
+    def step(self, simulated_seconds: float) -> None:
+        """Move a paused clock on by ``simulated_seconds`` (it stays paused)."""
+        with self._lock:
+            t0, held = self._state
+            if held is None:
+                raise RuntimeError("step() needs a paused clock")
+            self._state = (t0, held + simulated_seconds)
+
+    def resume(self) -> None:
+        """Let simulated time run again from where it was held."""
+        with self._lock:
+            held = self._state[1]
+            if held is not None:
+                self._state = (time.monotonic() - (held - self.start) / self.time_scale, None)
+            self._creep = 0.0
 
     def wall(self, simulated_seconds: float) -> float:
         """Wall-clock seconds that ``simulated_seconds`` of device time take."""

@@ -53,6 +53,10 @@ log = logging.getLogger(__name__)
 # that only ever runs stop, fast stop and acknowledge, so a cancel can always reach the device at once.
 WORKERS = 3
 MOTION_WORKERS = 2  # a running motion and the newer one that supersedes it, while the older one winds down
+# A native state read is at most this many exchanges, each bounded by the gripper's timeout (the MSG's poll,
+# then frame 26 for the cause of an error), plus slack for the reader's clock: the await's own bound.
+READS_PER_STATE = 2
+READ_SLACK_S = 0.25
 STOP_GRACE = 2.0  # s beyond the gripper's timeout for a cancelled motion to report back after the stop
 
 
@@ -180,27 +184,35 @@ def _deliver(
 
 
 async def _awaited_read(
-    loop: asyncio.AbstractEventLoop, fut: asyncio.Future[T], started: StartedRead, device: str
+    loop: asyncio.AbstractEventLoop,
+    fut: asyncio.Future[T],
+    started: StartedRead,
+    device: str,
+    backstop: float,
 ) -> T:
-    """Await a read the driver completes from its reader; give it up on cancel or at its timeout."""
+    """Await a read the driver completes from its reader; give it up on cancel or at its timeout.
 
-    bound = started.timeout
+    Where the driver keeps the time itself (``started.timeout`` None), a timer of this loop still bounds the
+    wait at ``backstop`` seconds: the driver's clock runs on its reader, and a reader that stalls (a bus read
+    by another event loop that ended, issue 33 §2) must not leave this await pending for ever. A few
+    microseconds a call (docs/performance.md, target 13).
+    """
+
+    bound = backstop if started.timeout is None else started.timeout
 
     def too_late() -> None:
         if not fut.done():
             text = f"no reply within {bound:g} s"
             fut.set_exception(GripperTimeout(text, device=device, command=started.command))
 
-    # No timer where the driver keeps the time itself (a timer per call costs what the native read saves).
-    timer = None if bound is None else loop.call_later(bound, too_late)
+    timer = loop.call_later(bound, too_late)
     try:
         return await fut
     except BaseException:
         started.cancel()  # cancelled or timed out: the exchange is abandoned, the next call goes at once
         raise
     finally:
-        if timer is not None:
-            timer.cancel()
+        timer.cancel()
 
 
 class AsyncMotionHandle(Generic[T]):
@@ -435,7 +447,9 @@ class AsyncGripper:
         started = g._start_state(lambda st, exc: _deliver(loop, fut, st, exc))
         if started is None:  # this backend reads only by blocking: a worker runs it
             return await self._call(g.state)
-        return g._took_state(await _awaited_read(loop, fut, started, g.name))
+        return g._took_state(
+            await _awaited_read(loop, fut, started, g.name, READS_PER_STATE * g.timeout + READ_SLACK_S)
+        )
 
     async def info(self) -> DeviceInfo:
         return await self._call(self.sync.info)
@@ -571,8 +585,9 @@ def open(  # noqa: A001 - mirrors grippers.open
 
     Takes what :func:`grippers.open` takes (a URL, a profile name or file, keyword overrides).
     ``read_on_loop``: where the transport allows it (an MSG on a SocketCAN or ``udp_multicast`` bus), the
-    event loop reads it itself while the gripper is open, so a reply reaches its task with no thread
-    hand-over; the threaded calls under it then depend on the loop running, as python-can's ``Notifier``
-    with a loop does. False keeps the driver's reader thread.
+    event loop reads it itself while the gripper is open and the loop runs, so a reply reaches its task with
+    no thread hand-over; a loop that stops reading (blocked, idle, ended) hands the bus back to the driver's
+    reader thread after 0.2 s, so the other users of the bus wait at most that long
+    (drivers/stepfoc/can_reader.py). False keeps the driver's reader thread.
     """
     return _Opening(target, overrides, read_on_loop)

@@ -66,7 +66,16 @@ from .can_protocol import (
     parse_can_url,
 )
 from .can_reader import BusReader
-from .can_session import CanSession, Delivery, DuplicateFound, Heartbeat, Key, NodeFacts, is_stepfoc_frame
+from .can_session import (
+    OWN_ECHO,
+    CanSession,
+    Delivery,
+    DuplicateFound,
+    Heartbeat,
+    Key,
+    NodeFacts,
+    is_stepfoc_frame,
+)
 from .dissect import log_can_frame
 from .motion import CalibrationTracker, Reading, Verdict
 from .node_setup import NodeSetup
@@ -404,11 +413,12 @@ class StepfocBus(Closing):
         arbitration_id = msg.arbitration_id
         if not is_stepfoc_frame(arbitration_id, error_frame=msg.is_error_frame, extended=msg.is_extended_id):
             return
-        log_can_frame(self.device, arbitration_id, msg.data, msg.is_remote_frame, msg.timestamp)
         now = time.monotonic()
         with self._lock:
             event = self._session.received(arbitration_id, msg.data, now=now, remote=msg.is_remote_frame)
             waiter = self._waiters.get(event.key) if type(event) is Delivery else None
+        if event is not OWN_ECHO:  # our own frame was logged as it went out (send_frame)
+            log_can_frame(self.device, arbitration_id, msg.data, msg.is_remote_frame, msg.timestamp)
         if waiter is not None:
             assert type(event) is Delivery
             waiter.settle(event.message, event.error)

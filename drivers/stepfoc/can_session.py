@@ -100,7 +100,15 @@ class DuplicateFound:
     reason: str
 
 
-Event = Delivery | Heartbeat | DuplicateFound
+@dataclass(frozen=True, slots=True)
+class OwnEcho:
+    """This client's own frame, handed back by a bus that ``echoes``: nothing for the protocol, and not
+    a frame to log again (it was logged as it went out)."""
+
+
+OWN_ECHO = OwnEcho()
+
+Event = Delivery | Heartbeat | DuplicateFound | OwnEcho
 
 
 def is_stepfoc_frame(arbitration_id: int, *, error_frame: bool = False, extended: bool = False) -> bool:
@@ -179,7 +187,7 @@ class CanSession:
         if not is_stepfoc_frame(arbitration_id, error_frame=error_frame, extended=extended):
             return None
         if self._own and self._own_echo(arbitration_id, data, remote, now):
-            return None  # our own frame, handed back by the bus
+            return OWN_ECHO  # our own frame, handed back by the bus
         node, command, error = unpack_id(arbitration_id)
         spec = COMMANDS.get(command)
         if remote or spec is None or spec.direction is Direction.HOST_TO_NODE:

@@ -98,7 +98,7 @@ def test_100_concurrent_states_complete_with_every_worker_blocked(target: Target
             try:
                 threads = threading.active_count()
                 states = await asyncio.wait_for(asyncio.gather(*(g.state() for _ in range(100))), 30)
-                # none started (one fewer where the bus's reader thread has just handed over to the loop)
+                # none started (the bus's reader thread stays, watching, while the loop reads)
                 assert threading.active_count() <= threads
             finally:
                 gate.set()

@@ -26,6 +26,7 @@ from grippers import (
 from grippers.backends.stepfoc import StepfocBackend
 from grippers.settings import Settings
 from grippers.urls import parse_url
+from tests.simhold import MSG_CREEP_S, held, step_until, under_way
 
 from .conftest import ROOT, TIME_SCALE
 
@@ -48,9 +49,11 @@ def test_msg_cancel_ends_the_wait_instead_of_running_into_the_timeout(transport:
     # Detection stays 0 (moving) after the action bit is cleared, so waiting for "not moving" never ended.
     with grippers.open(f"sim://msg-150?time_scale=8&transport={transport}") as g:
         g.home()
-        handle = g.move(g.limits.max_width, g.limits.min_speed, wait=False)
-        time.sleep(0.1)
-        handle.cancel()
+        start = g.state().width
+        with held(g, creep=MSG_CREEP_S) as clock:  # still moving at the cancel (issue 33 §5)
+            handle = g.move(g.limits.max_width, g.limits.min_speed, wait=False)
+            step_until(clock, under_way(g, start), "the move under way")
+            handle.cancel()
         with pytest.raises(CommandFailed, match=r"aborted by cancel\(\)"):
             handle.wait(3.0)  # GripperTimeout here before the fix (the motion takes ~5 s)
         handle.join(3.0)  # the backend's wait ends too, well before the motion's own timeout
@@ -91,9 +94,11 @@ def test_msg_close_during_a_motion_on_a_shared_bus_ends_the_motion_thread() -> N
 def test_msg_device_error_during_a_motion_is_command_failed_not_a_timeout() -> None:
     with grippers.open("sim://msg-150?time_scale=8") as g:
         g.home()
-        handle = g.move(g.limits.max_width, g.limits.min_speed, wait=False)
-        time.sleep(0.1)
-        g.simulator.models[0].temperature_error = True  # the driver stops the motor
+        start = g.state().width
+        with held(g, creep=MSG_CREEP_S) as clock:  # still moving at the error (issue 33 §5)
+            handle = g.move(g.limits.max_width, g.limits.min_speed, wait=False)
+            step_until(clock, under_way(g, start), "the move under way")
+            g.simulator.models[0].temperature_error = True  # the driver stops the motor
         with pytest.raises(CommandFailed, match="temperature"):
             handle.wait(3.0)
 
@@ -226,9 +231,11 @@ def test_grasp_state_after_a_cancelled_msg_grasp_is_not_holding() -> None:
     with grippers.open("sim://msg-150?time_scale=8&part_width_mm=20") as g:
         g.home()
         g.release()
-        handle = g.grasp(0.02, g.limits.min_speed, wait=False)
-        time.sleep(0.1)
-        handle.cancel()
+        start = g.state().width
+        with held(g, creep=MSG_CREEP_S) as clock:  # still closing at the cancel (issue 33 §5)
+            handle = g.grasp(0.02, g.limits.min_speed, wait=False)
+            step_until(clock, under_way(g, start), "the grasp under way")
+            handle.cancel()
         with pytest.raises(CommandFailed, match=r"aborted by cancel\(\)"):
             handle.wait(3.0)
         handle.join(3.0)

@@ -7,6 +7,7 @@ import json
 import signal
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -184,14 +185,23 @@ def test_live_can_bus(start_sim, cli, mcast_channel: str) -> None:
         stdout=subprocess.PIPE,
         text=True,
     )
+    lines: list[str] = []
+    reader = threading.Thread(target=lambda: lines.extend(proc.stdout or ()), daemon=True)
+    reader.start()
+
+    def seen() -> set[str]:
+        docs = [json.loads(x) for x in list(lines)]
+        return {d["command"] for d in docs if d["node"] == node}
+
     try:
-        # The monitor needs a moment to start and join the group: ask twice, a while apart.
-        for _ in range(2):
-            time.sleep(0.8)
+        # The monitor needs a moment to start and join the group, longer on a busy machine than any fixed
+        # pause (issue 33 §5): ask until it has shown our exchange, bounded.
+        deadline = time.monotonic() + 15.0
+        while not {"gripper_command", "gripper_status"} <= seen() and time.monotonic() < deadline:
             assert cli("state", url, "--timeout", "2").returncode == 0
+            time.sleep(0.2)
     finally:
         proc.send_signal(signal.SIGINT)
-        out, _ = proc.communicate(timeout=10)
-    docs = [json.loads(x) for x in out.splitlines()]
-    mine = [d for d in docs if d["node"] == node]
-    assert {"gripper_command", "gripper_status"} <= {d["command"] for d in mine}
+        proc.wait(timeout=10)
+        reader.join(10)
+    assert {"gripper_command", "gripper_status"} <= seen()

@@ -17,6 +17,7 @@ import pytest
 
 import grippers
 from grippers import CommandFailed
+from tests.simhold import MSG_CREEP_S, held, step_until
 
 COMMANDS = ("move", "grasp", "home", "servo")
 URLS = {
@@ -58,30 +59,50 @@ def _at(g: grippers.Gripper, width: float) -> bool:
     return abs(st.width - width) < 1.5e-3 and not st.moving
 
 
+def _supersede(g: grippers.Gripper, first: str, second: str, target: float) -> Any:
+    """Give the second command without waiting for it (its registration supersedes the first at once);
+    a handle to wait on afterwards, or None (servo)."""
+    if second == "servo":
+        g.servo(target)
+        return None
+    if second == "move":
+        return g.move(target, wait=False)
+    if second == "grasp":
+        if first == "grasp":
+            # the part lies in the first grasp's way: the move that supersedes it is the newer command
+            return g.move(target, wait=False)
+        return g.grasp(0.04, wait=False)
+    return g.home(wait=False)
+
+
 @pytest.mark.parametrize(("first", "second"), list(itertools.product(COMMANDS, COMMANDS)))
 def test_the_newer_command_wins(gripper: grippers.Gripper, first: str, second: str) -> None:
+    """The simulator's clock is held still from the first command's start until the second has been
+    given (issue 33 §5): with a running clock, a busy machine could let the first command end before the
+    second arrived ("DID NOT RAISE" for wsg-home-move)."""
     g = gripper
     lo, hi = g.limits.min_width, g.limits.max_width
     middle = (lo + hi) / 2
     slow = max(g.limits.min_speed * 2, 0.005)
     g.move(middle)  # from the middle, every first command has a long way to go
     g.stop()  # ends a servoing left by the previous case
-    handle = _start(g, first, lo + 0.002 if first != "grasp" else 0.0, slow)
-    _until(f"{first} under way", lambda: abs(g.state().width - middle) > 1e-3)
-
     target = hi - 0.005
-    if second == "servo":
-        g.servo(target)
-    elif second == "move":
-        result = g.move(target)
+    with held(g, creep=MSG_CREEP_S if g.profile.name.startswith("msg") else 0.0) as clock:
+        handle = _start(g, first, lo + 0.002 if first != "grasp" else 0.0, slow)
+        step_until(clock, lambda: abs(g.state().width - middle) > 1e-3, f"{first} under way")
+        newer = _supersede(g, first, second, target)
+
+    if second == "move":
+        result = newer.wait()
         assert abs(result.width - target) < 1.5e-3
     elif second == "grasp":
         if first == "grasp":
-            g.move(target)  # the first grasp ended; the part lies between the jaws again for the second
-        result = g.grasp(0.04)
+            newer.wait()  # the first grasp ended; the part lies between the jaws again for the second
+            newer = g.grasp(0.04, wait=False)
+        result = newer.wait()
         assert result.grasped, result
-    else:
-        g.home()
+    elif second == "home":
+        newer.wait()
 
     if handle is not None:
         with pytest.raises(CommandFailed, match="superseded"):

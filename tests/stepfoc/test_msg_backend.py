@@ -21,6 +21,7 @@ from grippers.drivers.stepfoc.sim import MsgModel, serve_can
 from grippers.drivers.stepfoc.sim.can_server import CanSimServer
 from grippers.drivers.stepfoc.sim.model import Phase
 from grippers.gripper import FastStopActive
+from tests.simhold import MSG_CREEP_S, held, step_until, under_way
 
 TRANSPORTS = ["can", "pty"]
 
@@ -54,6 +55,15 @@ def calibrated_node() -> Iterator[tuple[CanSimServer, StepfocNode]]:
         node = bus.node(0)
         node.calibrate(timeout=5.0)
         yield server, node
+
+
+FIRST = 0.002  # m: where first_motion() leaves the jaws
+
+
+def first_motion(g: grippers.Gripper) -> None:
+    """A handle's first motion goes out as two 61s (send_command's primer): make it here, so the motion a
+    test holds still is a single 61 and cannot be sent again after what the test does meanwhile."""
+    assert g.move(FIRST).width == pytest.approx(FIRST, abs=0.001)
 
 
 # ------------------------------------------------------------------------------ calibration (§2)
@@ -126,9 +136,11 @@ def test_the_client_never_repeats_a_motion_61_byte_for_byte() -> None:
 def test_command_0_from_another_host_is_a_fast_stop_and_acknowledge_recovers() -> None:
     with sim("can") as g:
         g.home()
-        handle = g.move(0.09, 0.0025, wait=False)
-        time.sleep(0.1)
-        send_raw(g, Cmd.ESTOP)
+        first_motion(g)
+        with held(g, creep=MSG_CREEP_S) as clock:  # the move still runs when the e-stop comes (issue 33 §5)
+            handle = g.move(0.09, 0.0025, wait=False)
+            step_until(clock, under_way(g, FIRST), "the move under way")
+            send_raw(g, Cmd.ESTOP)
         with pytest.raises(FastStopActive, match="e-stop"):
             handle.wait(5.0)
         assert g.state().fast_stopped
@@ -140,9 +152,11 @@ def test_command_0_from_another_host_is_a_fast_stop_and_acknowledge_recovers() -
 def test_a_61_with_the_estop_bit_from_another_host_is_a_fast_stop() -> None:
     with sim("can") as g:
         g.home()
-        handle = g.move(0.09, 0.0025, wait=False)
-        time.sleep(0.1)
-        send_raw(g, Cmd.GRIPPER_COMMAND, encode_command(GripperCommand(0, 0, 100, True, False, True)))
+        first_motion(g)
+        with held(g, creep=MSG_CREEP_S) as clock:
+            handle = g.move(0.09, 0.0025, wait=False)
+            step_until(clock, under_way(g, FIRST), "the move under way")
+            send_raw(g, Cmd.GRIPPER_COMMAND, encode_command(GripperCommand(0, 0, 100, True, False, True)))
         with pytest.raises(FastStopActive):
             handle.wait(5.0)
         g.acknowledge()  # 61 with estop 0 first, then 1: the error does not come back
@@ -151,10 +165,13 @@ def test_a_61_with_the_estop_bit_from_another_host_is_a_fast_stop() -> None:
 
 def test_clear_error_resume_resends_the_motion() -> None:
     with calibrated_node() as (server, node):
-        node.command(0, 5)  # about 12 s of device time (0.25 s here): still running at the e-stop
-        time.sleep(0.05)
-        node.estop()
-        stopped = server.model.ticks
+        # about 12 s of device time, held still running at the e-stop
+        with held(server, creep=MSG_CREEP_S) as clock:
+            start = node.poll().position
+            node.command(0, 5)
+            step_until(clock, lambda: node.poll().position != start, "the motion under way", step=0.1)
+            node.estop()
+            stopped = server.model.ticks
         node.clear_error(resume=True)
         st = node.wait_motion(timeout=5.0)
         assert st.position == 0 and server.model.ticks != stopped
@@ -183,9 +200,12 @@ def test_two_devices_with_one_node_id_are_an_error_naming_the_node() -> None:
 def test_a_newer_motion_supersedes_the_waiting_one(transport: str) -> None:
     with sim(transport) as g:
         g.home()
-        handle = g.move(0.09, 0.0025, wait=False)
-        time.sleep(0.1)
-        second = g.move(0.01)
+        first_motion(g)
+        with held(g, creep=MSG_CREEP_S) as clock:
+            handle = g.move(0.09, 0.0025, wait=False)
+            step_until(clock, under_way(g, FIRST), "the move under way")
+            newer = g.move(0.01, wait=False)
+        second = newer.wait(10.0)
         assert second.width == pytest.approx(0.01, abs=0.001)
         with pytest.raises(CommandFailed, match="superseded"):
             handle.wait(5.0)
@@ -218,10 +238,12 @@ def test_a_motion_superseded_by_another_program_never_reports_success_elsewhere(
     there: detection 3 counts only at this motion's own target."""
     with sim("can") as g:
         g.home()
-        handle = g.move(0.1, 0.0025, wait=False)
-        time.sleep(0.1)
+        first_motion(g)
         other = GripperCommand(180, 255, 500, activate=True, action=True, estop=False)  # about 31 mm
-        send_raw(g, Cmd.GRIPPER_COMMAND, encode_command(other))
+        with held(g, creep=MSG_CREEP_S) as clock:
+            handle = g.move(0.1, 0.0025, wait=False)
+            step_until(clock, under_way(g, FIRST), "the move under way")
+            send_raw(g, Cmd.GRIPPER_COMMAND, encode_command(other))
         with pytest.raises(CommandFailed, match="aborted"):
             handle.wait(10.0)
         assert g.simulator.model.opening_mm == pytest.approx(31.0, abs=1.0)
@@ -230,12 +252,14 @@ def test_a_motion_superseded_by_another_program_never_reports_success_elsewhere(
 def test_stop_from_another_program_is_not_reported_as_done() -> None:
     with sim("can") as g:
         g.home()
-        handle = g.move(0.09, 0.0025, wait=False)
-        time.sleep(0.1)
-        # what `grippers stop URL` from another shell sends: a 61 with the action bit cleared
-        last = g.driver.last_command
-        stop = GripperCommand(last.position, 0, 500, activate=True, action=False, estop=False)
-        send_raw(g, Cmd.GRIPPER_COMMAND, encode_command(stop))
+        first_motion(g)
+        with held(g, creep=MSG_CREEP_S) as clock:
+            handle = g.move(0.09, 0.0025, wait=False)
+            step_until(clock, under_way(g, FIRST), "the move under way")
+            # what `grippers stop URL` from another shell sends: a 61 with the action bit cleared
+            last = g.driver.last_command
+            stop = GripperCommand(last.position, 0, 500, activate=True, action=False, estop=False)
+            send_raw(g, Cmd.GRIPPER_COMMAND, encode_command(stop))
         with pytest.raises(CommandFailed, match="aborted: the gripper's action bit was cleared"):
             handle.wait(5.0)
 
@@ -244,9 +268,11 @@ def test_stop_from_another_program_is_not_reported_as_done() -> None:
 def test_driver_idled_by_another_host_ends_the_wait_as_aborted(command: int) -> None:
     with sim("can") as g:
         g.home()
-        handle = g.move(0.09, 0.0025, wait=False)
-        time.sleep(0.1)
-        send_raw(g, command)  # the 60 frame cannot show the driver mode: the jaws stand still
+        first_motion(g)
+        with held(g, creep=MSG_CREEP_S) as clock:
+            handle = g.move(0.09, 0.0025, wait=False)
+            step_until(clock, under_way(g, FIRST), "the move under way")
+            send_raw(g, command)  # the 60 frame cannot show the driver mode: the jaws stand still
         with pytest.raises(CommandFailed, match="aborted: the jaws stopped"):
             handle.wait(5.0)
 

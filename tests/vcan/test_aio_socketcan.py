@@ -1,6 +1,6 @@
 """The asyncio face on a real SocketCAN interface: the event loop reads the socket itself (``add_reader``,
-drivers/stepfoc/can_reader.py), with no reader thread, while the face is open. Node id 8 (no other test in
-this folder uses it).
+drivers/stepfoc/can_reader.py) while the face is open and its loop runs; the reader thread only watches.
+Node id 8 (no other test in this folder uses it).
 """
 
 from __future__ import annotations
@@ -26,11 +26,12 @@ def test_the_loop_reads_socketcan_and_the_gripper_works_on_every_face(vcan: str)
     async def main() -> None:
         url = f"stepfoc+can://socketcan/{vcan}?node={NODE}&profile=msg-150"
         async with grippers.aio.open(url, timeout=2.0) as g:
+            reader = g.sync.driver.bus._reader
             for _ in range(200):  # the reader thread hands over within its poll period (50 ms)
-                if not readers(vcan):
+                if reader.loop_reads:
                     break
                 await asyncio.sleep(0.01)
-            assert not readers(vcan)
+            assert reader.loop_reads
             await g.home()  # a motion: its blocking calls run on workers, their replies read by the loop
             moved = await g.move(0.05)
             native = await g.state()
@@ -39,7 +40,7 @@ def test_the_loop_reads_socketcan_and_the_gripper_works_on_every_face(vcan: str)
             assert dataclasses.replace(native, timestamp=0.0, current=None) == dataclasses.replace(
                 threaded, timestamp=0.0, current=None
             )
-            assert not readers(vcan)
+            assert reader.loop_reads
         assert not readers(vcan)  # closed: the bus and its reader are gone
 
     with serve_can([MsgModel(node=NODE)], f"can://socketcan/{vcan}", time_scale=50.0):

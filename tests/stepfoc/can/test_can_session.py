@@ -19,6 +19,7 @@ from grippers.drivers.stepfoc.can_protocol import (
 from grippers.drivers.stepfoc.can_session import (
     DUPLICATE_WINDOW_S,
     ECHO_WINDOW_S,
+    OWN_ECHO,
     CanSession,
     Delivery,
     DuplicateFound,
@@ -179,7 +180,7 @@ def poll_with_echo(s: CanSession, now: float) -> None:
     """What a client on python-can's udp_multicast bus does: sends an empty 61 and gets it back."""
     s.sending(POLL_ID, b"", remote=False, now=now)
     s.sent(POLL)
-    assert s.received(POLL_ID, b"", now=now + 0.0001) is None
+    assert s.received(POLL_ID, b"", now=now + 0.0001) is (OWN_ECHO if s.echoes else None)
 
 
 @pytest.mark.parametrize("echoes", [True, False])

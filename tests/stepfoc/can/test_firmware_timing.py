@@ -254,3 +254,50 @@ def test_spectral_micro_calibrates_slower_with_its_own_constants() -> None:
     # Spectral Micro holds each stop 3200 ticks (0.64 s at 5000 Hz) and runs at speed 40 of its own map
     assert ticks_per_s(40, SPECTRAL_MICRO) == 40 + 40 * (80000 - 40) // 255
     assert times["spectral-micro"] != times["stepfoc"]
+
+
+# Issue 33 §4, read against PCrnjak/STEPFOC-stepper-controller at 6e71832, "STEPFOC firmware/src/":
+# communication_CAN.cpp 310-403 (61: Same_command from previousBytes 318-325, mode 11 at 356, previousBytes
+# kept at 360-363), 678-695 (62: mode 7 only); motor_control.cpp 2223-2298 (Gripper_mode), 2305-2421
+# (Calibrate_gripper). docs/reliability.md, "Round 4", has the reading.
+
+
+def test_an_identical_61_after_a_calibration_keeps_the_latch_and_still_moves_the_jaws() -> None:
+    """(a) Calibrate_gripper writes neither Same_command, At_position nor previousBytes, so a 61 identical
+    to the last one keeps the at-position latch (Gripper_mode resets it only when Same_command == 0, 2226-
+    2229): detection 3 at once. But the 61 still sets mode 11 and Gripper_mode, latched, runs Position_mode
+    (2250-2254) towards the stored setpoint mapped with the new stops (2232): the jaws DO travel to it."""
+    r = Raw(MsgModel(current_noise=False))
+    r.calibrate()
+    r.go(60, current=500)
+    assert r.poll()[3] == 3
+    r.calibrate()
+    assert r.poll()[0] == 255
+    r.send(CMD_61, cmd61(60, current=500))  # byte for byte the last one
+    seen = []
+    for _ in range(100):  # a second of device time, polled every 10 ms
+        position, _, _, detection = r.poll(dt=0.01)
+        seen.append((position, detection))
+    assert all(d == 3 for _, d in seen)  # "at position" throughout
+    assert seen[0][0] > 200 and abs(seen[-1][0] - 60) <= 1  # ... while the jaws travelled from 255 to 60
+
+
+def test_a_61_aborting_the_closing_phase_makes_the_next_62_close_at_once() -> None:
+    """(b) The 61 leaves grip_cal_1 and grip_delay_1 set (reset only at the end, 2386-2392, or the time-out,
+    2408-2414); the next 62 only sets mode 7 (689), and the first Calibrate_gripper step is the closing one
+    (2321) while the opening one (2342) is skipped: the jaws close at once instead of opening again."""
+    r = Raw(MsgModel(current_noise=False))
+    r.calibrate()
+    r.go(255, current=501)
+    r.send(CALIBRATE)
+    r.run(6.0)  # opened, paused, closing
+    assert r.m.phase is Phase.CAL_CLOSE
+    r.send(CMD_61, cmd61(100, current=502))  # aborts it
+    r.run(3.0)
+    assert not r.m.calibrating
+    before, _ = r.encoder()
+    r.send(CALIBRATE)
+    assert r.m.phase is Phase.CAL_CLOSE  # the closing step at once
+    r.run(0.2)
+    after, velocity = r.encoder()
+    assert velocity < 0 and after < before  # ticks grow towards open: it closes, it does not open first

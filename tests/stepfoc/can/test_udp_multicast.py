@@ -7,6 +7,7 @@ ids, and the tests stay few. The simulator runs in a subprocess (``python -c`` c
 
 from __future__ import annotations
 
+import logging
 import subprocess
 import sys
 from collections.abc import Callable, Iterator
@@ -100,3 +101,25 @@ def test_the_api_takes_the_port_as_the_driver_does(remote_sim: Callable[[list[in
     with grippers.open(url + "&node=12&profile=msg-150&timeout=1.0") as g:
         assert g.info().extra["node"] == 12
         assert g.state().width >= 0
+
+
+def test_a_sent_frame_is_logged_once_although_the_bus_hands_it_back(caplog: pytest.LogCaptureFixture) -> None:
+    """Issue 33 §3: ``-vv`` on ``udp_multicast`` logged every sent frame twice, once as it went out and once
+    as our own multicast echo came back. The echo is now recognised (can_session.py) and not logged again;
+    the node's reply is still logged. In-process simulator, node 13 on a private port."""
+    from grippers.drivers.stepfoc.sim import MsgModel, serve_can
+
+    channel = f"udp_multicast/{GROUP}?port={private_port()}"
+    server = serve_can([MsgModel(node=13)], f"can://{channel}", time_scale=20.0)
+    try:
+        with (
+            caplog.at_level(logging.DEBUG, logger="grippers.wire"),
+            open_node(f"stepfoc+can://{channel}&node=13", timeout=2.0) as node,
+        ):
+            node.poll()
+            wire = [r.getMessage() for r in caplog.records if r.name == "grippers.wire"]
+    finally:
+        server.close()
+    polls = [line for line in wire if "gripper_command poll" in line]
+    assert len(polls) == 1 and "->" in polls[0], wire  # was 2: the poll sent, and its echo received
+    assert any("<-" in line and "gripper_status" in line for line in wire), wire  # the reply is logged

@@ -63,46 +63,67 @@ def test_names_the_parser_does_not_know_get_no_answer(port) -> None:
     assert raw.ask(b"#Gripper\n") == ["Gripper: 1"]
 
 
-def test_mode_tells_calibration_and_gripper_mode(port) -> None:
-    server, raw = port
+@pytest.fixture
+def stepped() -> Iterator[tuple[SteppedClock, RawPort]]:
+    """The UART simulator on a clock that moves only when the test moves it (issue 33 §5): a calibration or
+    a motion is still running when the test asks, however long the machine keeps the test from asking."""
+    clock = SteppedClock()
+    server = serve_uart(MsgModel(), "pty", clock=clock)
+    raw = RawPort(server)
+    yield clock, raw
+    raw.close()
+    server.close()
+
+
+def _calibrate(clock: SteppedClock, raw: RawPort) -> None:
+    """#Gripcal, then move the clock a simulated second at a time until #Mode says the driver is idle again
+    (60 simulated s at most): the calibration has ended."""
+    assert raw.ask(b"#Gripcal\n") == ["Gripper calibration! "]
+    for _ in range(60):
+        if raw.ask(b"#Mode\n") == ["Idle mode "]:
+            return
+        clock.t += 1.0
+    raise AssertionError("the calibration did not end within 60 simulated s")
+
+
+def test_mode_tells_calibration_and_gripper_mode(stepped) -> None:
+    clock, raw = stepped
     assert raw.ask(b"#Mode\n") == ["Idle mode "]
     assert raw.ask(b"#Gripcal\n") == ["Gripper calibration! "]
-    assert raw.ask(b"#Mode\n") == ["Gripper calib mode"]
-    deadline = time.monotonic() + 5
-    while raw.ask(b"#Mode\n") != ["Idle mode "]:
-        assert time.monotonic() < deadline
-        time.sleep(0.02)
+    assert raw.ask(b"#Mode\n") == ["Gripper calib mode"]  # no simulated time passed: it runs
+    clock.t += 1.0
+    assert raw.ask(b"#Mode\n") == ["Gripper calib mode"]  # a calibration takes seconds
+    for _ in range(60):
+        clock.t += 1.0
+        if raw.ask(b"#Mode\n") == ["Idle mode "]:
+            break
+    assert raw.ask(b"#Mode\n") == ["Idle mode "]
     assert raw.ask(b"#Grippos 100\n")[0].startswith("Gripper current position is: ")
     assert raw.ask(b"#Mode\n", wait=0.3, quiet=0.25) == []  # gripper mode (11) prints nothing
 
 
-def _calibrate(raw) -> None:
-    """#Gripcal, then ask #Mode until the driver is idle again (5 s at most): the calibration has ended."""
-    raw.ask(b"#Gripcal\n")
-    deadline = time.monotonic() + 5
-    while raw.ask(b"#Mode\n") != ["Idle mode "]:
-        assert time.monotonic() < deadline
-
-
-def test_recalibration_keeps_the_calibrated_bit(port) -> None:
-    server, raw = port
-    _calibrate(raw)
+def test_recalibration_keeps_the_calibrated_bit(stepped) -> None:
+    clock, raw = stepped
+    _calibrate(clock, raw)
     raw.ask(b"#Grippos 100\n")
-    time.sleep(0.2)
+    clock.t += 5.0  # the move ends
     raw.ask(b"#Gripcal\n")
-    info = raw.ask(b"#Gripinfo\n")
+    info = raw.ask(b"#Gripinfo\n")  # no simulated time passed since: the calibration runs
     assert "Gripper calibrated is: 1" in info and raw.ask(b"#Mode\n") == ["Gripper calib mode"]
 
 
-def test_clear_idles_the_driver(port) -> None:
-    server, raw = port
-    _calibrate(raw)
+def test_clear_idles_the_driver(stepped) -> None:
+    clock, raw = stepped
+    _calibrate(clock, raw)
     raw.ask(b"#Gripvel 0\n")
     raw.ask(b"#Grippos 0\n")  # slow: ~40 simulated s
-    time.sleep(0.05)
+    clock.t += 0.5
+    moving = raw.ask(b"#Grippos\n")
+    clock.t += 0.5
+    assert raw.ask(b"#Grippos\n") != moving  # still under way
     assert raw.ask(b"#Clear\n") == ["Clear errors"]
     stopped = raw.ask(b"#Grippos\n")
-    time.sleep(0.2)
+    clock.t += 20.0
     assert raw.ask(b"#Grippos\n") == stopped and raw.ask(b"#Mode\n") == ["Idle mode "]
 
 

@@ -1,0 +1,63 @@
+"""Holding a simulated device still while a test acts (issue 33 §5).
+
+A test of a timing window (a motion still running when a newer command, a stop or an e-stop arrives) must not
+race the simulator's scaled clock against the scheduler: on a busy machine the test can be kept from acting
+for longer than the whole motion lasts. Instead the test pauses the simulator's clock before it starts the
+motion, moves the clock on step by step until the motion is observably under way, acts, and only then lets
+the clock run again. The client's own bounds run on the wall clock, so a hold lasts only as long as the
+test needs to act (milliseconds), far below any client timeout or stall bound.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import Callable, Iterator
+from typing import Any
+
+from grippers.drivers.simkit import SimClock
+
+
+def clock_of(sim: Any) -> SimClock:
+    """The clock of a simulator server, or of the one serving a ``sim://`` gripper (``.simulator``)."""
+    server = getattr(sim, "simulator", None) or sim
+    clock: SimClock = server.clock
+    return clock
+
+
+# An MSG simulator's held clock creeps 1 ms per reading: a poll that reaches the firmware within one control
+# tick of a new command would otherwise cancel the command's at-position reset (SimClock.pause's docstring).
+MSG_CREEP_S = 0.001
+
+
+@contextlib.contextmanager
+def held(sim: Any, *, creep: float = 0.0) -> Iterator[SimClock]:
+    """The simulator's clock paused for the body (moved on only by :func:`step_until` and ``creep`` per
+    reading), then running."""
+    clock = clock_of(sim)
+    clock.pause(creep=creep)
+    try:
+        yield clock
+    finally:
+        clock.resume()
+
+
+def step_until(
+    clock: SimClock, predicate: Callable[[], bool], what: str, *, step: float = 0.02, limit: float = 20.0
+) -> None:
+    """Move the paused ``clock`` on ``step`` simulated seconds at a time until ``predicate()`` (which asks the
+    device, so the model advances to the clock); AssertionError after ``limit`` simulated seconds."""
+    for _ in range(int(limit / step) + 1):
+        if predicate():
+            return
+        clock.step(step)
+    raise AssertionError(f"{what}: not within {limit:g} simulated s")
+
+
+def under_way(g: Any, start: float, *, by: float = 5e-4) -> Callable[[], bool]:
+    """A predicate: the gripper reports moving and its jaws left ``start`` (m) by more than ``by``."""
+
+    def moving() -> bool:
+        st = g.state()
+        return bool(st.moving) and abs(st.width - start) > by
+
+    return moving
