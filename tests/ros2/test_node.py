@@ -191,7 +191,8 @@ def test_a_new_goal_preempts_the_running_one(wsg: Cell) -> None:
     assert status == GoalStatus.STATUS_SUCCEEDED and result.reached_goal
     assert abs(result.position - 0.09) <= TOL
     old_status, _ = wsg.client.result(slow)
-    assert old_status == GoalStatus.STATUS_ABORTED
+    # CANCELED, as parallel_gripper_action_controller's preempt_active_goal() ends it (setCanceled)
+    assert old_status == GoalStatus.STATUS_CANCELED
 
 
 # -- ParallelGripperCommand --------------------------------------------------------------------------------
