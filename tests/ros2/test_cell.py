@@ -7,6 +7,7 @@ again on the same port), reached with reconnect=true; the other gripper runs ins
 
 from __future__ import annotations
 
+import os
 import queue
 import signal
 import socket
@@ -31,6 +32,7 @@ from std_srvs.srv import Trigger  # noqa: E402
 import grippers  # noqa: E402
 
 from ..conftest import SimProcess  # noqa: E402
+from ..mcast import private_port  # noqa: E402
 from .cells import MM, Cell, gripper_goal, parallel_goal, uniq  # noqa: E402
 from .rosclient import WAIT, CliProcess, RosClient, node_process, wait_until  # noqa: E402
 
@@ -267,3 +269,33 @@ def test_an_interrupt_leaves_the_jaws_stopped(wsg_process: WsgProcess) -> None:
     finally:
         client.close()
         proc.terminate()
+
+
+def test_an_interrupt_stops_a_motion_no_goal_owns() -> None:
+    """The node stops the gripper at its end whether or not one of its goals runs: a motion it does not own
+    (here another client's on the same bus; in the node, one whose goal ended on a timeout) must not go on
+    unattended. An MSG, because closing its link does not stop it (a WSG's disconnect does)."""
+    sim = SimProcess(
+        "msg",
+        "--listen",
+        f"can://udp_multicast/239.74.201.{os.getpid() % 200 + 1}?port={private_port()}&node=9",
+    )
+    url = sim.url + "&profile=msg-150"
+    try:
+        proc = node_process(url, "--namespace", uniq("sigint2"))
+        try:
+            with grippers.open(url) as other:
+                other.home()
+                other.move(0.1)
+                other.move(0.01, 0.005, wait=False)
+                wait_until(lambda: other.state().moving, what="the jaws moving")
+                assert proc.terminate(signal.SIGINT) == 0, proc.output()
+                first = other.state()
+                time.sleep(0.5)
+                second = other.state()
+                assert not second.moving and abs(second.width - first.width) < 0.5 * MM, (first, second)
+                assert second.width > 0.01 + 5 * MM
+        finally:
+            proc.terminate()
+    finally:
+        sim.close()
