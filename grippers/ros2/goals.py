@@ -122,6 +122,12 @@ class Arbiter:
                 raise GoalEnded(ticket.ended)
             return call()
 
+    def check(self, ticket: Ticket) -> None:
+        """GoalEnded if ``ticket`` was ended (a goal that needs no motion still honours a cancel)."""
+        with self._lock:
+            if ticket.ended is not None:
+                raise GoalEnded(ticket.ended)
+
     def if_current(self, ticket: Ticket, call: Callable[[], object]) -> bool:
         """Run ``call`` (a stop) only while ``ticket`` is the current one: never stop a newer goal's motion."""
         with self._lock:
@@ -258,6 +264,13 @@ class GoalRunner:
         """Execute a goal already checked against the limits (``Gripper.check``)."""
         g = self.gripper
         now = g.state()
+        if not now.moving and now.grasp is not GraspState.HOLDING and abs(now.width - width) <= self.tolerance:
+            # Already there and at rest: nothing to send (a move to where the jaws are would only cost a
+            # device exchange and a state read; docs/performance.md, target 14). A newer goal still ends an
+            # older one: begin() has ended its ticket, and the jaws do not move.
+            self.arbiter.check(self.ticket)
+            self.feedback(now)
+            return Outcome(now.width, effort_of(now), False, True)
         if width >= now.width - self.tolerance:
             if now.grasp is GraspState.HOLDING:
                 return self._move(lambda: _started(g.release(width, speed, wait=False)), width)
