@@ -238,7 +238,8 @@ def run(quick: bool) -> list[Result]:
     ).stdout.strip()
     script = (
         f'. "{env_dir}/env.sh" && export ROS_DOMAIN_ID={os.getpid() % 100 + 1} '
-        f'ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST && exec "$GRIPPERS_ROS2_PYTHON" -m benchmarks.ros2_node {goals}'
+        "ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST && "
+        f'exec "$GRIPPERS_ROS2_PYTHON" -m benchmarks.ros2_node {goals}'
     )
     proc = subprocess.run(["bash", "-c", script], capture_output=True, text=True, cwd=REPO, timeout=900)
     if proc.returncode != 0:
@@ -256,12 +257,14 @@ def run(quick: bool) -> list[Result]:
             f"<= {GOAL:g}x",
             ratio <= GOAL and got["failed"] == 0,
             [
-                f"{goals} GripperCommand goals to the current width (sim://wsg50) each, alternating slices of 10; "
-                f"{got['failed']} did not succeed",
-                f"p99: node {_p99(got['node']) * 1e3:.2f} ms, bare rclpy server {_p99(got['bare']) * 1e3:.2f} ms",
+                f"{goals} GripperCommand goals to the current width (sim://wsg50) each, alternating slices "
+                f"of 10; {got['failed']} did not succeed",
+                f"p99: node {_p99(got['node']) * 1e3:.2f} ms, "
+                f"bare rclpy server {_p99(got['bare']) * 1e3:.2f} ms",
                 f"joint_states at --rate 100: {got['js_rate']:.1f} Hz received, period jitter p99 "
                 f"{got['jitter_p99'] * 1e3:.2f} ms",
-                f"the node's steps (medians on a gripper of their own): limit check {costs['check'] * 1e6:.0f} us, "
+                "the node's steps (medians on a gripper of their own): "
+                f"limit check {costs['check'] * 1e6:.0f} us, "
                 f"state() {costs['state'] * 1e3:.2f} ms; a move to the current width, no longer sent, "
                 f"{costs['move'] * 1e3:.2f} ms",
             ],

@@ -7,6 +7,7 @@ stays fast and works without ROS.
 from __future__ import annotations
 
 import argparse
+import functools
 import signal
 import sys
 import threading
@@ -42,7 +43,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "targets",
         nargs="+",
         metavar="URL | NAME=URL",
-        help="a connection URL, profile name or profile file; NAME=URL ... for one node per gripper, named NAME",
+        help="a connection URL, profile name or profile file; NAME=URL ...: one node per gripper, named NAME",
     )
     parser.add_argument(
         "--name", type=_ros_name, default="gripper", help="node name of a single URL (default gripper)"
@@ -53,7 +54,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         type=_ros_name,
         default=None,
         metavar="JOINT",
-        help="the width joint (default gripper_joint, NAME_joint with NAME=URL); two fingers: joint_names parameter",
+        help="the width joint (default gripper_joint, NAME_joint for NAME=URL; two fingers: joint_names)",
     )
     parser.add_argument(
         "--rate", type=positive_float, default=50.0, metavar="HZ", help="joint_states per second (default 50)"
@@ -69,8 +70,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--actions",
         choices=("default", "ros2_controllers"),
         default="default",
-        help="action names: default (~/gripper_cmd GripperCommand, ~/parallel_gripper_cmd) or ros2_controllers "
-        "(ParallelGripperCommand at ~/gripper_cmd, as parallel_gripper_action_controller)",
+        help="action names: default (GripperCommand at ~/gripper_cmd, ~/parallel_gripper_cmd) or "
+        "ros2_controllers (ParallelGripperCommand at ~/gripper_cmd, as parallel_gripper_action_controller)",
     )
     parser.add_argument(
         "--lifecycle", action="store_true", help="managed nodes: unconfigured until `ros2 lifecycle set`"
@@ -89,7 +90,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         nargs=argparse.REMAINDER,
         default=[],
         metavar="ARG",
-        help="the rest of the line goes to ROS as with `ros2 run` (-r from:=to, -p name:=value, --params-file)",
+        help="the rest of the line goes to ROS as with `ros2 run` (-r, -p NAME:=VALUE, --params-file FILE)",
     )
 
 
@@ -123,7 +124,7 @@ def _specs(args: argparse.Namespace) -> list[Any]:
             tolerance=args.tolerance / 1000,
             actions=args.actions,
         )
-        specs.append(GripperSpec(lambda target=target: grippers.open(target, **kwargs), options))
+        specs.append(GripperSpec(functools.partial(grippers.open, target, **kwargs), options))
     return specs
 
 

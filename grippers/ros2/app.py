@@ -36,10 +36,10 @@ def _plain_node(options: NodeOptions, context: Any) -> Any:
 
 def _lifecycle_node(options: NodeOptions, context: Any) -> Any:
     """An rclpy LifecycleNode whose transitions drive the GripperNode set as its ``owner`` afterwards."""
-    import lifecycle_msgs.msg  # noqa: F401 - named if missing (ros-jazzy-lifecycle-msgs)
+    import lifecycle_msgs.msg  # type: ignore[import-not-found]  # noqa: F401 - ros-jazzy-lifecycle-msgs
     from rclpy.lifecycle import LifecycleNode, TransitionCallbackReturn
 
-    class ManagedGripperNode(LifecycleNode):  # type: ignore[misc]
+    class ManagedGripperNode(LifecycleNode):
         owner: GripperNode
 
         def _step(self, name: str, step: Callable[[], None]) -> Any:

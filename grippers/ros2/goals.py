@@ -129,7 +129,7 @@ class Arbiter:
                 raise GoalEnded(ticket.ended)
 
     def if_current(self, ticket: Ticket, call: Callable[[], object]) -> bool:
-        """Run ``call`` (a stop) only while ``ticket`` is the current one: never stop a newer goal's motion."""
+        """Run ``call`` (a stop) only while ``ticket`` is current: never stop a newer goal's motion."""
         with self._lock:
             if ticket is not self._current:
                 return False
@@ -156,9 +156,7 @@ def blocked_width(exc: CommandFailed) -> float | None | bool:
     width = getattr(exc, "width", None)
     if isinstance(width, int | float) and not isinstance(width, bool) and math.isfinite(width):
         return float(width)
-    if type(exc).__name__ == "MotionBlocked" or "E_AXIS_BLOCKED" in str(exc):
-        return True
-    return False
+    return type(exc).__name__ == "MotionBlocked" or "E_AXIS_BLOCKED" in str(exc)
 
 
 @dataclass(frozen=True)
@@ -178,9 +176,13 @@ class _StallWatch:
 
     def stalled(self, st: GripperState) -> bool:
         now = time.monotonic()
-        if self.last is not None and now > self.last[0]:
-            if abs(st.width - self.last[1]) / (now - self.last[0]) > self.rule.velocity:
-                self.moved_at = now
+        last = self.last
+        if (
+            last is not None
+            and now > last[0]
+            and abs(st.width - last[1]) / (now - last[0]) > self.rule.velocity
+        ):
+            self.moved_at = now
         self.last = (now, st.width)
         if abs(st.width - self.target) <= self.rule.tolerance:
             self.moved_at = now
@@ -264,12 +266,15 @@ class GoalRunner:
         """Execute a goal already checked against the limits (``Gripper.check``)."""
         g = self.gripper
         now = g.state()
-        if not now.moving and now.grasp is not GraspState.HOLDING and abs(now.width - width) <= self.tolerance:
+        if (
+            not now.moving
+            and now.grasp is not GraspState.HOLDING
+            and abs(now.width - width) <= self.tolerance
+        ):
             # Already there and at rest: nothing to send (a move to where the jaws are would only cost a
             # device exchange and a state read; docs/performance.md, target 14). A newer goal still ends an
             # older one: begin() has ended its ticket, and the jaws do not move.
             self.arbiter.check(self.ticket)
-            self.feedback(now)
             return Outcome(now.width, effort_of(now), False, True)
         if width >= now.width - self.tolerance:
             if now.grasp is GraspState.HOLDING:

@@ -86,7 +86,7 @@ class Health:
         if faults:
             return ERROR, "fault: " + ", ".join(faults)
         if st is None or age > 2 * self.period:
-            return STALE, "no state for %.1f s" % age if st is not None else "no state yet"
+            return STALE, f"no state for {age:.1f} s" if st is not None else "no state yet"
         if not st.referenced:
             return WARN, "not referenced (call ~/home)"
         if st.faults:

@@ -53,7 +53,7 @@ def _descriptors(rules: Rules) -> list[tuple[str, Any, str]]:
         (
             "allow_stalling",
             rules.allow_stalling,
-            "a goal stopped by a part: SUCCEEDED (true) or ABORTED (false)",
+            "a goal stopped by a part: SUCCEEDED (true), ABORTED (false)",
         ),
         ("stall_velocity_threshold", rules.stall_velocity_threshold, "m/s: slower than this is not moving"),
         ("stall_timeout", rules.stall_timeout, "s not moving, short of the target, before a move is stalled"),
@@ -62,7 +62,7 @@ def _descriptors(rules: Rules) -> list[tuple[str, Any, str]]:
         (
             "joint_names",
             list(rules.joints.names),
-            "one width joint, or two prismatic fingers at half the width",
+            "one width joint, or two fingers at half the width",
         ),
     ]
 
@@ -77,7 +77,7 @@ class ParamBinder:
     def __init__(
         self, node: Any, rules: Rules, check_limits: Callable[[float | None, float | None], str | None]
     ) -> None:
-        from rcl_interfaces.msg import ParameterDescriptor
+        from rcl_interfaces.msg import ParameterDescriptor  # type: ignore[import-not-found]
 
         self._check_limits = check_limits
         self.rules = rules
