@@ -25,11 +25,11 @@ from typing import Any
 
 from ..errors import GripperError
 from ..gripper import Gripper, GripperState
-from ..states import Capability
 from .goals import Arbiter, GoalEnded, GoalFailed, GoalRunner, Outcome, StallRule, Ticket, _started
 from .health import Health
 from .joints import JointLayout
 from .params import DEFAULT_TOLERANCE, ParamBinder, Rules
+from .publish import StatePublisher, num
 
 DEFAULT_NAME = "gripper"
 DEFAULT_JOINT = "gripper_joint"
@@ -49,10 +49,6 @@ class NodeOptions:
     diagnostics_period: float = 1.0  # s
 
 
-def _num(value: float | None) -> float:
-    return math.nan if value is None else float(value)
-
-
 class GripperNode:
     """Owns one rclpy node over one gripper. Create after ``rclpy.init``; ``destroy()`` before shutdown.
 
@@ -62,10 +58,9 @@ class GripperNode:
 
     def __init__(self, opener: Callable[[], Gripper], options: NodeOptions, rclpy_node: Any) -> None:
         from control_msgs.action import GripperCommand, ParallelGripperCommand
-        from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
         from rclpy.action import ActionServer, CancelResponse, GoalResponse
         from rclpy.action.server import GoalEvent
-        from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
+        from rclpy.callback_groups import ReentrantCallbackGroup
         from sensor_msgs.msg import JointState
         from std_srvs.srv import Trigger
 
@@ -75,8 +70,6 @@ class GripperNode:
             ParallelGripperCommand,
             JointState,
         )
-        self._Diag = (DiagnosticArray, DiagnosticStatus, KeyValue)
-        self._Exclusive = MutuallyExclusiveCallbackGroup
         self._opener = opener
         self.options = options
         self.node = rclpy_node
@@ -87,9 +80,7 @@ class GripperNode:
         self.arbiter = Arbiter()
         self._tickets: dict[bytes, Ticket] = {}
         self._tickets_lock = threading.Condition()  # notified when a goal ends (halt waits for them)
-        self._timers: list[Any] = []
         self._unlisten: Callable[[], None] | None = None
-        self._state_error: str | None = None
         self.params = ParamBinder(
             self.node,
             Rules(goal_tolerance=options.tolerance, joints=JointLayout.of(options.joint_names)),
@@ -129,8 +120,7 @@ class GripperNode:
         self.node.create_service(Trigger, "~/home", self._home, callback_group=services)
         self.node.create_service(Trigger, "~/stop", self._stop, callback_group=services)
         self.node.create_service(Trigger, "~/acknowledge", self._acknowledge, callback_group=services)
-        self._joint_states = self.node.create_publisher(JointState, "joint_states", 10)
-        self._diagnostics = self.node.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self.publisher = StatePublisher(self.node, self.health, lambda: self.rules.joints)
 
     @property
     def rules(self) -> Rules:
@@ -170,12 +160,7 @@ class GripperNode:
                     Parameter("max_velocity", value=self.rules.max_velocity or float(speed or 0.0)),
                 ]
             )
-        self._timers = [
-            self.node.create_timer(1.0 / self.options.rate, self._publish_joint_state, self._Exclusive()),
-            self.node.create_timer(
-                self.options.diagnostics_period, self._publish_diagnostics, self._Exclusive()
-            ),
-        ]
+        self.publisher.start(gripper, self.options.rate, self.options.diagnostics_period)
 
     def activate(self) -> None:
         self.active = True
@@ -187,9 +172,7 @@ class GripperNode:
 
     def cleanup(self) -> None:
         """Stop publishing and close the gripper (configure opens it again)."""
-        for timer in self._timers:
-            self.node.destroy_timer(timer)
-        self._timers = []
+        self.publisher.stop()
         gripper, self.gripper = self.gripper, None
         if self._unlisten is not None:
             self._unlisten()
@@ -228,55 +211,8 @@ class GripperNode:
             server.destroy()
         self.node.destroy_node()
 
-    # -- joint_states and /diagnostics -----------------------------------------------------------------------
-
     def joint_state(self, st: GripperState) -> Any:
-        joints = self.rules.joints
-        msg = self._JointState()
-        msg.header.stamp = self.node.get_clock().now().to_msg()
-        msg.name = list(joints.names)
-        msg.position = joints.positions(st.width)
-        msg.velocity = joints.velocities(_num(st.speed))
-        msg.effort = joints.efforts(_num(st.force))
-        return msg
-
-    def _publish_joint_state(self) -> None:
-        gripper = self.gripper
-        if gripper is None:
-            return
-        try:
-            st = gripper.state()
-        except GripperError as exc:
-            # Said once per change, not 50 times a second; the topic pauses until the device answers again.
-            self.health.failed(str(exc))
-            if str(exc) != self._state_error:
-                self._logger.error(f"joint_states paused: {exc}")
-                self._state_error = str(exc)
-            return
-        if self._state_error is not None:
-            self._logger.info("joint_states resumed")
-            self._state_error = None
-        self._joint_states.publish(self.joint_state(st))
-        self.health.saw(st)
-
-    def _publish_diagnostics(self) -> None:
-        DiagnosticArray, DiagnosticStatus, KeyValue = self._Diag
-        gripper = self.gripper
-        if gripper is not None and gripper.connected and Capability.TEMPERATURE in gripper.capabilities:
-            try:
-                self.health.temperature = gripper.temperature()
-            except GripperError:
-                self.health.temperature = None
-        status = DiagnosticStatus()
-        level, status.message = self.health.level()
-        status.level = bytes([level])
-        status.name = f"{self.node.get_name()}: gripper"
-        status.hardware_id = self.health.hardware_id()
-        status.values = [KeyValue(key=k, value=v) for k, v in self.health.values()]
-        msg = DiagnosticArray()
-        msg.header.stamp = self.node.get_clock().now().to_msg()
-        msg.status = [status]
-        self._diagnostics.publish(msg)
+        return self.publisher.joint_state(st)
 
     # -- goals: checked before acceptance, nothing sent for a refused one ----------------------------------
 
@@ -350,7 +286,7 @@ class GripperNode:
             st = self.gripper.state()
         except (AssertionError, GripperError):
             return Outcome(math.nan, math.nan, False, False)
-        return Outcome(st.width, _num(st.force), False, abs(st.width - target) <= self.rules.goal_tolerance)
+        return Outcome(st.width, num(st.force), False, abs(st.width - target) <= self.rules.goal_tolerance)
 
     def _end(self, goal_handle: Any, how: str, action: str, why: str = "") -> None:
         """Settle the goal handle: succeeded, aborted or canceled (counted for /diagnostics)."""
@@ -445,7 +381,7 @@ class GripperNode:
     def _gc_feedback(self, st: GripperState, target: float) -> Any:
         fb = self._GripperCommand.Feedback()
         fb.position = float(st.width)
-        fb.effort = _num(st.force)
+        fb.effort = num(st.force)
         fb.stalled = False
         fb.reached_goal = abs(st.width - target) <= self.rules.goal_tolerance
         return fb

@@ -14,7 +14,13 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from typing import Any
 
+from ..errors import GripperError
 from .joints import JointLayout
+
+
+class ParameterError(GripperError, ValueError):
+    """A parameter given at start (``-p``, ``--params-file``) the node cannot run with."""
+
 
 # The controller's defaults where ours differ are explained in docs/ros2.md ("allow_stalling").
 DEFAULT_TOLERANCE = 0.001  # m (the controller: 0.01)
@@ -81,13 +87,17 @@ class ParamBinder:
 
         self._check_limits = check_limits
         self.rules = rules
+        where = node.get_fully_qualified_name()
         for name, value, text in _descriptors(rules):
-            node.declare_parameter(name, value, ParameterDescriptor(description=text))
+            try:
+                node.declare_parameter(name, value, ParameterDescriptor(description=text))
+            except Exception as exc:  # rclpy's type errors for a -p value of the wrong type
+                raise ParameterError(f"{name}: {exc}", device=where, command="parameters") from None
         # --ros-args -p / --params-file values arrive with the declaration: read them back, checked.
         current = {name: node.get_parameter(name).value for name, _v, _t in _descriptors(rules)}
         self.rules, why = self._apply(current)
         if why:
-            raise ValueError(why)
+            raise ParameterError(why, device=where, command="parameters")
         node.add_on_set_parameters_callback(self._on_set)
 
     def _apply(self, values: dict[str, Any]) -> tuple[Rules, str | None]:
