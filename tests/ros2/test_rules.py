@@ -6,6 +6,8 @@ services (what `ros2 param` calls) from an independent client node.
 
 from __future__ import annotations
 
+import subprocess
+import sys
 from collections.abc import Iterator
 
 import pytest
@@ -229,3 +231,30 @@ def _action_types(cell: Cell) -> list[tuple[str, list[str]]]:
     from rclpy.action import get_action_names_and_types
 
     return [(n, list(t)) for n, t in get_action_names_and_types(cell.client.node)]
+
+
+@pytest.mark.parametrize(
+    ("param", "said"),
+    [("joint_names:=[a,b,c]", "one name"), ("goal_tolerance:=fine", "goal_tolerance")],
+    ids=["three joints", "wrong type"],
+)
+def test_a_parameter_the_node_cannot_start_with_is_said_in_one_line(param: str, said: str) -> None:
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "grippers",
+            "ros2",
+            "sim://wsg50",
+            "--namespace",
+            uniq("badp"),
+            "--ros-args",
+            "-p",
+            param,
+        ],
+        capture_output=True,
+        text=True,
+        timeout=WAIT,
+    )
+    assert proc.returncode == 1, proc.stderr
+    assert said in proc.stderr and "Traceback" not in proc.stderr, proc.stderr
