@@ -92,6 +92,9 @@ class Arbiter:
     def __init__(self) -> None:
         self._lock = threading.Lock()
         self._current: Ticket | None = None
+        self._motions = threading.Lock()  # a leaf lock: held for the two fields below, never around a call
+        self._moving = 0  # motions started and not ended yet
+        self._settled_at = 0.0  # time.monotonic() when the last one ended
 
     def begin(self, name: str, why: str) -> Ticket:
         with self._lock:
@@ -120,7 +123,28 @@ class Arbiter:
         with self._lock:
             if ticket.ended is not None:
                 raise GoalEnded(ticket.ended)
-            return call()
+            with self._motions:
+                self._moving += 1  # before the call: no instant where it runs uncounted
+            try:
+                handle = call()
+            except BaseException:
+                self._motion_ended(None)
+                raise
+        # A handle's callbacks may run at once, or inside a later call that ends it (a newer motion, a stop,
+        # possibly under this lock or the gripper's own): _motion_ended takes only its own leaf lock.
+        handle.add_done_callback(self._motion_ended)
+        return handle
+
+    def _motion_ended(self, _handle: object) -> None:
+        with self._motions:
+            self._moving -= 1
+            self._settled_at = time.monotonic()
+
+    def at_rest_since(self) -> float | None:
+        """When the last motion started here ended (monotonic), or None while one runs: a state read that
+        began after it shows where that motion left the jaws."""
+        with self._motions:
+            return None if self._moving else self._settled_at
 
     def check(self, ticket: Ticket) -> None:
         """GoalEnded if ``ticket`` was ended (a goal that needs no motion still honours a cancel)."""
@@ -197,6 +221,8 @@ class _Stalled(Exception):
 class GoalRunner:
     """Runs one goal's steps, reading the state every ``period`` for feedback (and the stall rule)."""
 
+    max_age = 0.05  # s: how old the last published state may be to decide a goal on (see _now)
+
     def __init__(
         self,
         gripper: Gripper,
@@ -206,6 +232,7 @@ class GoalRunner:
         feedback: Callable[[GripperState], Any],
         period: float,
         rule: StallRule | None = None,
+        recent: Callable[[], tuple[GripperState, float] | None] | None = None,
     ) -> None:
         self.gripper = gripper
         self.arbiter = arbiter
@@ -214,6 +241,18 @@ class GoalRunner:
         self.period = period
         self.rule = rule or StallRule()
         self.tolerance = self.rule.tolerance
+        self.recent = recent  # the last published state and when its read began (monotonic)
+
+    def _now(self) -> GripperState:
+        """The jaws' state for the goal's decision: the state joint_states read last, when that read began
+        after the last motion started here ended and within ``max_age``; a read of its own otherwise."""
+        recent = self.recent() if self.recent is not None else None
+        rest = self.arbiter.at_rest_since()
+        if recent is not None and rest is not None:
+            st, read_at = recent
+            if rest < read_at and time.monotonic() - read_at <= self.max_age:
+                return st
+        return self.gripper.state()
 
     def _read(self) -> GripperState | None:
         try:
@@ -272,7 +311,7 @@ class GoalRunner:
             and abs(now.width - width) <= self.tolerance
         ):
             # Already there and at rest: nothing to send (a move to where the jaws are would only cost a
-            # device exchange and a state read; docs/performance.md, target 14). A newer goal still ends an
+            # device exchange and state reads; docs/performance.md, target 14). A newer goal still ends an
             # older one: begin() has ended its ticket, and the jaws do not move.
             self.arbiter.check(self.ticket)
             return Outcome(now.width, effort_of(now), False, True)

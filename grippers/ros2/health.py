@@ -42,6 +42,7 @@ class Health:
     url: str = ""
     state: GripperState | None = None
     state_at: float = 0.0  # time.monotonic() of the last state
+    read_at: float = 0.0  # time.monotonic() when its read began
     read_error: str | None = None
     connected: bool = False
     temperature: float | None = None  # °C, where the device reports it (read once per publication)
@@ -52,11 +53,17 @@ class Health:
     _published: collections.deque[float] = field(default_factory=lambda: collections.deque(maxlen=1000))
     _lock: threading.Lock = field(default_factory=threading.Lock)
 
-    def saw(self, st: GripperState) -> None:
+    def saw(self, st: GripperState, read_at: float) -> None:
+        """A state read that began at ``read_at`` (monotonic) and was published."""
         now = time.monotonic()
         with self._lock:
-            self.state, self.state_at, self.read_error = st, now, None
+            self.state, self.state_at, self.read_at, self.read_error = st, now, read_at, None
             self._published.append(now)
+
+    def recent(self) -> tuple[GripperState, float] | None:
+        """The last state and when its read began, for a goal's decision (GoalRunner._now)."""
+        with self._lock:
+            return None if self.state is None or self.read_error else (self.state, self.read_at)
 
     def failed(self, why: str) -> None:
         with self._lock:

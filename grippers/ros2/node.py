@@ -335,6 +335,7 @@ class GripperNode:
                 feedback=lambda st: goal_handle.publish_feedback(feedback(st, width)),
                 period=self.options.feedback_period,
                 rule=StallRule(rules.goal_tolerance, rules.stall_velocity_threshold, rules.stall_timeout),
+                recent=self.health.recent,
             )
             try:
                 outcome = runner.run(width, speed, force)

@@ -273,29 +273,36 @@ def test_an_interrupt_leaves_the_jaws_stopped(wsg_process: WsgProcess) -> None:
 
 def test_an_interrupt_stops_a_motion_no_goal_owns() -> None:
     """The node stops the gripper at its end whether or not one of its goals runs: a motion it does not own
-    (here another client's on the same bus; in the node, one whose goal ended on a timeout) must not go on
-    unattended. An MSG, because closing its link does not stop it (a WSG's disconnect does)."""
+    (here one a program started before the node, which closed its MSG without stopping it; in the node, one
+    whose goal ended on a timeout) must not go on unattended. An MSG, because closing its link does not stop
+    it (a WSG's disconnect does). One client on the bus at a time: two would each take the other's replies."""
     sim = SimProcess(
         "msg",
         "--listen",
         f"can://udp_multicast/239.74.201.{os.getpid() % 200 + 1}?port={private_port()}&node=9",
     )
     url = sim.url + "&profile=msg-150"
+    ns = uniq("sigint2")
     try:
-        proc = node_process(url, "--namespace", uniq("sigint2"))
+        with grippers.open(url) as before:
+            before.home()
+            before.move(0.1)
+            before.move(0.01, 0.005, wait=False)  # 18 s of motion, left running by close()
+            wait_until(lambda: before.state().moving, what="the motion under way")
+        proc = node_process(url, "--namespace", ns)
+        client = RosClient("test_client_sigint2")
         try:
-            with grippers.open(url) as other:
-                other.home()
-                other.move(0.1)
-                other.move(0.01, 0.005, wait=False)
-                wait_until(lambda: other.state().moving, what="the jaws moving")
-                assert proc.terminate(signal.SIGINT) == 0, proc.output()
-                first = other.state()
-                time.sleep(0.5)
-                second = other.state()
-                assert not second.moving and abs(second.width - first.width) < 0.5 * MM, (first, second)
-                assert second.width > 0.01 + 5 * MM
+            states = client.subscribe(JointState, f"{ns}/joint_states")
+            first = states.get(timeout=WAIT).position[0]
+            wait_until(lambda: states.get(timeout=WAIT).position[0] < first - MM, what="the jaws moving")
         finally:
-            proc.terminate()
+            client.close()
+        assert proc.terminate(signal.SIGINT) == 0, proc.output()
+        with grippers.open(url) as after:
+            one = after.state()
+            time.sleep(0.5)
+            two = after.state()
+        assert not two.moving and abs(two.width - one.width) < 0.5 * MM, (one, two)
+        assert two.width > 0.01 + 5 * MM
     finally:
         sim.close()
