@@ -284,7 +284,7 @@ def test_an_interrupt_stops_a_motion_no_goal_owns() -> None:
     url = sim.url + "&profile=msg-150"
     ns = uniq("sigint2")
     try:
-        with grippers.open(url) as before:
+        with grippers.open(url, timeout=5.0) as before:
             before.home()
             before.move(0.1)
             before.move(0.01, 0.005, wait=False)  # 18 s of motion, left running by close()
@@ -298,7 +298,7 @@ def test_an_interrupt_stops_a_motion_no_goal_owns() -> None:
         finally:
             client.close()
         assert proc.terminate(signal.SIGINT) == 0, proc.output()
-        with grippers.open(url) as after:
+        with grippers.open(url, timeout=5.0) as after:
             one = after.state()
             time.sleep(0.5)
             two = after.state()

@@ -131,6 +131,22 @@ def test_a_new_goal_preempts_the_running_one(wsg: Cell) -> None:
     assert old_status == GoalStatus.STATUS_CANCELED
 
 
+def test_a_goal_to_where_moving_jaws_are_stops_them_there(wsg: Cell) -> None:
+    """A goal "already reached" is answered without a motion only at rest: while an older goal moves the
+    jaws, a goal to where they are now ends it (CANCELED) and holds them there."""
+    feedback: list = []
+    slow = _slow_close(wsg, feedback)
+    assert slow.accepted
+    wait_until(lambda: any(f.state.position[0] < 0.1 - 2 * MM for f in feedback), what="the jaws moving")
+    here = feedback[-1].state.position[0]
+    status, result = wsg.command(here)
+    assert status == GoalStatus.STATUS_SUCCEEDED and result.reached_goal
+    assert wsg.client.result(slow)[0] == GoalStatus.STATUS_CANCELED
+    first = wsg.joint_state().position[0]
+    assert abs(first - here) <= TOL and first > 0.05 + 5 * MM
+    assert abs(wsg.joint_state().position[0] - first) < 0.1 * MM  # at rest, not on towards 0.05
+
+
 # -- ParallelGripperCommand --------------------------------------------------------------------------------
 
 
