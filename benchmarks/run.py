@@ -43,6 +43,7 @@ def _targets() -> dict[int, Callable[[bool], list[Result]]]:
         12: _servo_remote,  # issue 21 §3: servo from a zenoh:// client, beside 11's local figures
         13: aio.run,  # issue 20 §2: the asyncio face's state() against the threaded one
         14: robotiq.run,  # issue 29 §5: a Robotiq poll's CPU against its wire time, servo over a pty
+        15: _ros2_node,  # issue 34 §6: a goal through `grippers ros2` against a bare rclpy server
     }
 
 
@@ -56,6 +57,12 @@ def _servo_remote(quick: bool) -> list[Result]:
     from benchmarks import servo
 
     return servo.run_remote(quick)
+
+
+def _ros2_node(quick: bool) -> list[Result]:
+    from benchmarks import ros2_node
+
+    return ros2_node.run(quick)
 
 
 def main(argv: list[str] | None = None) -> int:

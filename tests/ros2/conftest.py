@@ -9,7 +9,9 @@ from __future__ import annotations
 import importlib.util
 
 ROS_MISSING = [
-    m for m in ("rclpy", "control_msgs", "sensor_msgs", "std_srvs") if importlib.util.find_spec(m) is None
+    m
+    for m in ("rclpy", "control_msgs", "sensor_msgs", "std_srvs", "diagnostic_msgs", "lifecycle_msgs")
+    if importlib.util.find_spec(m) is None
 ]
 SKIP_REASON = (
     f"ROS 2 not available ({', '.join(ROS_MISSING)} missing): run scripts/run-ros2-tests.sh"

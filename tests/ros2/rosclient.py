@@ -133,13 +133,39 @@ class RosClient:
         answer = self.wait(goal_handle.get_result_async(), timeout)
         return answer.status, answer.result
 
-    def call(self, srv_type: Any, name: str, timeout: float = WAIT) -> Any:
+    def call(self, srv_type: Any, name: str, timeout: float = WAIT, request: Any = None) -> Any:
         client = self.node.create_client(srv_type, name)
         try:
             assert client.wait_for_service(timeout_sec=WAIT), f"service {name} not found"
-            return self.wait(client.call_async(srv_type.Request()), timeout)
+            return self.wait(client.call_async(request or srv_type.Request()), timeout)
         finally:
             self.node.destroy_client(client)
+
+    # rclpy's parameter services (what `ros2 param list/get/set` call)
+    def list_parameters(self, node: str) -> list[str]:
+        from rcl_interfaces.srv import ListParameters
+
+        return list(self.call(ListParameters, f"{node}/list_parameters").result.names)
+
+    def get_parameters(self, node: str, *names: str) -> list[Any]:
+        from rcl_interfaces.srv import GetParameters
+        from rclpy.parameter import parameter_value_to_python
+
+        answer = self.call(
+            GetParameters, f"{node}/get_parameters", request=GetParameters.Request(names=list(names))
+        )
+        return [parameter_value_to_python(v) for v in answer.values]
+
+    def set_parameters(self, node: str, **values: Any) -> list[Any]:
+        """Set parameters; returns the SetParametersResult of each (``.successful``, ``.reason``)."""
+        from rcl_interfaces.srv import SetParameters
+        from rclpy.parameter import Parameter
+
+        params = [Parameter(k, value=v).to_parameter_msg() for k, v in values.items()]
+        answer = self.call(
+            SetParameters, f"{node}/set_parameters", request=SetParameters.Request(parameters=params)
+        )
+        return list(answer.results)
 
     def subscribe(self, msg_type: Any, topic: str) -> queue.Queue[Any]:
         received: queue.Queue[Any] = queue.Queue()

@@ -28,7 +28,7 @@ def _runner(gripper: grippers.Gripper, feedback: list[float] | None = None) -> G
         gripper,
         arbiter,
         arbiter.begin("test", "preempted"),
-        feedback=(lambda: feedback.append(gripper.state().width)) if feedback is not None else (lambda: None),
+        feedback=(lambda st: feedback.append(st.width)) if feedback is not None else (lambda st: None),
         period=0.02,
     )
 
@@ -72,7 +72,7 @@ def test_an_ended_ticket_starts_nothing() -> None:
         old = arbiter.begin("old", "-")
         arbiter.begin("new", "preempted by new")  # the reason the previous ticket ends
         before = g.state().width
-        runner = GoalRunner(g, arbiter, old, feedback=lambda: None, period=0.02)
+        runner = GoalRunner(g, arbiter, old, feedback=lambda st: None, period=0.02)
         with pytest.raises(GoalEnded, match="preempted by new"):
             runner.run(0.05, None, None)
         assert g.state().width == before and not g.state().moving

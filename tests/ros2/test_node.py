@@ -8,7 +8,6 @@ from the upstream definitions.
 from __future__ import annotations
 
 import math
-import os
 import signal
 import statistics
 import time
@@ -25,81 +24,18 @@ if SKIP_REASON:
 from action_msgs.msg import GoalStatus  # noqa: E402
 from control_msgs.action import GripperCommand, ParallelGripperCommand  # noqa: E402
 from sensor_msgs.msg import JointState  # noqa: E402
-from std_srvs.srv import Trigger  # noqa: E402
 
-from .rosclient import WAIT, CliProcess, RosClient, node_process, serve_process, wait_until  # noqa: E402
+from .cells import MM, PART, TOL, Cell, gripper_goal, parallel_goal, uniq  # noqa: E402
+from .rosclient import WAIT, serve_process, wait_until  # noqa: E402
 
 pytestmark = pytest.mark.ros2
-
-MM = 0.001
-PART = 40 * MM  # the simulated part between the jaws
-TOL = 1 * MM  # the node's default tolerance; also above the MSG's position quantum (~0.4 mm on msg-150)
-
-
-def gripper_goal(position: float, max_effort: float = 0.0) -> GripperCommand.Goal:
-    goal = GripperCommand.Goal()
-    goal.command.position = position
-    goal.command.max_effort = max_effort
-    return goal
-
-
-def parallel_goal(
-    position: float, velocity: float | None = None, name: str | None = None
-) -> ParallelGripperCommand.Goal:
-    goal = ParallelGripperCommand.Goal()
-    if name is not None:
-        goal.command.name = [name]
-    goal.command.position = [position]
-    if velocity is not None:
-        goal.command.velocity = [velocity]
-    return goal
-
-
-class Cell:
-    """One node (namespace ``ns``) and a client: the names a ROS user would write."""
-
-    def __init__(self, url: str, ns: str, *args: str, node: str = "gripper") -> None:
-        self.ns = ns
-        self.node = node
-        self.proc: CliProcess = node_process(url, "--namespace", ns, "--name", node, *args)
-        self.client = RosClient(f"test_client_{ns.strip('/')}")
-
-    def name(self, tail: str) -> str:
-        return f"{self.ns}/{self.node}/{tail}"
-
-    def command(
-        self, position: float, max_effort: float = 0.0, feedback: list | None = None
-    ) -> tuple[int, object]:
-        handle = self.client.send(
-            GripperCommand, self.name("gripper_cmd"), gripper_goal(position, max_effort), feedback
-        )
-        assert handle.accepted, f"goal {position} rejected"
-        return self.client.result(handle)
-
-    def trigger(self, service: str) -> Trigger.Response:
-        return self.client.call(Trigger, self.name(service))
-
-    def joint_state(self) -> JointState:
-        q = self.client.subscribe(JointState, f"{self.ns}/joint_states")
-        return q.get(timeout=WAIT)
-
-    def close(self) -> int:
-        try:
-            self.client.close()
-        finally:
-            rc = self.proc.terminate()
-        return rc
-
-
-def _uniq(tag: str) -> str:
-    return f"/t{os.getpid()}_{tag}"
 
 
 @pytest.fixture(scope="module")
 def wsg() -> Iterator[Cell]:
     cell = Cell(
         f"sim://wsg50?part_width_mm={PART / MM:g}",
-        _uniq("wsg"),
+        uniq("wsg"),
         "--joint-name",
         "finger_joint",
         "--rate",
@@ -191,7 +127,24 @@ def test_a_new_goal_preempts_the_running_one(wsg: Cell) -> None:
     assert status == GoalStatus.STATUS_SUCCEEDED and result.reached_goal
     assert abs(result.position - 0.09) <= TOL
     old_status, _ = wsg.client.result(slow)
-    assert old_status == GoalStatus.STATUS_ABORTED
+    # CANCELED, as parallel_gripper_action_controller's preempt_active_goal() ends it (setCanceled)
+    assert old_status == GoalStatus.STATUS_CANCELED
+
+
+def test_a_goal_to_where_moving_jaws_are_stops_them_there(wsg: Cell) -> None:
+    """A goal "already reached" is answered without a motion only at rest: while an older goal moves the
+    jaws, a goal to where they are now ends it (CANCELED) and holds them there."""
+    feedback: list = []
+    slow = _slow_close(wsg, feedback)
+    assert slow.accepted
+    wait_until(lambda: any(f.state.position[0] < 0.1 - 2 * MM for f in feedback), what="the jaws moving")
+    here = feedback[-1].state.position[0]
+    status, result = wsg.command(here)
+    assert status == GoalStatus.STATUS_SUCCEEDED and result.reached_goal
+    assert wsg.client.result(slow)[0] == GoalStatus.STATUS_CANCELED
+    first = wsg.joint_state().position[0]
+    assert abs(first - here) <= TOL and first > 0.05 + 5 * MM
+    assert abs(wsg.joint_state().position[0] - first) < 0.1 * MM  # at rest, not on towards 0.05
 
 
 # -- ParallelGripperCommand --------------------------------------------------------------------------------
@@ -261,7 +214,7 @@ def test_acknowledge_service_answers(wsg: Cell) -> None:
 
 
 def test_a_narrower_goal_finds_the_part_on_an_msg() -> None:
-    cell = Cell(f"sim://msg-150?part_width_mm={PART / MM:g}", _uniq("msg"))
+    cell = Cell(f"sim://msg-150?part_width_mm={PART / MM:g}", uniq("msg"))
     try:
         assert cell.trigger("home").success
         _open(cell, 0.1)
@@ -276,7 +229,7 @@ def test_a_narrower_goal_finds_the_part_on_an_msg() -> None:
 
 
 def test_without_a_part_a_narrower_goal_ends_at_the_target_and_errors_abort_goals() -> None:
-    ns = _uniq("nopart")
+    ns = uniq("nopart")
     # --name, and a remapping passed through --ros-args as with `ros2 run`
     cell = Cell("sim://wsg50", ns, "--ros-args", "-r", f"joint_states:={ns}/left_js", node="left")
     try:
@@ -298,7 +251,7 @@ def test_without_a_part_a_narrower_goal_ends_at_the_target_and_errors_abort_goal
 
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT], ids=["SIGTERM", "SIGINT"])
 def test_a_signal_ends_the_node_cleanly_during_a_goal(sig: int) -> None:
-    cell = Cell("sim://wsg50", _uniq(f"sig{int(sig)}"))
+    cell = Cell("sim://wsg50", uniq(f"sig{int(sig)}"))
     try:
         assert cell.trigger("home").success
         feedback: list = []
@@ -324,7 +277,7 @@ def test_a_gripper_served_over_zenoh_finds_its_part_through_the_node() -> None:
     """`grippers ros2 zenoh://left`: the node is a remote client holding the lease like any other."""
     server, url = serve_process("left", f"sim://wsg50?part_width_mm={PART / MM:g}")
     try:
-        cell = Cell(url, _uniq("zenoh"))
+        cell = Cell(url, uniq("zenoh"))
         try:
             assert cell.trigger("home").success
             _open(cell, 0.1)
