@@ -8,6 +8,7 @@ published states, not polling. Each call is one Zenoh query bounded by a timeout
 
 from __future__ import annotations
 
+import logging
 import os
 import queue
 import socket
@@ -17,7 +18,7 @@ import uuid
 from collections.abc import Callable
 from typing import Any
 
-from ..errors import ConnectionLost, GripperError, GripperTimeout, ProtocolError, URLError
+from ..errors import AccessDenied, ConnectionLost, GripperError, GripperTimeout, ProtocolError, URLError
 from ..gripper import Capability, DeviceInfo, GraspResult, Gripper, GripperState, MotionResult
 from ..profiles import Limits, ProfileBase, parse_profile
 from . import payloads, protocol
@@ -27,7 +28,10 @@ from .stream import SubscribedStream
 DEFAULT_TIMEOUT = 2.0
 DEFAULT_LINK_LEASE = 1.0  # s; matches the server's default --lease-timeout
 HEARTBEATS_PER_LEASE = 4  # heartbeats per server lease timeout, as Zenoh's own keep-alives per link lease
+MAX_LABEL = 256  # protocol.parse_request's bound on a request's label
+RELEASE_AT_CLOSE_S = 1.0  # how long close() waits for the server to take its lease back
 _END = object()
+log = logging.getLogger("grippers.remote")
 
 
 class ZenohBackend:
@@ -63,11 +67,18 @@ class ZenohBackend:
         )
         timeout = settings.positive("timeout", DEFAULT_TIMEOUT)
         label = settings.str("label", f"{socket.gethostname()} pid {os.getpid()}")
+        if len(label) > MAX_LABEL:  # the server refuses such a request: said at open, not at every command
+            raise URLError(f"{url.url}: label is {len(label)} characters long; at most {MAX_LABEL}")
         return RemoteGripper(url.url, name, config, timeout=timeout, label=label, profile=profile)
 
 
 class RemoteGripper(Gripper):
-    """A gripper served by ``grippers serve``; holds the control lease by its liveliness (docs/remote.md)."""
+    """A gripper served by ``grippers serve``; holds the control lease by its secret (docs/remote.md).
+
+    The secret arrives in the reply to the request that took the lease and goes with every later command
+    and every heartbeat; it is dropped when the server says the lease has ended (AccessDenied to a request
+    that carried it), so the next command takes a free lease anew: never a silent re-take of a lease lost
+    behind the user's back (a lost link is final without reconnect=true, and ends servoing with it)."""
 
     def __init__(
         self,
@@ -83,6 +94,8 @@ class RemoteGripper(Gripper):
         self.client_id = uuid.uuid4().hex
         self.label = label
         self._lost: GripperError | None = None
+        self._secret: str | None = None  # the lease secret while this client holds the lease
+        self._loss_listeners: list[Callable[[bool], Any]] = []
         self._session = open_session(config, url)
         self._entities: list[Any] = []
         self._queriers: dict[str, Any] = {}
@@ -92,6 +105,10 @@ class RemoteGripper(Gripper):
         self._last_publication = time.monotonic()  # when a stream last heard the server publish
         self._probing = False
         try:
+            # The token first: the server sees it before our first command (a free lease goes to a client
+            # whose token it can watch).
+            live = self._session.liveliness()
+            self._entities.append(live.declare_token(protocol.client_key(name, self.client_id)))
             doc = self._query(protocol.info_key(name), b"", "info", timeout, device=url)
             served = parse_profile(doc["profile_data"], f"{url} (served profile)")
             if profile is not None and profile.name != served.name:
@@ -102,8 +119,6 @@ class RemoteGripper(Gripper):
             self._info_doc = doc
             self._profile_assumed = bool(doc.get("profile_assumed", False))  # warned by grippers.open
             zenoh = import_zenoh()
-            live = self._session.liveliness()
-            self._entities.append(live.declare_token(protocol.client_key(name, self.client_id)))
             self._entities.append(
                 live.declare_subscriber(
                     protocol.token_key(name),
@@ -125,18 +140,32 @@ class RemoteGripper(Gripper):
         return self._session
 
     def _start_heartbeat(self, lease_timeout: Any) -> None:
-        """Show life to the server while this client lives: the server frees the lease of a holder not heard
-        from within its --lease-timeout and stops what it set moving, whatever Zenoh link lease we announced.
-        A frozen process (SIGSTOP, a debugger) stops beating with everything else, which is the point."""
+        """Show life to the server while this client holds the lease: the server frees the lease of a holder
+        not heard from within its --lease-timeout and stops what it set moving, whatever Zenoh link lease we
+        announced. A heartbeat is a ``control heartbeat`` query with the secret (a query reaches the server's
+        queryable only; a publication would show the secret to every subscriber). A frozen process (SIGSTOP,
+        a debugger) stops beating with everything else, which is the point."""
         lease = lease_timeout if isinstance(lease_timeout, int | float) and lease_timeout > 0 else 1.0
         period = float(lease) / HEARTBEATS_PER_LEASE
-        publisher = self._session.declare_publisher(protocol.alive_key(self.served_name, self.client_id))
-        self._entities.append(publisher)
+        zenoh = import_zenoh()
+        key = protocol.command_key(self.served_name, "control")
+
+        def on_reply(reply: Any) -> None:
+            if reply.err is not None and not protocol.is_query_timeout(reply.err.payload.to_bytes()):
+                error = protocol.decode_error(reply.err.payload.to_bytes(), "control", self.name)
+                if isinstance(error, AccessDenied):
+                    self._secret = None  # the lease ended on the server: the next command says so
 
         def beat() -> None:
             while not self._beating.wait(period):
                 try:
-                    publisher.put(b"")
+                    secret = self._secret
+                    if secret is not None and self._lost is None:
+                        payload = protocol.encode_request(
+                            self.client_id, self.label, {"action": "heartbeat"}, secret
+                        )
+                        handler = zenoh.handlers.Callback(on_reply, indirect=False)
+                        self._session.get(key, handler, payload=payload, timeout=period)
                     self._watch_publications(float(lease))
                 except Exception:  # the session is closing: close() ends this loop next
                     pass
@@ -183,14 +212,55 @@ class RemoteGripper(Gripper):
         )
 
     def _declare_lost(self, why: str) -> None:
-        """Calls fail with ConnectionLost from now on; streams end with it, unless reconnect=true (they then
-        wait for the server to come back, as documented)."""
+        """Calls fail with ConnectionLost from now on. Without reconnect=true that is final, as on every
+        other transport: ``connected`` is False, ``on_connection`` callbacks are told, servoing ends,
+        streams end with the error, and every call raises until the gripper is reopened. With it, the
+        link watch (grippers/reconnect.py) ends servoing, tells the callbacks and brings the server back;
+        motion resumes only by a new command."""
         if self._lost is not None or self._closed:
             return
         self._lost = ConnectionLost(why, device=self.name)
         if self._watch is None:
             for s in list(self._remote_streams):
                 s.fail(self._lost)
+            # Not on the caller's thread: that may be Zenoh's (a token callback) or the servo loop's.
+            threading.Thread(target=self._after_loss, name="grippers-remote-lost", daemon=True).start()
+
+    def _after_loss(self) -> None:
+        self._end_servo(stop_device=False)
+        for fn in list(self._loss_listeners):
+            try:
+                fn(False)
+            except Exception:  # a bug in a user's callback must not hide the loss from the others
+                log.exception("on_connection callback raised")
+
+    @property
+    def connected(self) -> bool:
+        """False once the server is lost (final without reconnect=true) or after close()."""
+        if self._lost is not None and self._watch is None:
+            return False
+        return super().connected
+
+    def on_connection(self, callback: Callable[[bool], Any]) -> Callable[[], None]:
+        """As on every gripper; without reconnect=true a lost server is reported (once), as close() is."""
+        if self._watch is not None:
+            return super().on_connection(callback)
+        told: list[bool] = []
+
+        def once(up: bool) -> None:
+            if not told:
+                told.append(up)
+                callback(up)
+
+        self._loss_listeners.append(once)
+        remove_at_close = super().on_connection(once)
+
+        def remove() -> None:
+            if once in self._loss_listeners:
+                self._loss_listeners.remove(once)
+            remove_at_close()
+
+        return remove
 
     def _query(
         self,
@@ -205,6 +275,7 @@ class RemoteGripper(Gripper):
         """One query: every reply is handled here; bounded by ``timeout`` plus the exchange timeout."""
         zenoh = import_zenoh()
         dev = device or self.name
+        secret = self._secret
         replies: queue.Queue[Any] = queue.Queue()
         handler = zenoh.handlers.Callback(replies.put, lambda: replies.put(_END), indirect=False)
         started = time.monotonic()
@@ -231,36 +302,52 @@ class RemoteGripper(Gripper):
             if reply is _END:
                 if self._lost is not None:
                     raise ConnectionLost(self._lost.message, device=dev, command=command)
-                if pending and time.monotonic() - started < timeout - 0.05:
+                elapsed = time.monotonic() - started
+                if pending and elapsed < timeout - 0.05:
+                    self._no_answer("the server went away mid-motion", device is None)
                     raise ConnectionLost("the server went away mid-motion", device=dev, command=command)
                 if pending:
                     raise GripperTimeout(f"no result within {timeout:g} s", device=dev, command=command)
-                raise ConnectionLost(
+                # The time it really took: Zenoh ends a query early when it has no route to a queryable.
+                why = (
                     f"no answer from a server serving {self.served_name if device is None else key!r} "
-                    f"within {timeout:g} s",
-                    device=dev,
-                    command=command,
+                    f"after {elapsed:.1f} s (timeout {timeout:g} s)"
                 )
+                self._no_answer(why, device is None)
+                raise ConnectionLost(why, device=dev, command=command)
             if reply.err is not None:
-                raise protocol.decode_error(reply.err.payload.to_bytes(), command, dev)
+                error = protocol.decode_error(reply.err.payload.to_bytes(), command, dev)
+                if isinstance(error, AccessDenied) and payload and secret is not None:
+                    self._secret = None  # the server says our lease has ended: the next command takes anew
+                raise error
             data = reply.ok.payload.to_bytes()
             if command in ("info", "state"):
                 return protocol.decode_json(data, command)
-            status, result = protocol.parse_reply(data, command)
+            status, result, granted = protocol.parse_reply(data, command)
+            if granted is not None:
+                self._secret = granted  # only we received it: the reply goes to the querier alone
             if status == protocol.DONE:
                 return result
             pending = True
             if on_pending is not None:
                 on_pending()
 
+    def _no_answer(self, why: str, ours: bool) -> None:
+        """A query on our gripper's keys that no server answered: the link is lost (final without
+        reconnect=true), not a slow reply to try again behind the user's back."""
+        if ours:
+            self._declare_lost(why)
+
     def _call(self, command: str, args: dict[str, Any] | None = None, timeout: float | None = None) -> Any:
         if self._lost is not None:
             raise ConnectionLost(self._lost.message, device=self.name, command=command)
-        payload = protocol.encode_request(self.client_id, self.label, args or {})
+        payload = protocol.encode_request(self.client_id, self.label, args or {}, self._secret)
         wait = self.timeout if timeout is None else timeout + self.timeout
         return self._query(protocol.command_key(self.served_name, command), payload, command, wait)
 
     def _check_motion(self, command: str) -> None:
+        if self._lost is not None and self._watch is None and not self._closed:
+            raise ConnectionLost(self._lost.message, device=self.name, command=command)
         if self._fast_stopped and not self._closed:
             # Another client may have acknowledged the fast stop: the served state is the truth (state()
             # takes its faults over), and the server refuses motion itself while a fast stop is active.
@@ -327,11 +414,9 @@ class RemoteGripper(Gripper):
             return protocol.decode_json(reply.ok.payload.to_bytes(), command)
         if self._lost is not None:
             raise ConnectionLost(self._lost.message, device=self.name, command=command)
-        raise ConnectionLost(
-            f"no answer from a server serving {self.served_name!r} within {self.timeout:g} s",
-            device=self.name,
-            command=command,
-        )
+        why = f"no answer from a server serving {self.served_name!r} within {self.timeout:g} s"
+        self._declare_lost(why)
+        raise ConnectionLost(why, device=self.name, command=command)
 
     # -- reconnect=true (grippers/reconnect.py): the Zenoh session re-establishes its links by itself (its
     # connect retries); the served gripper is back when a server answers for it again. --------------------
@@ -345,6 +430,17 @@ class RemoteGripper(Gripper):
         self.limits = Limits.model_validate(doc["limits"])  # a restarted device may report other limits
         self._info_doc = doc
         self._lost = None
+        # The lease ends with the outage: given back if the server still keeps it for us, so that motion
+        # resumes only by a new command, which takes a fresh lease (issue 31 §2).
+        secret, self._secret = self._secret, None
+        if secret is not None:
+            args = {"action": "release"}
+            payload = protocol.encode_request(self.client_id, self.label, args, secret)
+            key = protocol.command_key(self.served_name, "control")
+            try:
+                self._query(key, payload, "control", self.timeout, device=key)
+            except GripperError:
+                pass  # ended already (a restarted server, the deadman): nothing to give back
 
     def _info(self) -> DeviceInfo:
         doc = self._query(protocol.info_key(self.served_name), b"", "info", self.timeout)
@@ -384,6 +480,7 @@ class RemoteGripper(Gripper):
     def release_control(self) -> None:
         self._check_open("control")
         self._call("control", {"action": "release"})
+        self._secret = None
 
     # -- streams: a subscription ----------------------------------------------------------------------------
 
@@ -425,6 +522,17 @@ class RemoteGripper(Gripper):
                 self._streams.remove(s)  # type: ignore[arg-type]  # added as a StateStream (above)
 
     def _close(self) -> None:
+        if self._secret is not None and self._lost is None:
+            # Give the lease back before the token goes: a normal close is not a vanished holder (the
+            # server's deadman would log it as one, and stop a servoing that is meant to settle).
+            try:
+                args = {"action": "release"}
+                payload = protocol.encode_request(self.client_id, self.label, args, self._secret)
+                key = protocol.command_key(self.served_name, "control")
+                self._query(key, payload, "control", RELEASE_AT_CLOSE_S, device=key)
+            except GripperError:
+                pass
+            self._secret = None
         self._beating.set()
         if self._heartbeat is not None and self._heartbeat is not threading.current_thread():
             self._heartbeat.join(5.0)
