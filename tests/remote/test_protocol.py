@@ -70,7 +70,7 @@ def test_served_names_are_one_plain_key_chunk(name: str) -> None:
 
 
 def test_lease_bookkeeping() -> None:
-    """Issue 30 §1: the lease is a secret, not a name: an id alone takes nothing, keeps nothing, moves nothing."""
+    """Issue 30 §1: the lease is a secret, not a name: an id alone takes, keeps and moves nothing."""
     lease = Lease(timeout=1.0)
     with pytest.raises(grippers.AccessDenied, match="liveliness token"):
         lease.check("a", "robot", None, "move", take=True, now=0.0, device="g")  # no token of its own
