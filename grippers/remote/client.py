@@ -22,7 +22,7 @@ from ..errors import AccessDenied, ConnectionLost, GripperError, GripperTimeout,
 from ..gripper import Capability, DeviceInfo, GraspResult, Gripper, GripperState, MotionResult
 from ..profiles import Limits, ProfileBase, parse_profile
 from . import payloads, protocol
-from .session import import_zenoh, make_config, open_session
+from .session import check_endpoints, import_zenoh, make_config, open_session
 from .stream import SubscribedStream
 
 DEFAULT_TIMEOUT = 2.0
@@ -48,7 +48,9 @@ class ZenohBackend:
             protocol.check_name(name)
         except ValueError as exc:
             raise URLError(f"{url.url}: {exc}") from None
-        connect = [e for e in settings.str("connect", "").split(",") if e]
+        connect = check_endpoints(
+            [e for e in settings.str("connect", "").split(",") if e], f"{url.url}: connect"
+        )
         config_file = settings.str("zenoh_config", None)
         scout = settings.bool("scout", False)
         if not (connect or config_file or scout):

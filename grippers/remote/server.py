@@ -112,8 +112,10 @@ class ServedGripper:
         self._declared.clear()
         with self._motions_lock:
             running = list(self._motions)
-        if running and self._lost is None:
-            # No one will see these motions end: a served gripper does not keep moving once unserved.
+        if self._lost is None and self._moves(bool(running) or self._servo_owner is not None):
+            # No one will see these motions end: a served gripper does not keep moving once unserved (a
+            # motion waited on, a servoing, a motion whose wait timed out: issue 33 §1).
+            self._servo_owner = None
             try:
                 self.gripper.stop()
             except GripperError as exc:
@@ -412,6 +414,16 @@ class ServedGripper:
             log.info("%s: client %s gone; lease freed", self.name, client)
             self._deadman(client)
 
+    def _moves(self, ours: bool) -> bool:
+        """Whether the jaws move on someone's behalf: ``ours`` (a motion or servoing we know of), or else
+        what the device says (a motion whose wait timed out); unknown counts as moving (the safe side)."""
+        if ours:
+            return True
+        try:
+            return self.gripper.state().moving
+        except GripperError:
+            return True
+
     def _deadman(self, client: str) -> None:
         """The holder vanished: stop what the device does on its behalf, not only what our threads wait on.
 
@@ -421,14 +433,7 @@ class ServedGripper:
         UART switches the motor off)."""
         with self._motions_lock:
             mine = [t for t, owner in self._motions.items() if owner == client]
-        servoing = self._servo_owner == client
-        moving = False
-        if not mine and not servoing:
-            try:
-                moving = self.gripper.state().moving
-            except GripperError:
-                moving = True  # unknown: stopping is the safe side
-        if not (mine or servoing or moving):
+        if not self._moves(bool(mine) or self._servo_owner == client):
             return
         self._servo_owner = None
         log.warning("%s: client %s vanished with the jaws under its command; stopping", self.name, client)
