@@ -18,19 +18,30 @@ from .conftest import ROOT, ServeProcess
 pytestmark = pytest.mark.timeout(90)
 
 
-def test_ctrl_c_stops_a_servoing_before_serve_exits(serve, gripper_sim) -> None:
+@pytest.mark.parametrize("how", ["servo", "timed-out-move", "move"])
+@pytest.mark.parametrize("device", [("wsg50", {}), ("msg-150", {"transport": "pty"})], ids=["wsg", "msg"])
+def test_ctrl_c_stops_the_jaws_before_serve_exits(serve, gripper_sim, how: str, device: tuple) -> None:
     """The simulator runs here, outside the server, so the jaws can be watched after serve is gone. Before:
-    serve stopped only motions its threads waited on; a servoing (no thread waits on it) went on to its
-    target after the exit."""
-    device = gripper_sim("wsg50", time_scale=1)
+    serve stopped only the motions its threads still waited on; a motion whose wait had timed out went on
+    to its target after the exit."""
+    device = gripper_sim(device[0], time_scale=1, **device[1])
     server: ServeProcess = serve(f"g={device}")
     g = grippers.open(server.urls["g"])
     try:
         g.home()
-        g.servo(g.limits.min_width + 0.001, g.limits.min_speed)  # about 20 s of travel
+        lo, hi = g.limits.min_width, g.limits.max_width
+        far = hi - 0.001 if g.state().width < (lo + hi) / 2 else lo + 0.001  # homed open (WSG) or closed
+        target, speed = far, g.limits.min_speed  # 20-40 s of travel
+        if how == "servo":
+            g.servo(target, speed)
+        elif how == "move":
+            g.move(target, speed, wait=False)
+        else:
+            with pytest.raises(grippers.GripperTimeout):
+                g.move(target, speed, timeout=0.3)
         deadline = time.monotonic() + 10
         while not g.state().moving:
-            assert time.monotonic() < deadline, "the servoing never started"
+            assert time.monotonic() < deadline, "the motion never started"
             time.sleep(0.02)
         assert server.close(signal.SIGINT) == 130
     finally:
@@ -40,7 +51,7 @@ def test_ctrl_c_stops_a_servoing_before_serve_exits(serve, gripper_sim) -> None:
         time.sleep(0.5)
         assert not direct.state().moving
         assert direct.state().width == pytest.approx(width, abs=1e-4)  # stopped, not still closing
-        assert width > direct.limits.min_width + 0.03
+        assert abs(width - target) > 0.03  # far from where it was going
 
 
 def test_an_impossible_listen_port_is_a_usage_error() -> None:
