@@ -310,6 +310,15 @@ class RemoteGripper(Gripper):
                     raise ConnectionLost("the server went away mid-motion", device=dev, command=command)
                 if pending:
                     raise GripperTimeout(f"no result within {timeout:g} s", device=dev, command=command)
+                if device is None and elapsed < timeout - 0.05 and self._server_answers():
+                    # Ended at once while the server answers its info: Zenoh itself refused to route the
+                    # command (access control, docs/remote.md "Security"), the link is fine.
+                    raise AccessDenied(
+                        f"the Zenoh network refused {command} (no route to the server's command: its access "
+                        "control does not let this client's identity send it)",
+                        device=dev,
+                        command=command,
+                    )
                 # The time it really took: Zenoh ends a query early when it has no route to a queryable.
                 why = (
                     f"no answer from a server serving {self.served_name if device is None else key!r} "
@@ -333,6 +342,14 @@ class RemoteGripper(Gripper):
             pending = True
             if on_pending is not None:
                 on_pending()
+
+    def _server_answers(self) -> bool:
+        """Whether the server answers its info key now (bounded by the exchange timeout)."""
+        try:
+            self._query(protocol.info_key(self.served_name), b"", "info", self.timeout, device=self.url)
+        except GripperError:
+            return False
+        return True
 
     def _no_answer(self, why: str, ours: bool) -> None:
         """A query on our gripper's keys that no server answered: the link is lost (final without
