@@ -1,8 +1,10 @@
-"""Issue 30 §2: Zenoh's own security, as docs/remote.md's "Security" recipe configures it. Mutual TLS: a
-without a certificate of the cell's authority cannot even connect. Access control: every authenticated client
-reads state and info, only the controller's certificate identity sends ``cmd/**``: the observer's command is
-refused by Zenoh itself (it never reaches the server), while a command with the controller's identity but
-without the lease secret is refused by the server (the application's refusal)."""
+"""Issue 30 §2: Zenoh's own security, as docs/remote.md's "Security" recipe configures it.
+
+Mutual TLS: a client without a certificate of the cell's authority cannot even connect. Access control:
+every authenticated client reads state and info, only the controller's certificate identity sends
+``cmd/**``: the observer's command is refused by Zenoh itself (it never reaches the server), while a command
+with the controller's identity but without the lease secret is refused by the server (the application's
+refusal)."""
 
 from __future__ import annotations
 
