@@ -270,3 +270,22 @@ def test_the_secret_never_crosses_a_publication(serve) -> None:
         assert seen and not any(secret.encode() in p for p in seen)
     finally:
         session.close()
+
+
+def test_record_over_zenoh_only_observes(serve, tmp_path: Path) -> None:
+    """Issue 30 §3: `grippers record zenoh://…` without --do reads the state stream while another client holds
+    the lease: it neither needs the lease nor disturbs it (and nothing it sends is refused)."""
+    from grippers.cli import main
+
+    server: ServeProcess = serve(f"g={sim('wsg50')}")
+    session = attacker(server.endpoint)
+    try:
+        with grippers.open(server.urls["g"] + "&label=cell") as g:
+            g.home()
+            out = tmp_path / "run.csv"
+            assert main(["record", server.urls["g"], "-o", str(out), "--duration", "0.5"]) == 0
+            assert len(out.read_text().splitlines()) > 3
+            assert info(session, "g")["refused"] == 0
+            assert g.move(0.05).width == pytest.approx(0.05, abs=0.001)  # still the holder
+    finally:
+        session.close()
