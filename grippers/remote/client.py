@@ -8,7 +8,6 @@ published states, not polling. Each call is one Zenoh query bounded by a timeout
 
 from __future__ import annotations
 
-import logging
 import os
 import queue
 import socket
@@ -22,6 +21,7 @@ from ..errors import AccessDenied, ConnectionLost, GripperError, GripperTimeout,
 from ..gripper import Capability, DeviceInfo, GraspResult, Gripper, GripperState, MotionResult
 from ..profiles import Limits, ProfileBase, parse_profile
 from . import payloads, protocol
+from .holder import LeaseHolder, LossListeners
 from .session import check_endpoints, import_zenoh, make_config, open_session
 from .stream import SubscribedStream
 
@@ -31,7 +31,6 @@ HEARTBEATS_PER_LEASE = 4  # heartbeats per server lease timeout, as Zenoh's own 
 MAX_LABEL = 256  # protocol.parse_request's bound on a request's label
 RELEASE_AT_CLOSE_S = 1.0  # how long close() waits for the server to take its lease back
 _END = object()
-log = logging.getLogger("grippers.remote")
 
 
 class ZenohBackend:
@@ -96,8 +95,8 @@ class RemoteGripper(Gripper):
         self.client_id = uuid.uuid4().hex
         self.label = label
         self._lost: GripperError | None = None
-        self._secret: str | None = None  # the lease secret while this client holds the lease
-        self._loss_listeners: list[Callable[[bool], Any]] = []
+        self._holder = LeaseHolder(name, self.client_id, label, url)  # the lease secret (holder.py)
+        self._loss_listeners = LossListeners()
         self._session = open_session(config, url)
         self._entities: list[Any] = []
         self._queriers: dict[str, Any] = {}
@@ -149,25 +148,12 @@ class RemoteGripper(Gripper):
         a debugger) stops beating with everything else, which is the point."""
         lease = lease_timeout if isinstance(lease_timeout, int | float) and lease_timeout > 0 else 1.0
         period = float(lease) / HEARTBEATS_PER_LEASE
-        zenoh = import_zenoh()
-        key = protocol.command_key(self.served_name, "control")
-
-        def on_reply(reply: Any) -> None:
-            if reply.err is not None and not protocol.is_query_timeout(reply.err.payload.to_bytes()):
-                error = protocol.decode_error(reply.err.payload.to_bytes(), "control", self.name)
-                if isinstance(error, AccessDenied):
-                    self._secret = None  # the lease ended on the server: the next command says so
 
         def beat() -> None:
             while not self._beating.wait(period):
                 try:
-                    secret = self._secret
-                    if secret is not None and self._lost is None:
-                        payload = protocol.encode_request(
-                            self.client_id, self.label, {"action": "heartbeat"}, secret
-                        )
-                        handler = zenoh.handlers.Callback(on_reply, indirect=False)
-                        self._session.get(key, handler, payload=payload, timeout=period)
+                    if self._lost is None:
+                        self._holder.beat(self._session, period)
                     self._watch_publications(float(lease))
                 except Exception:  # the session is closing: close() ends this loop next
                     pass
@@ -225,16 +211,7 @@ class RemoteGripper(Gripper):
         if self._watch is None:
             for s in list(self._remote_streams):
                 s.fail(self._lost)
-            # Not on the caller's thread: that may be Zenoh's (a token callback) or the servo loop's.
-            threading.Thread(target=self._after_loss, name="grippers-remote-lost", daemon=True).start()
-
-    def _after_loss(self) -> None:
-        self._end_servo(stop_device=False)
-        for fn in list(self._loss_listeners):
-            try:
-                fn(False)
-            except Exception:  # a bug in a user's callback must not hide the loss from the others
-                log.exception("on_connection callback raised")
+            self._loss_listeners.tell(lambda: self._end_servo(stop_device=False))
 
     @property
     def connected(self) -> bool:
@@ -247,22 +224,7 @@ class RemoteGripper(Gripper):
         """As on every gripper; without reconnect=true a lost server is reported (once), as close() is."""
         if self._watch is not None:
             return super().on_connection(callback)
-        told: list[bool] = []
-
-        def once(up: bool) -> None:
-            if not told:
-                told.append(up)
-                callback(up)
-
-        self._loss_listeners.append(once)
-        remove_at_close = super().on_connection(once)
-
-        def remove() -> None:
-            if once in self._loss_listeners:
-                self._loss_listeners.remove(once)
-            remove_at_close()
-
-        return remove
+        return self._loss_listeners.add(callback, super().on_connection)
 
     def _query(
         self,
@@ -277,7 +239,7 @@ class RemoteGripper(Gripper):
         """One query: every reply is handled here; bounded by ``timeout`` plus the exchange timeout."""
         zenoh = import_zenoh()
         dev = device or self.name
-        secret = self._secret
+        secret = self._holder.secret
         replies: queue.Queue[Any] = queue.Queue()
         handler = zenoh.handlers.Callback(replies.put, lambda: replies.put(_END), indirect=False)
         started = time.monotonic()
@@ -328,15 +290,14 @@ class RemoteGripper(Gripper):
                 raise ConnectionLost(why, device=dev, command=command)
             if reply.err is not None:
                 error = protocol.decode_error(reply.err.payload.to_bytes(), command, dev)
-                if isinstance(error, AccessDenied) and payload and secret is not None:
-                    self._secret = None  # the server says our lease has ended: the next command takes anew
+                if payload:
+                    self._holder.refused(error, secret)  # AccessDenied: that lease has ended
                 raise error
             data = reply.ok.payload.to_bytes()
             if command in ("info", "state"):
                 return protocol.decode_json(data, command)
             status, result, granted = protocol.parse_reply(data, command)
-            if granted is not None:
-                self._secret = granted  # only we received it: the reply goes to the querier alone
+            self._holder.granted(granted)
             if status == protocol.DONE:
                 return result
             pending = True
@@ -351,6 +312,10 @@ class RemoteGripper(Gripper):
             return False
         return True
 
+    def _control_query(self, key: str, payload: bytes, command: str, timeout: float) -> Any:
+        """A lease query (holder.py): its silence is not a lost link (``device`` given)."""
+        return self._query(key, payload, command, timeout, device=key)
+
     def _no_answer(self, why: str, ours: bool) -> None:
         """A query on our gripper's keys that no server answered: the link is lost (final without
         reconnect=true), not a slow reply to try again behind the user's back."""
@@ -360,7 +325,7 @@ class RemoteGripper(Gripper):
     def _call(self, command: str, args: dict[str, Any] | None = None, timeout: float | None = None) -> Any:
         if self._lost is not None:
             raise ConnectionLost(self._lost.message, device=self.name, command=command)
-        payload = protocol.encode_request(self.client_id, self.label, args or {}, self._secret)
+        payload = self._holder.request(args or {})
         wait = self.timeout if timeout is None else timeout + self.timeout
         return self._query(protocol.command_key(self.served_name, command), payload, command, wait)
 
@@ -451,15 +416,7 @@ class RemoteGripper(Gripper):
         self._lost = None
         # The lease ends with the outage: given back if the server still keeps it for us, so that motion
         # resumes only by a new command, which takes a fresh lease (issue 31 §2).
-        secret, self._secret = self._secret, None
-        if secret is not None:
-            args = {"action": "release"}
-            payload = protocol.encode_request(self.client_id, self.label, args, secret)
-            key = protocol.command_key(self.served_name, "control")
-            try:
-                self._query(key, payload, "control", self.timeout, device=key)
-            except GripperError:
-                pass  # ended already (a restarted server, the deadman): nothing to give back
+        self._holder.give_back(self._control_query, self.timeout)
 
     def _info(self) -> DeviceInfo:
         doc = self._query(protocol.info_key(self.served_name), b"", "info", self.timeout)
@@ -499,7 +456,7 @@ class RemoteGripper(Gripper):
     def release_control(self) -> None:
         self._check_open("control")
         self._call("control", {"action": "release"})
-        self._secret = None
+        self._holder.secret = None
 
     # -- streams: a subscription ----------------------------------------------------------------------------
 
@@ -541,17 +498,10 @@ class RemoteGripper(Gripper):
                 self._streams.remove(s)  # type: ignore[arg-type]  # added as a StateStream (above)
 
     def _close(self) -> None:
-        if self._secret is not None and self._lost is None:
+        if self._lost is None:
             # Give the lease back before the token goes: a normal close is not a vanished holder (the
             # server's deadman would log it as one, and stop a servoing that is meant to settle).
-            try:
-                args = {"action": "release"}
-                payload = protocol.encode_request(self.client_id, self.label, args, self._secret)
-                key = protocol.command_key(self.served_name, "control")
-                self._query(key, payload, "control", RELEASE_AT_CLOSE_S, device=key)
-            except GripperError:
-                pass
-            self._secret = None
+            self._holder.give_back(self._control_query, RELEASE_AT_CLOSE_S)
         self._beating.set()
         if self._heartbeat is not None and self._heartbeat is not threading.current_thread():
             self._heartbeat.join(5.0)

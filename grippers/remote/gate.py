@@ -15,6 +15,7 @@ import time
 from typing import Any
 
 from ..errors import AccessDenied, GripperError
+from . import protocol
 from .lease import Lease
 from .protocol import Request
 
@@ -23,6 +24,7 @@ log = logging.getLogger("grippers.remote")
 MAX_QUEUED = 64  # requests of non-holders queued at once per gripper; more are refused at once ("busy")
 LOG_BURST = 10  # refusals logged one by one per LOG_WINDOW_S; the rest are summed up in one line
 LOG_WINDOW_S = 10.0
+TOKEN_LOOKUP_S = 0.5  # how long a free lease's taker's token is looked for when not seen yet
 
 
 class ServerBusy(GripperError):
@@ -82,6 +84,21 @@ class Gate:
             if self.lease.holder != before:
                 log.info("%s: control lease taken by %s", self.name, self.lease.describe())
         return secret
+
+    def look_for_token(self, session: Any, client: str) -> None:
+        """A free lease goes to a client whose liveliness token the server can watch (the deadman's fast
+        path). Its token usually arrived before its first request; if not seen yet, asked once (bounded)."""
+        with self.lock:
+            if client in self.lease.alive:
+                return
+        try:
+            replies = session.liveliness().get(protocol.client_key(self.name, client), timeout=TOKEN_LOOKUP_S)
+            found = any(r.ok is not None for r in replies)
+        except Exception:  # the session is closing: not found
+            found = False
+        if found:
+            with self.lock:
+                self.lease.client_seen(client)
 
     def control(self, request: Request, action: str) -> str | None:
         """``control``: acquire (the secret, when taken now), heartbeat and release (with the secret)."""

@@ -26,7 +26,6 @@ log = logging.getLogger("grippers.remote")  # serve's own lines: lost, back, lea
 
 CLOSE_JOIN_S = 5.0
 RETRY_LOST_S = 1.0  # how often a lost gripper is tried again (a reconnect=true URL brings it back)
-TOKEN_LOOKUP_S = 0.5  # how long a free lease's taker's token is looked for when not seen yet
 
 
 class ServedGripper:
@@ -265,14 +264,14 @@ class ServedGripper:
             if spec.lease != "free":
                 take = spec.lease == "take"
                 if take and self.lease.holder is None and request.lease is None:
-                    self._look_for_token(request.client)
+                    self.gate.look_for_token(self.server.session, request.client)
                 secret = self.gate.check(request, take)
             if spec.motion:
                 self._start_motion(query, request, secret)
                 return  # the motion thread answers and finishes the query
             if command == "control":
                 if request.args["action"] == "acquire" and self.lease.holder is None:
-                    self._look_for_token(request.client)
+                    self.gate.look_for_token(self.server.session, request.client)
                 secret = self.gate.control(request, request.args["action"])
                 result = None
             else:
@@ -303,23 +302,6 @@ class ServedGripper:
                 with self._lease_lock:
                     self.lease.release(request.client, secret)
             raise
-
-    def _look_for_token(self, client: str) -> None:
-        """A free lease goes to a client whose liveliness token the server can watch (the deadman's fast
-        path). Its token usually arrived before its first request; if not seen yet, asked once."""
-        with self._lease_lock:
-            if client in self.lease.alive:
-                return
-        try:
-            replies = self.server.session.liveliness().get(
-                protocol.client_key(self.name, client), timeout=TOKEN_LOOKUP_S
-            )
-            found = any(r.ok is not None for r in replies)
-        except Exception:  # the session is closing: not found
-            found = False
-        if found:
-            with self._lease_lock:
-                self.lease.client_seen(client)
 
     def _reply_error(self, query: Any, exc: BaseException, command: str) -> None:
         if not isinstance(exc, GripperError):
