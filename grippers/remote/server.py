@@ -384,6 +384,10 @@ class ServedGripper:
             with self._lease_lock:
                 self.lease.client_seen(client)
             return
+        with self._lease_lock:
+            if client != self.lease.holder:  # a token of no consequence: forgotten here, nothing queued
+                self.lease.alive.pop(client, None)
+                return
         try:
             self.server.urgent.submit(self._client_gone, client)
         except RuntimeError:
