@@ -390,6 +390,7 @@ class RemoteGripper(Gripper):
         if querier is None:  # declared once: Zenoh resolves the key and its routes once, not per call
             querier = self._queriers[key] = self._session.declare_querier(key, timeout=self.timeout)
             self._entities.append(querier)
+        started = time.monotonic()
         for reply in querier.get():
             if reply.err is not None:
                 if protocol.is_query_timeout(reply.err.payload.to_bytes()):
@@ -398,7 +399,10 @@ class RemoteGripper(Gripper):
             return protocol.decode_json(reply.ok.payload.to_bytes(), command)
         if self._lost is not None:
             raise ConnectionLost(self._lost.message, device=self.name, command=command)
-        why = f"no answer from a server serving {self.served_name!r} within {self.timeout:g} s"
+        why = (
+            f"no answer from a server serving {self.served_name!r} after {time.monotonic() - started:.1f} s "
+            f"(timeout {self.timeout:g} s)"
+        )
         self._declare_lost(why)
         raise ConnectionLost(why, device=self.name, command=command)
 
