@@ -120,11 +120,18 @@ def parse_targets(items: list[str]) -> list[tuple[str | None, str]]:
 
 def run(args: argparse.Namespace) -> int:
     import grippers
+    from grippers.errors import URLError
     from grippers.remote import protocol
     from grippers.remote.server import Server
+    from grippers.remote.session import check_endpoints
 
     from .output import UsageError, write_json
 
+    try:  # a mistyped endpoint is a usage error, said before any gripper opens (issue 33 §3)
+        check_endpoints(args.listen or [], "--listen")
+        check_endpoints(args.connect or [], "--connect")
+    except URLError as exc:
+        raise UsageError(exc.message) from None
     targets = parse_targets(args.targets)
     for name, target in targets:
         if name is not None:

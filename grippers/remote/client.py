@@ -17,16 +17,19 @@ import uuid
 from collections.abc import Callable
 from typing import Any
 
-from ..errors import ConnectionLost, GripperError, GripperTimeout, ProtocolError, URLError
+from ..errors import AccessDenied, ConnectionLost, GripperError, GripperTimeout, ProtocolError, URLError
 from ..gripper import Capability, DeviceInfo, GraspResult, Gripper, GripperState, MotionResult
 from ..profiles import Limits, ProfileBase, parse_profile
 from . import payloads, protocol
-from .session import import_zenoh, make_config, open_session
+from .holder import LeaseHolder, LossListeners
+from .session import check_endpoints, import_zenoh, make_config, open_session
 from .stream import SubscribedStream
 
 DEFAULT_TIMEOUT = 2.0
 DEFAULT_LINK_LEASE = 1.0  # s; matches the server's default --lease-timeout
 HEARTBEATS_PER_LEASE = 4  # heartbeats per server lease timeout, as Zenoh's own keep-alives per link lease
+MAX_LABEL = 256  # protocol.parse_request's bound on a request's label
+RELEASE_AT_CLOSE_S = 1.0  # how long close() waits for the server to take its lease back
 _END = object()
 
 
@@ -44,7 +47,9 @@ class ZenohBackend:
             protocol.check_name(name)
         except ValueError as exc:
             raise URLError(f"{url.url}: {exc}") from None
-        connect = [e for e in settings.str("connect", "").split(",") if e]
+        connect = check_endpoints(
+            [e for e in settings.str("connect", "").split(",") if e], f"{url.url}: connect"
+        )
         config_file = settings.str("zenoh_config", None)
         scout = settings.bool("scout", False)
         if not (connect or config_file or scout):
@@ -63,12 +68,19 @@ class ZenohBackend:
         )
         timeout = settings.positive("timeout", DEFAULT_TIMEOUT)
         label = settings.str("label", f"{socket.gethostname()} pid {os.getpid()}")
+        if len(label) > MAX_LABEL:  # the server refuses such a request: said at open, not at every command
+            raise URLError(f"{url.url}: label is {len(label)} characters long; at most {MAX_LABEL}")
         settings.check()  # a misspelt setting is refused before the session opens
         return RemoteGripper(url.url, name, config, timeout=timeout, label=label, profile=profile)
 
 
 class RemoteGripper(Gripper):
-    """A gripper served by ``grippers serve``; holds the control lease by its liveliness (docs/remote.md)."""
+    """A gripper served by ``grippers serve``; holds the control lease by its secret (docs/remote.md).
+
+    The secret arrives in the reply to the request that took the lease and goes with every later command
+    and every heartbeat; it is dropped when the server says the lease has ended (AccessDenied to a request
+    that carried it), so the next command takes a free lease anew: never a silent re-take of a lease lost
+    behind the user's back (a lost link is final without reconnect=true, and ends servoing with it)."""
 
     def __init__(
         self,
@@ -84,6 +96,8 @@ class RemoteGripper(Gripper):
         self.client_id = uuid.uuid4().hex
         self.label = label
         self._lost: GripperError | None = None
+        self._holder = LeaseHolder(name, self.client_id, label, url)  # the lease secret (holder.py)
+        self._loss_listeners = LossListeners()
         self._session = open_session(config, url)
         self._entities: list[Any] = []
         self._queriers: dict[str, Any] = {}
@@ -93,6 +107,10 @@ class RemoteGripper(Gripper):
         self._last_publication = time.monotonic()  # when a stream last heard the server publish
         self._probing = False
         try:
+            # The token first: the server sees it before our first command (a free lease goes to a client
+            # whose token it can watch).
+            live = self._session.liveliness()
+            self._entities.append(live.declare_token(protocol.client_key(name, self.client_id)))
             doc = self._query(protocol.info_key(name), b"", "info", timeout, device=url)
             served = parse_profile(doc["profile_data"], f"{url} (served profile)")
             if profile is not None and profile.name != served.name:
@@ -103,8 +121,6 @@ class RemoteGripper(Gripper):
             self._info_doc = doc
             self._profile_assumed = bool(doc.get("profile_assumed", False))  # warned by grippers.open
             zenoh = import_zenoh()
-            live = self._session.liveliness()
-            self._entities.append(live.declare_token(protocol.client_key(name, self.client_id)))
             self._entities.append(
                 live.declare_subscriber(
                     protocol.token_key(name),
@@ -126,18 +142,19 @@ class RemoteGripper(Gripper):
         return self._session
 
     def _start_heartbeat(self, lease_timeout: Any) -> None:
-        """Show life to the server while this client lives: the server frees the lease of a holder not heard
-        from within its --lease-timeout and stops what it set moving, whatever Zenoh link lease we announced.
-        A frozen process (SIGSTOP, a debugger) stops beating with everything else, which is the point."""
+        """Show life to the server while this client holds the lease: the server frees the lease of a holder
+        not heard from within its --lease-timeout and stops what it set moving, whatever Zenoh link lease we
+        announced. A heartbeat is a ``control heartbeat`` query with the secret (a query reaches the server's
+        queryable only; a publication would show the secret to every subscriber). A frozen process (SIGSTOP,
+        a debugger) stops beating with everything else, which is the point."""
         lease = lease_timeout if isinstance(lease_timeout, int | float) and lease_timeout > 0 else 1.0
         period = float(lease) / HEARTBEATS_PER_LEASE
-        publisher = self._session.declare_publisher(protocol.alive_key(self.served_name, self.client_id))
-        self._entities.append(publisher)
 
         def beat() -> None:
             while not self._beating.wait(period):
                 try:
-                    publisher.put(b"")
+                    if self._lost is None:
+                        self._holder.beat(self._session, period)
                     self._watch_publications(float(lease))
                 except Exception:  # the session is closing: close() ends this loop next
                     pass
@@ -184,14 +201,31 @@ class RemoteGripper(Gripper):
         )
 
     def _declare_lost(self, why: str) -> None:
-        """Calls fail with ConnectionLost from now on; streams end with it, unless reconnect=true (they then
-        wait for the server to come back, as documented)."""
+        """Calls fail with ConnectionLost from now on. Without reconnect=true that is final, as on every
+        other transport: ``connected`` is False, ``on_connection`` callbacks are told, servoing ends,
+        streams end with the error, and every call raises until the gripper is reopened. With it, the
+        link watch (grippers/reconnect.py) ends servoing, tells the callbacks and brings the server back;
+        motion resumes only by a new command."""
         if self._lost is not None or self._closed:
             return
         self._lost = ConnectionLost(why, device=self.name)
         if self._watch is None:
             for s in list(self._remote_streams):
                 s.fail(self._lost)
+            self._loss_listeners.tell(lambda: self._end_servo(stop_device=False))
+
+    @property
+    def connected(self) -> bool:
+        """False once the server is lost (final without reconnect=true) or after close()."""
+        if self._lost is not None and self._watch is None:
+            return False
+        return super().connected
+
+    def on_connection(self, callback: Callable[[bool], Any]) -> Callable[[], None]:
+        """As on every gripper; without reconnect=true a lost server is reported (once), as close() is."""
+        if self._watch is not None:
+            return super().on_connection(callback)
+        return self._loss_listeners.add(callback, super().on_connection)
 
     def _query(
         self,
@@ -206,6 +240,7 @@ class RemoteGripper(Gripper):
         """One query: every reply is handled here; bounded by ``timeout`` plus the exchange timeout."""
         zenoh = import_zenoh()
         dev = device or self.name
+        secret = self._holder.secret
         replies: queue.Queue[Any] = queue.Queue()
         handler = zenoh.handlers.Callback(replies.put, lambda: replies.put(_END), indirect=False)
         started = time.monotonic()
@@ -232,36 +267,72 @@ class RemoteGripper(Gripper):
             if reply is _END:
                 if self._lost is not None:
                     raise ConnectionLost(self._lost.message, device=dev, command=command)
-                if pending and time.monotonic() - started < timeout - 0.05:
+                elapsed = time.monotonic() - started
+                if pending and elapsed < timeout - 0.05:
+                    self._no_answer("the server went away mid-motion", device is None)
                     raise ConnectionLost("the server went away mid-motion", device=dev, command=command)
                 if pending:
                     raise GripperTimeout(f"no result within {timeout:g} s", device=dev, command=command)
-                raise ConnectionLost(
+                if device is None and elapsed < timeout - 0.05 and self._server_answers():
+                    # Ended at once while the server answers its info: Zenoh itself refused to route the
+                    # command (access control, docs/remote.md "Security"), the link is fine.
+                    raise AccessDenied(
+                        f"the Zenoh network refused {command} (no route to the server's command: its access "
+                        "control does not let this client's identity send it)",
+                        device=dev,
+                        command=command,
+                    )
+                # The time it really took: Zenoh ends a query early when it has no route to a queryable.
+                why = (
                     f"no answer from a server serving {self.served_name if device is None else key!r} "
-                    f"within {timeout:g} s",
-                    device=dev,
-                    command=command,
+                    f"after {elapsed:.1f} s (timeout {timeout:g} s)"
                 )
+                self._no_answer(why, device is None)
+                raise ConnectionLost(why, device=dev, command=command)
             if reply.err is not None:
-                raise protocol.decode_error(reply.err.payload.to_bytes(), command, dev)
+                error = protocol.decode_error(reply.err.payload.to_bytes(), command, dev)
+                if payload:
+                    self._holder.refused(error, secret)  # AccessDenied: that lease has ended
+                raise error
             data = reply.ok.payload.to_bytes()
             if command in ("info", "state"):
                 return protocol.decode_json(data, command)
-            status, result = protocol.parse_reply(data, command)
+            status, result, granted = protocol.parse_reply(data, command)
+            self._holder.granted(granted)
             if status == protocol.DONE:
                 return result
             pending = True
             if on_pending is not None:
                 on_pending()
 
+    def _server_answers(self) -> bool:
+        """Whether the server answers its info key now (bounded by the exchange timeout)."""
+        try:
+            self._query(protocol.info_key(self.served_name), b"", "info", self.timeout, device=self.url)
+        except GripperError:
+            return False
+        return True
+
+    def _control_query(self, key: str, payload: bytes, command: str, timeout: float) -> Any:
+        """A lease query (holder.py): its silence is not a lost link (``device`` given)."""
+        return self._query(key, payload, command, timeout, device=key)
+
+    def _no_answer(self, why: str, ours: bool) -> None:
+        """A query on our gripper's keys that no server answered: the link is lost (final without
+        reconnect=true), not a slow reply to try again behind the user's back."""
+        if ours:
+            self._declare_lost(why)
+
     def _call(self, command: str, args: dict[str, Any] | None = None, timeout: float | None = None) -> Any:
         if self._lost is not None:
             raise ConnectionLost(self._lost.message, device=self.name, command=command)
-        payload = protocol.encode_request(self.client_id, self.label, args or {})
+        payload = self._holder.request(args or {})
         wait = self.timeout if timeout is None else timeout + self.timeout
         return self._query(protocol.command_key(self.served_name, command), payload, command, wait)
 
     def _check_motion(self, command: str) -> None:
+        if self._lost is not None and self._watch is None and not self._closed:
+            raise ConnectionLost(self._lost.message, device=self.name, command=command)
         if self._fast_stopped and not self._closed:
             # Another client may have acknowledged the fast stop: the served state is the truth (state()
             # takes its faults over), and the server refuses motion itself while a fast stop is active.
@@ -320,6 +391,7 @@ class RemoteGripper(Gripper):
         if querier is None:  # declared once: Zenoh resolves the key and its routes once, not per call
             querier = self._queriers[key] = self._session.declare_querier(key, timeout=self.timeout)
             self._entities.append(querier)
+        started = time.monotonic()
         for reply in querier.get():
             if reply.err is not None:
                 if protocol.is_query_timeout(reply.err.payload.to_bytes()):
@@ -328,11 +400,12 @@ class RemoteGripper(Gripper):
             return protocol.decode_json(reply.ok.payload.to_bytes(), command)
         if self._lost is not None:
             raise ConnectionLost(self._lost.message, device=self.name, command=command)
-        raise ConnectionLost(
-            f"no answer from a server serving {self.served_name!r} within {self.timeout:g} s",
-            device=self.name,
-            command=command,
+        why = (
+            f"no answer from a server serving {self.served_name!r} after {time.monotonic() - started:.1f} s "
+            f"(timeout {self.timeout:g} s)"
         )
+        self._declare_lost(why)
+        raise ConnectionLost(why, device=self.name, command=command)
 
     # -- reconnect=true (grippers/reconnect.py): the Zenoh session re-establishes its links by itself (its
     # connect retries); the served gripper is back when a server answers for it again. --------------------
@@ -346,6 +419,9 @@ class RemoteGripper(Gripper):
         self.limits = Limits.model_validate(doc["limits"])  # a restarted device may report other limits
         self._info_doc = doc
         self._lost = None
+        # The lease ends with the outage: given back if the server still keeps it for us, so that motion
+        # resumes only by a new command, which takes a fresh lease (issue 31 §2).
+        self._holder.give_back(self._control_query, self.timeout)
 
     def _info(self) -> DeviceInfo:
         doc = self._query(protocol.info_key(self.served_name), b"", "info", self.timeout)
@@ -385,6 +461,7 @@ class RemoteGripper(Gripper):
     def release_control(self) -> None:
         self._check_open("control")
         self._call("control", {"action": "release"})
+        self._holder.secret = None
 
     # -- streams: a subscription ----------------------------------------------------------------------------
 
@@ -426,6 +503,10 @@ class RemoteGripper(Gripper):
                 self._streams.remove(s)  # type: ignore[arg-type]  # added as a StateStream (above)
 
     def _close(self) -> None:
+        if self._lost is None:
+            # Give the lease back before the token goes: a normal close is not a vanished holder (the
+            # server's deadman would log it as one, and stop a servoing that is meant to settle).
+            self._holder.give_back(self._control_query, RELEASE_AT_CLOSE_S)
         self._beating.set()
         if self._heartbeat is not None and self._heartbeat is not threading.current_thread():
             self._heartbeat.join(5.0)

@@ -52,22 +52,13 @@ def command_key(name: str, command: str) -> str:
 
 
 def client_key(name: str, client: str) -> str:
-    """Liveliness token of a connected client; the control lease is held by it."""
+    """Liveliness token of a connected client: its deletion ends the lease it holds (the deadman's fast
+    path); it never proves who sends a request (that is the lease secret: lease.py)."""
     return f"{PREFIX}/{name}/client/{client}"
 
 
 def all_clients_key(name: str) -> str:
     return f"{PREFIX}/{name}/client/*"
-
-
-def alive_key(name: str, client: str) -> str:
-    """A holder's heartbeat (publications, payload ignored): the server's own bound on a silent holder,
-    whatever Zenoh link lease that holder announced (docs/remote.md, "The control lease")."""
-    return f"{PREFIX}/{name}/alive/{client}"
-
-
-def all_alive_key(name: str) -> str:
-    return f"{PREFIX}/{name}/alive/*"
 
 
 DISCOVERY_KEY = f"{PREFIX}/*"
@@ -109,10 +100,12 @@ COMMANDS: dict[str, Command] = {
     "set_device_tag": Command({"tag": TEXT}, "check"),
     "set_soft_limits": Command({"min_width": NUMBER, "max_width": NUMBER}, "check"),
     "clear_soft_limits": Command(lease="check"),
-    # The lease itself: acquire (with g.control()) and release; never touches the gripper.
+    # The lease itself: acquire (answers the secret), heartbeat and release (with it); never touches the
+    # gripper.
     "control": Command({"action": ACTION}),
 }
-CONTROL_ACTIONS = ("acquire", "release")
+CONTROL_ACTIONS = ("acquire", "heartbeat", "release")
+SECRET_RE = re.compile(r"^[0-9a-f]{1,64}$")
 
 
 @dataclass(frozen=True)
@@ -121,6 +114,7 @@ class Request:
     client: str
     label: str
     args: dict[str, Any]
+    lease: str | None = None  # the lease secret the request carries (lease.py), if any
 
 
 def _number(value: Any, name: str, command: str) -> float:
@@ -161,7 +155,7 @@ def parse_request(command: str, data: bytes) -> Request:
     doc = decode_json(data, command)
     if not isinstance(doc, dict):
         raise ProtocolError(f"a request is a JSON object, not {type(doc).__name__}", command=command)
-    unknown = set(doc) - {"v", "client", "label", "args"}
+    unknown = set(doc) - {"v", "client", "label", "lease", "args"}
     if unknown:
         raise ProtocolError(f"unknown field(s) {', '.join(sorted(unknown))}", command=command)
     version = doc.get("v", PROTOCOL_VERSION)
@@ -172,6 +166,9 @@ def parse_request(command: str, data: bytes) -> Request:
     client, label = doc.get("client", ""), doc.get("label", "")
     if not isinstance(client, str) or len(client) > 128 or not isinstance(label, str) or len(label) > 256:
         raise ProtocolError("client and label must be short strings", command=command)
+    lease = doc.get("lease")
+    if lease is not None and not (isinstance(lease, str) and SECRET_RE.match(lease)):
+        raise ProtocolError("lease must be the hexadecimal secret the server answered", command=command)
     raw = doc.get("args", {})
     if not isinstance(raw, dict):
         raise ProtocolError("args must be a JSON object", command=command)
@@ -200,11 +197,16 @@ def parse_request(command: str, data: bytes) -> Request:
             args[name] = value
     if spec.lease != "free" and not client:
         raise ProtocolError("a command that needs the lease must name its client", command=command)
-    return Request(command, client, label, args)
+    if command == "control" and not client:
+        raise ProtocolError("control must name its client", command=command)
+    return Request(command, client, label, args, lease)
 
 
-def encode_request(client: str, label: str, args: dict[str, Any]) -> bytes:
-    return dumps({"v": PROTOCOL_VERSION, "client": client, "label": label, "args": args})
+def encode_request(client: str, label: str, args: dict[str, Any], lease: str | None = None) -> bytes:
+    doc: dict[str, Any] = {"v": PROTOCOL_VERSION, "client": client, "label": label, "args": args}
+    if lease is not None:
+        doc["lease"] = lease
+    return dumps(doc)
 
 
 def dumps(doc: Any) -> bytes:
@@ -218,17 +220,24 @@ PENDING = "pending"
 DONE = "done"
 
 
-def encode_reply(status: str, result: Any = None) -> bytes:
-    return dumps({"v": PROTOCOL_VERSION, "status": status, "result": result})
+def encode_reply(status: str, result: Any = None, lease: str | None = None) -> bytes:
+    """``lease``: the secret of a lease this very request took (the first reply of a motion, or the reply
+    to ``control acquire``); only the querier receives a reply."""
+    doc: dict[str, Any] = {"v": PROTOCOL_VERSION, "status": status, "result": result}
+    if lease is not None:
+        doc["lease"] = lease
+    return dumps(doc)
 
 
-def parse_reply(data: bytes, command: str) -> tuple[str, Any]:
+def parse_reply(data: bytes, command: str) -> tuple[str, Any, str | None]:
+    """(status, result, the lease secret if this reply grants one)."""
     doc = decode_json(data, command)
     if not isinstance(doc, dict) or doc.get("status") not in (PENDING, DONE):
         raise ProtocolError(
             f"reply is not a grippers/{PROTOCOL_VERSION} reply: {data[:200]!r}", command=command
         )
-    return doc["status"], doc.get("result")
+    lease = doc.get("lease")
+    return doc["status"], doc.get("result"), lease if isinstance(lease, str) else None
 
 
 # --- errors -----------------------------------------------------------------------------------------------

@@ -63,8 +63,11 @@ class Info(_Strict):
     profile_data: dict[str, object] = Field(description="the served profile, as a profile file holds it")
     lease_timeout: float | None = Field(
         default=None,
-        description="s: the server's --lease-timeout; a holder publishes on grippers/<name>/alive/<id> at "
-        "least this often (a quarter of it is what zenoh:// clients do)",
+        description="s: the server's --lease-timeout; a holder sends control heartbeat with its lease "
+        "secret at least this often (a quarter of it is what zenoh:// clients do)",
+    )
+    refused: int = Field(
+        default=0, description="requests refused for want of the lease secret since the server started"
     )
     profile_assumed: bool = Field(
         default=False,
@@ -80,6 +83,12 @@ class Request(_Strict):
         default="", max_length=128, description="the id in the caller's token grippers/<name>/client/<id>"
     )
     label: str = Field(default="", max_length=256, description="who the caller is, for AccessDenied messages")
+    lease: str | None = Field(
+        default=None,
+        pattern="^[0-9a-f]{1,64}$",
+        description="the lease secret the server answered when this client took the lease; required on "
+        "every command that needs the lease and on control heartbeat while it is held",
+    )
     args: dict[str, float | str | None] = Field(default_factory=dict, description="SI units")
 
 
@@ -89,6 +98,11 @@ class Reply(_Strict):
     v: Literal[1]
     status: Literal["pending", "done"]
     result: dict[str, object] | float | str | None
+    lease: str | None = Field(
+        default=None,
+        description="the lease secret, in the one reply to the request that took the lease (control "
+        "acquire, or the first reply of a motion on a free lease): keep it, send it with every command",
+    )
 
 
 class Error(_Strict):

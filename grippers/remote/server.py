@@ -15,11 +15,11 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
-from ..errors import ConnectionLost, GripperError, ProtocolError
+from ..errors import AccessDenied, ConnectionLost, GripperError, ProtocolError
 from ..gripper import Gripper
 from . import payloads, protocol
 from .discovery import refuse_duplicate
-from .lease import Lease
+from .gate import Gate
 from .session import DEFAULT_LISTEN, import_zenoh, make_config, open_session, own_locators
 
 log = logging.getLogger("grippers.remote")  # serve's own lines: lost, back, lease changes (docs/remote.md)
@@ -35,8 +35,9 @@ class ServedGripper:
         self.server = server
         self.name = name
         self.gripper = gripper
-        self.lease = Lease(server.lease_timeout)
-        self._lease_lock = threading.Lock()
+        self.gate = Gate(name, server.lease_timeout)
+        self.lease = self.gate.lease
+        self._lease_lock = self.gate.lock
         self._pub_lock = threading.Lock()
         self._seq = 0
         self._latest: bytes | None = None
@@ -48,7 +49,7 @@ class ServedGripper:
         self._servo_owner: str | None = None  # the client whose targets the gripper is servoing to
         self._declared: list[Any] = []
         self._token: Any = None
-        self._info_doc: bytes | None = None
+        self._info_base: dict[str, Any] = {}
         self._thread = threading.Thread(target=self._publish_loop, name=f"grippers-serve-{name}", daemon=True)
 
     # -- set-up and tear-down -----------------------------------------------------------------------------
@@ -80,11 +81,6 @@ class ServedGripper:
                 protocol.all_clients_key(self.name), callback(self._on_client, indirect=False), history=True
             )
         )
-        self._declared.append(
-            session.declare_subscriber(
-                protocol.all_alive_key(self.name), callback(self._on_alive, indirect=False)
-            )
-        )
         self._refresh()
         self._thread.start()
         self._token = session.liveliness().declare_token(protocol.token_key(self.name))
@@ -93,7 +89,7 @@ class ServedGripper:
         info = self.gripper.info()
         caps = sorted(c.value for c in self.gripper.capabilities)
         profile_data = self.gripper.profile.model_dump(mode="json")
-        doc = payloads.info_doc(
+        self._info_base = payloads.info_doc(
             self.name,
             info,
             caps,
@@ -101,7 +97,6 @@ class ServedGripper:
             self.server.lease_timeout,
             profile_assumed=bool(getattr(self.gripper, "_profile_assumed", False)),
         )
-        self._info_doc = protocol.dumps(doc)
 
     def close(self) -> None:
         self._stop.set()
@@ -116,8 +111,10 @@ class ServedGripper:
         self._declared.clear()
         with self._motions_lock:
             running = list(self._motions)
-        if running and self._lost is None:
-            # No one will see these motions end: a served gripper does not keep moving once unserved.
+        if self._lost is None and self._moves(bool(running) or self._servo_owner is not None):
+            # No one will see these motions end: a served gripper does not keep moving once unserved (a
+            # motion waited on, a servoing, a motion whose wait timed out: issue 33 §1).
+            self._servo_owner = None
             try:
                 self.gripper.stop()
             except GripperError as exc:
@@ -218,18 +215,12 @@ class ServedGripper:
         with query:
             if self._lost is not None:
                 query.reply_err(protocol.encode_error(self._lost, "info"))
-            else:
-                query.reply(query.key_expr, self._info_doc)
+            else:  # with the refusals counted so far (issue 30)
+                query.reply(query.key_expr, protocol.dumps({**self._info_base, "refused": self.gate.refused}))
 
     def _on_command(self, query: Any, command: str) -> None:
-        pool = self.server.urgent if command in ("stop", "fast_stop") else self.server.pool
-        try:
-            pool.submit(self._answer, query, command)
-        except RuntimeError:  # shutting down
-            with query:
-                query.reply_err(protocol.encode_error(ConnectionLost("the server is closing"), command))
-
-    def _answer(self, query: Any, command: str) -> None:
+        """On Zenoh's thread: parse, and admit or refuse at once (gate.py), before anything is queued."""
+        request = None
         try:
             payload = query.payload
             request = protocol.parse_request(command, payload.to_bytes() if payload is not None else b"")
@@ -241,37 +232,76 @@ class ServedGripper:
                     f"not on the pattern {query.key_expr}",
                     command=command,
                 )
+            spec = protocol.COMMANDS[command]
+            acquire = command == "control" and request.args["action"] == "acquire"
+            needs, take = spec.lease != "free" or acquire, spec.lease == "take" or acquire
+            trusted = self.gate.admit(request, needs, take)
+        except GripperError as exc:
+            self._refuse(query, request, command, exc)
+            return
+        pool = self.server.urgent if command in ("stop", "fast_stop") else self.server.pool
+        try:
+            pool.submit(self._answer, query, request, trusted)
+        except RuntimeError:  # shutting down
+            if not trusted:
+                self.gate.release()
+            with query:
+                query.reply_err(protocol.encode_error(ConnectionLost("the server is closing"), command))
+
+    def _refuse(self, query: Any, request: protocol.Request | None, command: str, exc: GripperError) -> None:
+        if isinstance(exc, AccessDenied):
+            self.gate.refused_request(query, request, command, exc)
+        self._reply_error(query, exc, command)
+        query.drop()
+
+    def _answer(self, query: Any, request: protocol.Request, trusted: bool) -> None:
+        command = request.command
+        try:
             if self._lost is not None:
                 raise self._lost
             spec = protocol.COMMANDS[command]
-            if request.client:
-                with self._lease_lock:
-                    self.lease.heard(request.client, time.monotonic())
+            secret = None
             if spec.lease != "free":
-                with self._lease_lock:
-                    before = self.lease.holder
-                    self.lease.check(
-                        request.client,
-                        request.label,
-                        command,
-                        spec.lease == "take",
-                        time.monotonic(),
-                        self.name,
-                    )
-                    if self.lease.holder != before:
-                        log.info("%s: control lease taken by %s", self.name, self.lease.describe())
+                take = spec.lease == "take"
+                if take and self.lease.holder is None and request.lease is None:
+                    self.gate.look_for_token(self.server.session, request.client)
+                secret = self.gate.check(request, take)
             if spec.motion:
-                self._start_motion(query, request)
+                self._start_motion(query, request, secret)
                 return  # the motion thread answers and finishes the query
-            result = self._execute(request)
+            if command == "control":
+                if request.args["action"] == "acquire" and self.lease.holder is None:
+                    self.gate.look_for_token(self.server.session, request.client)
+                secret = self.gate.control(request, request.args["action"])
+                result = None
+            else:
+                result = self._execute_taking(request, secret)
+        except GripperError as exc:
+            self._refuse(query, request, command, exc)
+            return
         except Exception as exc:
             self._reply_error(query, exc, command)
             query.drop()
             return
+        finally:
+            if not trusted:
+                self.gate.release()
         try:
-            query.reply(query.key_expr, protocol.encode_reply(protocol.DONE, payloads.result_doc(result)))
+            reply = protocol.encode_reply(protocol.DONE, payloads.result_doc(result), secret)
+            query.reply(query.key_expr, reply)
         finally:
             query.drop()
+
+    def _execute_taking(self, request: protocol.Request, secret: str | None) -> Any:
+        """Execute; a command that took the lease and failed (a servo target out of limits) gives it back:
+        its error reply cannot carry the secret, and nothing was set moving for the deadman to watch."""
+        try:
+            return self._execute(request)
+        except BaseException:
+            if secret is not None:
+                with self._lease_lock:
+                    self.lease.release(request.client, secret)
+            raise
 
     def _reply_error(self, query: Any, exc: BaseException, command: str) -> None:
         if not isinstance(exc, GripperError):
@@ -283,16 +313,6 @@ class ServedGripper:
 
     def _execute(self, request: Any) -> Any:
         g, a, command = self.gripper, request.args, request.command
-        if command == "control":
-            with self._lease_lock:
-                if a["action"] == "acquire":
-                    before = self.lease.holder
-                    self.lease.acquire(request.client, request.label, time.monotonic(), self.name)
-                    if self.lease.holder != before:
-                        log.info("%s: control lease taken by %s", self.name, self.lease.describe())
-                elif self.lease.release(request.client):
-                    log.info("%s: control lease released by client %s", self.name, request.client)
-            return None
         try:
             if command == "servo":
                 g.servo(a["width"], a["speed"], a["force"])
@@ -320,11 +340,11 @@ class ServedGripper:
 
     # -- motions ------------------------------------------------------------------------------------------
 
-    def _start_motion(self, query: Any, request: Any) -> None:
+    def _start_motion(self, query: Any, request: Any, secret: str | None) -> None:
         self._servo_owner = None  # a motion command ends servoing (Gripper's rule)
         thread = threading.Thread(
             target=self._run_motion,
-            args=(query, request),
+            args=(query, request, secret),
             name=f"grippers-serve-{self.name}-{request.command}",
         )
         thread.daemon = True
@@ -332,10 +352,10 @@ class ServedGripper:
             self._motions[thread] = request.client
         thread.start()
 
-    def _run_motion(self, query: Any, request: Any) -> None:
+    def _run_motion(self, query: Any, request: Any, secret: str | None) -> None:
         g, a = self.gripper, request.args
         try:
-            query.reply(query.key_expr, protocol.encode_reply(protocol.PENDING, None))
+            query.reply(query.key_expr, protocol.encode_reply(protocol.PENDING, None, secret))
             self._kick.set()
             if request.command == "home":
                 result: Any = g.home(timeout=a["timeout"])
@@ -357,11 +377,6 @@ class ServedGripper:
 
     # -- clients and the lease ------------------------------------------------------------------------------
 
-    def _on_alive(self, sample: Any) -> None:
-        client = str(sample.key_expr).rsplit("/", 1)[-1]
-        with self._lease_lock:
-            self.lease.heard(client, time.monotonic())
-
     def _on_client(self, sample: Any) -> None:
         client = str(sample.key_expr).rsplit("/", 1)[-1]
         zenoh = import_zenoh()
@@ -369,6 +384,10 @@ class ServedGripper:
             with self._lease_lock:
                 self.lease.client_seen(client)
             return
+        with self._lease_lock:
+            if client != self.lease.holder:  # a token of no consequence: forgotten here, nothing queued
+                self.lease.alive.pop(client, None)
+                return
         try:
             self.server.urgent.submit(self._client_gone, client)
         except RuntimeError:
@@ -381,6 +400,16 @@ class ServedGripper:
             log.info("%s: client %s gone; lease freed", self.name, client)
             self._deadman(client)
 
+    def _moves(self, ours: bool) -> bool:
+        """Whether the jaws move on someone's behalf: ``ours`` (a motion or servoing we know of), or else
+        what the device says (a motion whose wait timed out); unknown counts as moving (the safe side)."""
+        if ours:
+            return True
+        try:
+            return self.gripper.state().moving
+        except GripperError:
+            return True
+
     def _deadman(self, client: str) -> None:
         """The holder vanished: stop what the device does on its behalf, not only what our threads wait on.
 
@@ -390,14 +419,7 @@ class ServedGripper:
         UART switches the motor off)."""
         with self._motions_lock:
             mine = [t for t, owner in self._motions.items() if owner == client]
-        servoing = self._servo_owner == client
-        moving = False
-        if not mine and not servoing:
-            try:
-                moving = self.gripper.state().moving
-            except GripperError:
-                moving = True  # unknown: stopping is the safe side
-        if not (mine or servoing or moving):
+        if not self._moves(bool(mine) or self._servo_owner == client):
             return
         self._servo_owner = None
         log.warning("%s: client %s vanished with the jaws under its command; stopping", self.name, client)

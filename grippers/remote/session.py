@@ -7,11 +7,34 @@ The only module besides the server and the client that imports ``zenoh``, and on
 from __future__ import annotations
 
 import json
+import re
 from typing import Any
 
 from ..errors import ConnectionLost, URLError
 
 DEFAULT_LISTEN = "tcp/127.0.0.1:7447"
+_RUST_SOURCE = re.compile(r"\s+at\s+\S+\.rs:\d+\.?")  # Zenoh's errors end with the Rust file that raised them
+_IP_PROTOCOLS = ("tcp", "udp", "tls", "quic", "ws")
+
+
+def zenoh_message(exc: BaseException) -> str:
+    """A Zenoh error as a user reads it: without the Rust source paths it carries."""
+    return _RUST_SOURCE.sub("", str(exc)).strip() or type(exc).__name__
+
+
+def check_endpoints(endpoints: list[str], what: str) -> list[str]:
+    """URLError for an endpoint that cannot be one (``tcp/127.0.0.1:99999``): said before anything opens, in
+    one line, instead of Zenoh's error from deep inside its session."""
+    for endpoint in endpoints:
+        proto, slash, rest = endpoint.partition("/")
+        if not slash or not proto or not rest:
+            raise URLError(f"{what} {endpoint!r}: an endpoint is PROTOCOL/ADDRESS, e.g. tcp/127.0.0.1:7447")
+        if proto in _IP_PROTOCOLS:
+            address = rest.split("#", 1)[0].split("?", 1)[0]
+            host, colon, port = address.rpartition(":")
+            if not colon or not host or not port.isdigit() or not 0 <= int(port) <= 65535:
+                raise URLError(f"{what} {endpoint!r}: the address must be HOST:PORT with a port of 0-65535")
+    return endpoints
 
 
 def import_zenoh() -> Any:
@@ -40,7 +63,7 @@ def make_config(
         try:
             config = zenoh.Config.from_file(config_file)
         except Exception as exc:  # zenoh raises ZError for unreadable or invalid files
-            raise URLError(f"zenoh config {config_file}: {exc}") from None
+            raise URLError(f"zenoh config {config_file}: {zenoh_message(exc)}") from None
     else:
         config = zenoh.Config()
     try:
@@ -63,7 +86,7 @@ def make_config(
             config.insert_json5("transport/link/tx/lease", str(max(100, int(lease_s * 1000))))
             config.insert_json5("transport/link/tx/keep_alive", "4")
     except Exception as exc:
-        raise URLError(f"zenoh config: {exc}") from None
+        raise URLError(f"zenoh config: {zenoh_message(exc)}") from None
     return config
 
 
@@ -72,7 +95,7 @@ def open_session(config: Any, what: str) -> Any:
     try:
         return zenoh.open(config)
     except Exception as exc:  # a bad endpoint, a port in use, a TLS file missing
-        raise ConnectionLost(f"cannot open a Zenoh session: {exc}", device=what) from None
+        raise ConnectionLost(f"cannot open a Zenoh session: {zenoh_message(exc)}", device=what) from None
 
 
 def own_locators(session: Any, timeout: float = 2.0) -> list[str]:

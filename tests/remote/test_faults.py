@@ -177,6 +177,8 @@ def test_payloads_follow_the_published_schemas(serve) -> None:
         SCHEMAS["grippers.remote.state/1"].model_validate_json(state.ok.payload.to_bytes())
         request = protocol.encode_request("raw", "test", {"width": 0.05})
         SCHEMAS["grippers.remote.request/1"].model_validate_json(request)
+        token = session.liveliness().declare_token("grippers/g/client/raw")  # noqa: F841  # kept: declared  # a free lease goes to a token's owner
+        time.sleep(0.2)
         home = protocol.encode_request("raw", "test", {})
         every = zenoh.ConsolidationMode.NONE  # the pending and the final reply, both
         replies = list(session.get("grippers/g/cmd/home", payload=home, consolidation=every, timeout=10))
@@ -184,6 +186,9 @@ def test_payloads_follow_the_published_schemas(serve) -> None:
         assert [json.loads(d)["status"] for d in docs] == ["pending", "done"]
         for d in docs:
             SCHEMAS["grippers.remote.reply/1"].model_validate_json(d)
+        secret = json.loads(docs[0])["lease"]  # the request that took the lease is answered its secret
+        with_secret = protocol.encode_request("raw", "test", {"width": 0.05}, secret)
+        SCHEMAS["grippers.remote.request/1"].model_validate_json(with_secret)
         (err,) = session.get("grippers/g/cmd/move", payload=b"{}", timeout=2)
         SCHEMAS["grippers.remote.error/1"].model_validate_json(err.err.payload.to_bytes())
     finally:

@@ -8,7 +8,7 @@ import pytest
 
 import grippers
 from grippers.remote import protocol
-from grippers.remote.lease import Lease
+from grippers.remote.lease import MAX_TRACKED, Lease
 
 
 @pytest.mark.parametrize("name", sorted(protocol.error_classes()))
@@ -70,22 +70,42 @@ def test_served_names_are_one_plain_key_chunk(name: str) -> None:
 
 
 def test_lease_bookkeeping() -> None:
+    """Issue 30 §1: the lease is a secret, not a name: an id alone takes, keeps and moves nothing."""
     lease = Lease(timeout=1.0)
-    lease.check("a", "robot", "move", take=True, now=0.0, device="g")
-    lease.check("a", "robot", "move", take=True, now=0.1, device="g")
+    with pytest.raises(grippers.AccessDenied, match="liveliness token"):
+        lease.check("a", "robot", None, "move", take=True, now=0.0, device="g")  # no token of its own
+    lease.client_seen("a")
+    secret = lease.check("a", "robot", None, "move", take=True, now=0.0, device="g")
+    assert secret is not None and len(secret) == 32  # 128 bits, hexadecimal
+    assert lease.check("a", "robot", secret, "move", take=True, now=0.1, device="g") is None
     with pytest.raises(grippers.AccessDenied, match="robot") as denied:
-        lease.check("b", "ui", "move", take=True, now=0.2, device="g")
+        lease.check("a", "robot", None, "move", take=True, now=0.2, device="g")  # the holder's id alone
     assert denied.value.holder == "robot"
+    with pytest.raises(grippers.AccessDenied):
+        lease.check("b", "ui", secret, "move", take=True, now=0.2, device="g")  # the secret with another id
+    with pytest.raises(grippers.AccessDenied):
+        lease.check("a", "robot", "0" * 32, "move", take=True, now=0.2, device="g")  # a guess
     assert lease.expired(0.5) is None
-    assert lease.expired(1.5) == "a"  # its token never seen: freed after the timeout
-    lease.check("b", "ui", "home", take=True, now=2.0, device="g")
+    assert lease.expired(1.5) == "a"  # not heard from with its secret within the timeout: freed
+    with pytest.raises(grippers.AccessDenied, match="ended"):
+        lease.check("a", "robot", secret, "move", take=True, now=1.6, device="g")  # never a silent re-take
     lease.client_seen("b")
-    lease.heard("b", 9.5)  # a heartbeat or a request
+    second = lease.check("b", "ui", None, "home", take=True, now=2.0, device="g")
+    assert second is not None and second != secret  # new for every acquisition
+    lease.check("b", "ui", second, "move", take=True, now=9.5, device="g")
     assert lease.expired(10.0) is None  # heard from within the timeout: held
     assert lease.expired(10.6) == "b"  # silent longer than the timeout, token or not (issue 23 §2)
-    lease.check("b", "ui", "home", take=True, now=11.0, device="g")
-    assert lease.client_gone("b") is True and lease.holder is None
-    assert lease.client_gone("b") is False
+    third = lease.check("b", "ui", None, "home", take=True, now=11.0, device="g")
+    assert not lease.release("b", None) and not lease.release("b", second)  # only the secret releases
+    assert lease.client_gone("b") is True and lease.holder is None  # the token's end frees it (deadman)
+    assert lease.client_gone("b") is False and third
+
+
+def test_the_lease_remembers_a_bounded_number_of_clients() -> None:
+    lease = Lease(timeout=1.0)
+    for i in range(MAX_TRACKED * 3):
+        lease.client_seen(f"c{i}")
+    assert len(lease.alive) == MAX_TRACKED
 
 
 def test_help_and_import_do_not_load_zenoh() -> None:

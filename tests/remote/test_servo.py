@@ -54,7 +54,10 @@ def test_servo_limits_are_checked_on_both_sides(serve) -> None:
     server: ServeProcess = serve(f"g={sim('wsg50')}")
     session = _raw_session(server.endpoint)
     try:
-        # The server's own check: a client that skips the library's (another binding, a hostile one).
+        # The server's own check: a client that skips the library's (another binding, a hostile one), with
+        # a token of its own (a free lease goes to a client the server can watch: issue 30).
+        token = session.liveliness().declare_token("grippers/g/client/raw")  # noqa: F841  # kept: declared
+        time.sleep(0.2)
         for width in (1.0, -0.01):
             request = {"v": 1, "client": "raw", "label": "raw", "args": {"width": width}}
             replies = list(session.get("grippers/g/cmd/servo", payload=json.dumps(request), timeout=3))
