@@ -49,7 +49,7 @@ import re
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import Any
-from urllib.parse import parse_qsl, quote, unquote, unquote_plus
+from urllib.parse import parse_qsl, quote, unquote, unquote_plus, urlencode, urlsplit, urlunsplit
 
 from .errors import URLError
 from .numbers import finite
@@ -233,6 +233,21 @@ def bus_options(url: ConnectionURL) -> dict[str, int]:
     if (url.interface or "").lower() in ("virtual", "udp_multicast"):
         options.pop("bitrate", None)
     return options
+
+
+_SECRET_WORDS = ("key", "password", "passwd", "secret", "token", "cert")
+
+
+def without_secrets(url: str) -> str:
+    """``url`` as it may be shown to others (``/diagnostics``, logs): no user info, and the values of query
+    settings whose names look like secrets (TLS keys, passwords, tokens) replaced by ``***``."""
+    parts = urlsplit(url)
+    netloc = parts.netloc.rsplit("@", 1)[-1]
+    query = [
+        (k, "***" if any(w in k.lower() for w in _SECRET_WORDS) else v)
+        for k, v in parse_qsl(parts.query, keep_blank_values=True)
+    ]
+    return urlunsplit((parts.scheme, netloc, parts.path, urlencode(query, safe="/:,"), parts.fragment))
 
 
 def with_params(url: str, **values: Any) -> str:

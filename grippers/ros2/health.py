@@ -12,25 +12,13 @@ import collections
 import threading
 import time
 from dataclasses import dataclass, field
-from urllib.parse import parse_qsl, urlencode, urlsplit, urlunsplit
 
+from ..drivers.urls import without_secrets
 from ..gripper import DeviceInfo, GripperState
 
 OK, WARN, ERROR, STALE = 0, 1, 2, 3  # diagnostic_msgs/DiagnosticStatus levels (bytes on the wire)
 # A WSG's "the last command failed" flag (a blocked move sets it): worth a WARN, not an ERROR.
 _TRANSIENT = frozenset({"cmd_failure"})
-_SECRET_WORDS = ("key", "password", "passwd", "secret", "token", "cert")
-
-
-def public_url(url: str) -> str:
-    """The URL without user info and without query values that look like secrets (TLS keys, passwords)."""
-    parts = urlsplit(url)
-    netloc = parts.netloc.rsplit("@", 1)[-1]
-    query = [
-        (k, "***" if any(w in k.lower() for w in _SECRET_WORDS) else v)
-        for k, v in parse_qsl(parts.query, keep_blank_values=True)
-    ]
-    return urlunsplit((parts.scheme, netloc, parts.path, urlencode(query, safe="/:,"), parts.fragment))
 
 
 @dataclass
@@ -108,7 +96,7 @@ class Health:
             ("model", info.model if info else ""),
             ("firmware", (info.firmware or "") if info else ""),
             ("serial", (info.serial or "") if info else ""),
-            ("url", public_url(self.url)),
+            ("url", without_secrets(self.url)),
             ("referenced", str(st.referenced).lower() if st else "unknown"),
             ("grasp state", st.grasp.value if st else "unknown"),
             ("faults", ", ".join(st.faults) if st else ""),
