@@ -8,6 +8,7 @@ import time
 from pathlib import Path
 
 import can
+from can.interfaces import virtual
 
 from grippers.cli import main
 from grippers.drivers.captures import format_candump, format_hex_line, parse_candump, parse_hex_dump
@@ -57,13 +58,17 @@ def test_live_bus_with_odd_frames_and_write_reads_back(tmp_path: Path, capsys) -
     with can.Bus(interface="virtual", channel=channel, receive_own_messages=False) as sender:
 
         def send() -> None:
-            time.sleep(0.3)
+            # Send once the monitor's bus has joined the channel (a virtual bus delivers only to buses open
+            # when a frame is sent): a fixed sleep raced the monitor's start-up on a loaded machine.
+            deadline = time.monotonic() + 30
+            while len(virtual.channels.get(channel, ())) < 2 and time.monotonic() < deadline:
+                time.sleep(0.01)
             for frame in frames:
                 sender.send(frame)
 
         thread = threading.Thread(target=send)
         thread.start()
-        code = main(["monitor", "-i", "virtual", "-c", channel, "--duration", "1.5", "--write", str(out)])
+        code = main(["monitor", "-i", "virtual", "-c", channel, "--duration", "3", "--write", str(out)])
         thread.join(5)
     live = capsys.readouterr().out.splitlines()
     assert code == 0 and len(live) == 5, live
