@@ -37,11 +37,19 @@ def finite(
         raise error(f"{name} must be a number, not {_short(value)}", device=device, command=command) from None
     if not math.isfinite(number):
         raise error(f"{name} must be a finite number, not {value!r}", device=device, command=command)
-    if low is not None and number < low:
-        raise error(f"{name} {number:g} is below {low:g}", device=device, command=command)
-    if high is not None and number > high:
-        raise error(f"{name} {number:g} is above {high:g}", device=device, command=command)
+    if (low is not None and number < low) or (high is not None and number > high):
+        side = f"below {_num(low)}" if low is not None and number < low else f"above {_num(high)}"
+        allowed = f" (allowed: {_num(low)}..{_num(high)})" if low is not None and high is not None else ""
+        raise error(f"{name} {_num(number)} is {side}{allowed}", device=device, command=command)
     return number
+
+
+def _num(value: float | None) -> str:
+    """A number as people write it: whole numbers in full (a u32 period of 4294967296 ms read
+    "4.29497e+09 is above 4.29497e+09", issue 33 §3), others in their shortest ``g`` form."""
+    if value is not None and float(value).is_integer() and abs(value) < 2**53:
+        return str(int(value))
+    return f"{value:g}"
 
 
 def _short(value: Any) -> str:

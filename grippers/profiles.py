@@ -41,9 +41,10 @@ MAX_FORCE_N = 100_000.0
 MAX_TIMEOUT_S = 3600.0  # an exchange that takes longer than an hour is not an exchange
 MAX_TIME_SCALE = 1_000_000.0
 MAX_PROFILE_BYTES = 1 << 20  # 1 MiB: every shipped profile is under 2 kB; a bigger file is not a profile
-# How many ``extends`` a profile may stand on. Each level searches the profile path and validates its base, so
-# a chain of 300 took two minutes to load (and ``profiles list`` loads every file): no real family tree of
-# grippers is deeper than a handful (vendor, model, variant, site), so a deeper one is refused by name.
+# How many ``extends`` a profile may stand on (docs/profiles.md says so). Each level searches the profile path
+# and validates its base, so a chain of 300 took two minutes to load (and ``profiles list`` loads every file):
+# no real family tree of grippers is deeper than a handful (vendor, model, variant, site), so a deeper one is
+# refused by name, in one short line (issue 33 §3: each level used to prefix its own file to the message).
 MAX_EXTENDS_DEPTH = 16
 
 NonNegative = Annotated[float, Field(ge=0, allow_inf_nan=False)]
@@ -567,6 +568,10 @@ def _index_files() -> Iterator[_Indexed]:
         yield path, os.path.abspath(path), every, names
 
 
+class _ChainTooDeep(ProfileError):
+    """More than :data:`MAX_EXTENDS_DEPTH` levels: raised once, where the cap is passed, naming the top."""
+
+
 def _load(path: Path, chain: tuple[str, ...]) -> tuple[ProfileBase, tuple[tuple[str, Stamp], ...]]:
     """Validate one file, its ``extends`` resolved; returns the stamps of every file it was built from."""
     where = str(path)
@@ -578,9 +583,9 @@ def _load(path: Path, chain: tuple[str, ...]) -> tuple[ProfileBase, tuple[tuple[
         if not isinstance(base_name, str) or not base_name.strip():
             raise ProfileError(f"{where}: extends: must be the name of a profile, not {base_name!r}")
         if len(chain) >= MAX_EXTENDS_DEPTH:
-            raise ProfileError(
-                f"{where}: extends: more than {MAX_EXTENDS_DEPTH} levels of extends "
-                f"(from {chain[0]}); flatten the chain"
+            raise _ChainTooDeep(
+                f"{chain[0]}: more than {MAX_EXTENDS_DEPTH} levels of extends (down to {where}); "
+                f"at most {MAX_EXTENDS_DEPTH}: flatten the chain"
             )
         skip = {*chain, me}
         base_path, in_chain = _find(base_name, skip)
@@ -591,6 +596,8 @@ def _load(path: Path, chain: tuple[str, ...]) -> tuple[ProfileBase, tuple[tuple[
             raise ProfileError(f"{where}: extends: no profile named {base_name!r} ({_describe_path()})")
         try:
             base, base_stamps = _load(base_path, (*chain, me))
+        except _ChainTooDeep:
+            raise  # already names the top file and the cap: not one more prefix per level
         except ProfileError as exc:
             raise ProfileError(f"{where}: extends {base_name!r}: {exc}") from None
         inherited = base.model_dump(mode="python", exclude={"aliases"})  # aliases stay with the base
@@ -641,6 +648,15 @@ def load_file(path: str | os.PathLike[str]) -> ProfileBase:
     profile, stamps = _load(p, ())
     _remember(_profile_cache, key, (stamps, profile))
     return profile
+
+
+def extends_chain(path: str | os.PathLike[str]) -> list[str]:
+    """The files a profile file is built from, as absolute paths: itself first, its base, the base's base.
+
+    For a writer that must not replace a file its own result would stand on (``selftest --write-profile``
+    onto the base's file left a profile extending itself, issue 33 §1). Raises the file's ProfileError."""
+    _profile, stamps = _load(Path(path), ())
+    return [file for file, _stamp in stamps]
 
 
 def validate_file(path: str | os.PathLike[str]) -> list[str]:

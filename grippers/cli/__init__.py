@@ -97,6 +97,29 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    """The ``grippers`` command; returns its exit code (docs/cli.md).
+
+    Ctrl-C anywhere in here is exit 130 and one line: while the subcommands' modules load and the arguments
+    are parsed (the first ~50 ms, issue 33 §3: a traceback and exit -2 before), during the command, and while
+    it cleans up. Only what runs before this function cannot be covered: the interpreter's own start-up and
+    the import of ``grippers`` and ``grippers.cli`` (module-level imports kept small for that reason too).
+    The library stops a moving gripper before KeyboardInterrupt leaves a blocking call, and commands that
+    start motions without waiting stop them themselves (:func:`grippers.cli.common.stops_motions_on_error`).
+    """
+    command: list[str] = []  # the subcommand, once parsed, for the one line
+    try:
+        return _main(argv, command)
+    except KeyboardInterrupt:
+        try:
+            print(f"grippers{''.join(' ' + c for c in command)}: interrupted", file=sys.stderr)
+        except KeyboardInterrupt:  # a second Ctrl-C while saying so: the exit code still says it
+            pass
+        from .output import EXIT_INTERRUPTED  # loaded by then, with the subcommands, but for the first ms
+
+        return EXIT_INTERRUPTED
+
+
+def _main(argv: Sequence[str] | None, command: list[str]) -> int:
     parser = build_parser()
     args, unknown = parser.parse_known_args(argv)  # exits 2 on usage errors, with argparse's message
     module = getattr(args, "_module", None)
@@ -105,18 +128,15 @@ def main(argv: Sequence[str] | None = None) -> int:
             parser.error(_unrecognized(parser, unknown))
         parser.print_help()
         return 2
+    command.append(args.command)
     if unknown:  # the subcommand names the mistake and its own --help, not the top-level parser
         command_parser = _subparsers(parser)[args.command]
         command_parser.error(_unrecognized(command_parser, unknown))
-    from .output import EXIT_FAILED, EXIT_INTERRUPTED, EXIT_OK, EXIT_USAGE, UsageError, error_line
+    from .output import EXIT_FAILED, EXIT_OK, EXIT_USAGE, UsageError, error_line
 
     handler = logs.setup(args)
     try:
         return int(module.run(args) or 0)
-    except KeyboardInterrupt:
-        # The library stops a moving gripper before KeyboardInterrupt leaves its call; say so in one line.
-        print(f"grippers {args.command}: interrupted", file=sys.stderr)
-        return EXIT_INTERRUPTED
     except BrokenPipeError:  # `grippers monitor ... | head`: not an error; keep Python quiet at exit
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())

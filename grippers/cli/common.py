@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import argparse
 import math
+from collections.abc import Iterator
+from contextlib import contextmanager
 from typing import TYPE_CHECKING, Any
 
 from .output import m_to_mm, to_plain
@@ -117,6 +119,56 @@ def open_gripper(args: argparse.Namespace) -> Gripper:
         if fix is None:
             raise
         raise type(exc)(f"{exc.message} ({fix})", device=exc.device, command=exc.command) from exc
+
+
+def stop_running_motions(gripper: Gripper, by: str) -> list[BaseException]:
+    """Stop (bounded) every motion of ``gripper`` that still runs, as Ctrl-C in a blocking call does; returns
+    the stops that failed. Sends nothing when no motion runs (an MSG over UART stop switches the motor off, so
+    a held part would be let go).
+
+    Why here: the library stops a motion on Ctrl-C only inside a blocking call; a motion started with
+    ``wait=False`` belongs to its caller, and ``close()`` lets it run on to its end (documented), so a
+    command that is interrupted while it polls (``selftest``'s timed moves) left the jaws moving after exit
+    130 (issue 33 §1). Each motion ends with CommandFailed "aborted by BY"."""
+    supervisor = gripper._motions  # the gripper's one register of its motions (grippers/motions.py)
+    failures = []
+    for handle in list(supervisor.handles):
+        if handle.done():
+            continue
+        failure = supervisor.abort(by, handle, bounded=True)
+        if failure is not None:
+            failures.append(failure)
+    return failures
+
+
+@contextmanager
+def stops_motions_on_error(gripper: Gripper) -> Iterator[Gripper]:
+    """``with stops_motions_on_error(gripper):``: whatever leaves the block early (Ctrl-C first of all, or an
+    error of the command's own) stops the motions still running before it propagates; a block that ends
+    normally leaves them alone (a command may mean to leave a motion running).
+
+    For commands that start motions without waiting (``selftest``; ``record --do``, ``serve`` and the ROS node
+    may use it too). A failed stop is added to the exception as a note; a second Ctrl-C during the stop ends
+    the wait for it (grippers/motions.py), never the exit."""
+    try:
+        yield gripper
+    except BaseException as exc:
+        by = "Ctrl-C" if isinstance(exc, KeyboardInterrupt) else type(exc).__name__
+        for failure in stop_running_motions(gripper, by):
+            exc.add_note(f"{gripper.name}: stopping the gripper after {by} failed: {failure}")
+        raise
+
+
+@contextmanager
+def opened_gripper(args: argparse.Namespace) -> Iterator[Gripper]:
+    """:func:`open_gripper` for a ``with`` block: closed at the end, and its running motions stopped first
+    when the block is left by Ctrl-C or an error (:func:`stops_motions_on_error`)."""
+    gripper = open_gripper(args)
+    try:
+        with stops_motions_on_error(gripper):
+            yield gripper
+    finally:
+        gripper.close()
 
 
 # --- API objects to the CLI's plain documents ---------------------------------------------------------------

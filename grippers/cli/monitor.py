@@ -10,12 +10,13 @@ simulators understand, and there is no second copy of any byte layout here.
 from __future__ import annotations
 
 import argparse
+import itertools
 import selectors
 import socket
 import sys
 import time
 from collections.abc import Callable, Iterator
-from typing import Any
+from typing import IO, Any
 
 from .common import add_can_flags, can_id, positive_float
 from .output import EXIT_FAILED, EXIT_OK, MONITOR_SCHEMA_ID, UsageError, write_json
@@ -34,6 +35,10 @@ EXAMPLE = (
 
 PROTOCOLS = ("auto", "wsg", "stepfoc")
 FORMATS = ("auto", "candump", "hex", "raw")
+# The longest line a text capture may have: a --proxy --write line holds one 64 KiB read, 128 KiB of hex. A
+# longer one is not a capture (``monitor /dev/zero`` read 7.9 GB looking for the first line end, issue 33 §3).
+MAX_LINE = 1 << 20
+CHUNK = 1 << 16  # a raw capture is decoded in pieces of this size, as they arrive
 
 
 def _host_port(text: str) -> tuple[str, int]:
@@ -116,14 +121,82 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 # --- sources -----------------------------------------------------------------------------------------------
 
 
-def _read_capture(name: str) -> bytes:
-    if name == "-":
-        return sys.stdin.buffer.read()
-    try:
-        with open(name, "rb") as fh:
-            return fh.read()
-    except OSError as exc:
-        raise UsageError(f"cannot read {name}: {exc.strerror or exc}") from None
+class _Capture:
+    """A capture file, or stdin for ``-``, read as it arrives: a text capture line by line (each at most
+    :data:`MAX_LINE` bytes), raw bytes in pieces. So ``candump -L can0 | grippers monitor -`` shows each frame
+    when candump writes it, and memory stays bounded whatever comes in (before, all of stdin was read first).
+
+    The format (``--format auto``) is decided on the first line that is neither blank nor a comment; the
+    lines read for that are handed out again first."""
+
+    def __init__(self, name: str) -> None:
+        self.name = name
+        self._head: list[bytes] = []
+        self._lines = 0
+        if name == "-":
+            self._fh: IO[bytes] = sys.stdin.buffer
+            self._owned = False
+            return
+        try:
+            self._fh = open(name, "rb")  # noqa: SIM115 - closed by close(), from the caller's finally
+        except OSError as exc:
+            raise UsageError(f"cannot read {name}: {exc.strerror or exc}") from None
+        self._owned = True
+
+    def close(self) -> None:
+        if self._owned:
+            self._fh.close()
+
+    def _readline(self) -> bytes:
+        self._lines += 1
+        return self._fh.readline(MAX_LINE + 1)
+
+    def _too_long(self, number: int) -> UsageError:
+        return UsageError(
+            f"{self.name}: line {number} is longer than {MAX_LINE} bytes: not a candump log or a hex dump "
+            "(raw WSG bytes: --format raw)"
+        )
+
+    def sniff(self) -> str:
+        """'candump', 'hex' or 'raw' from the first significant line, as :func:`sniff_format` decides."""
+        from grippers.drivers.captures import looks_like_text, sniff_format
+        from grippers.drivers.wsg.protocol import PREAMBLE
+
+        held = 0
+        while held <= MAX_LINE:  # blank lines and comments before the first record: bounded too
+            line = self._readline()
+            self._head.append(line)
+            held += len(line)
+            if not line:
+                break
+            if not looks_like_text(line):
+                if len(line) > MAX_LINE and PREAMBLE not in line:
+                    raise UsageError(
+                        f"{self.name}: not a capture: no line end in the first {MAX_LINE} bytes, and no WSG "
+                        "packet in them (raw WSG bytes anyway: --format raw)"
+                    )
+                return "raw"
+            if len(line) > MAX_LINE:
+                raise self._too_long(self._lines)
+            text = line.strip()
+            if text and not text.startswith(b"#"):
+                break
+        return sniff_format(b"".join(self._head))
+
+    def lines(self) -> Iterator[str]:
+        """The capture's lines as text, the sniffed ones first; an over-long line is a UsageError."""
+        head, self._head = self._head, []
+        for number, line in enumerate(itertools.chain(head, iter(self._readline, b"")), start=1):
+            if len(line) > MAX_LINE:
+                raise self._too_long(number)
+            yield line.decode("ascii", errors="replace").rstrip("\r\n")
+
+    def chunks(self) -> Iterator[bytes]:
+        """The capture's bytes in pieces as they arrive (``read1``: what is there, not waiting for more)."""
+        head, self._head = self._head, []
+        read1 = getattr(self._fh, "read1", self._fh.read)
+        yield from (piece for piece in head if piece)
+        yield from iter(lambda: read1(CHUNK), b"")
 
 
 def _capture_records(args: argparse.Namespace) -> Iterator[dict[str, Any]]:
@@ -134,17 +207,16 @@ def _capture_records(args: argparse.Namespace) -> Iterator[dict[str, Any]]:
         CaptureError,
         parse_candump,
         parse_hex_dump,
-        sniff_format,
     )
     from grippers.drivers.dissect import CanDecoder
     from grippers.drivers.wsg.dissect import WsgStream
 
-    blob = _read_capture(args.capture)
-    fmt = args.format if args.format != "auto" else sniff_format(blob)
+    capture = _Capture(args.capture)
     try:
+        fmt = args.format if args.format != "auto" else capture.sniff()
         if fmt == "candump":
             decoder = CanDecoder(args.protocol, args.wsg_id)
-            for frame in parse_candump(blob.decode("ascii", errors="replace").splitlines()):
+            for frame in parse_candump(capture.lines()):
                 yield from decoder.decode(
                     frame.arbitration_id,
                     frame.data,
@@ -161,13 +233,16 @@ def _capture_records(args: argparse.Namespace) -> Iterator[dict[str, Any]]:
         default = {"to": TO_DEVICE, "from": FROM_DEVICE}.get(args.direction, UNKNOWN_DIRECTION)
         stream = WsgStream()
         if fmt == "raw":
-            yield from stream.feed(default, blob, None)
+            for piece in capture.chunks():
+                yield from stream.feed(default, piece, None)
         else:
-            for chunk in parse_hex_dump(blob.decode("ascii", errors="replace").splitlines(), default):
+            for chunk in parse_hex_dump(capture.lines(), default):
                 yield from stream.feed(chunk.direction, chunk.data, chunk.timestamp)
         yield from stream.flush()
     except CaptureError as exc:
         raise UsageError(f"{args.capture}: {exc}") from None
+    finally:
+        capture.close()
 
 
 def _live_can_records(args: argparse.Namespace, writer: Writer | None) -> Iterator[dict[str, Any]]:
@@ -378,7 +453,7 @@ def run(args: argparse.Namespace) -> int:
             if args.json:
                 write_json({"schema": MONITOR_SCHEMA_ID, **rec})
             else:
-                print(render_line(rec), flush=args.capture is None)
+                print(render_line(rec), flush=args.capture in (None, "-"))  # a pipe is shown as it comes
             decoded += rec["status"] != "noise"
             if args.count and shown >= args.count:
                 break

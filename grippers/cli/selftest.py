@@ -13,7 +13,8 @@ Everything goes through the :class:`~grippers.gripper.Gripper` API (and the vend
 
 Exit codes: 0 every line PASS (or INFO); 3 the run finished with at least one WARN (the profile does not fit:
 ``--write-profile`` writes one that does); 1 the device failed a step; 2 a usage error or not confirmed;
-130 interrupted (the library stops the jaws first).
+130 interrupted (the jaws are stopped first: the timed moves run with ``wait=False`` while the state is
+polled, so the command stops them itself, :func:`~grippers.cli.common.stops_motions_on_error`).
 """
 
 from __future__ import annotations
@@ -21,11 +22,13 @@ from __future__ import annotations
 import argparse
 import sys
 import time
-from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from .common import add_common, add_target, open_gripper, positive_float
+from .common import add_common, add_target, opened_gripper
 from .output import EXIT_OK, UsageError, table, write_json
+
+if TYPE_CHECKING:
+    from .selftest_target import ProfileTarget
 
 HELP = "bench acceptance run: homes, moves at three speeds, closes without a part; measured vs the profile"
 EXAMPLE = (
@@ -39,6 +42,7 @@ EXIT_WARN = 3  # finished, and at least one line is a WARN (docs/cli.md)
 SPEED_FRACTIONS = (0.2, 0.45, 0.7)  # of the profile's top speed: slow, middle, fast, none at the limit
 SPAN = (0.2, 0.8)  # of the stroke: the safe span, away from both end stops
 DEFAULT_TOLERANCE = 0.15
+MAX_TOLERANCE = 1.0  # ±100 %: beyond it every speed passes, and the run says nothing
 POSITION_TOLERANCE = 0.02  # of the stroke: where a move ended against its target
 
 
@@ -54,20 +58,56 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--profile-name", metavar="NAME", help="the written profile's name (default: BASE-measured)"
     )
     parser.add_argument(
+        "--force",
+        action="store_true",
+        help="with --write-profile: replace FILE if it exists (it is replaced whole, after the run)",
+    )
+    parser.add_argument(
         "--tolerance",
-        type=positive_float,
+        type=tolerance,
         default=DEFAULT_TOLERANCE,
         metavar="FRACTION",
-        help=f"relative deviation accepted on top of the measurement's own uncertainty "
-        f"(default {DEFAULT_TOLERANCE:g})",
+        help=f"relative deviation accepted on top of the measurement's own uncertainty, at most "
+        f"{MAX_TOLERANCE:g} (default {DEFAULT_TOLERANCE:g})",
     )
     parser.add_argument(
         "--time-scale",
-        type=positive_float,
+        type=time_scale,
         metavar="N",
         help="a simulator running N times faster than real time (default: a sim:// URL's time_scale, else 1)",
     )
     add_common(parser)
+
+
+def _bounded(text: str, name: str, low: float, high: float) -> float:
+    """An argparse type: a finite number within [low, high], checked by the library's one number rule."""
+    from grippers.drivers.numbers import finite
+    from grippers.errors import LimitError
+
+    try:
+        number = float(text)  # text is parsed here: the library's rule takes numbers, not strings
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{name} must be a number, not {text!r}") from None
+    try:
+        return finite(number, name, low=low, high=high)
+    except LimitError as exc:
+        raise argparse.ArgumentTypeError(exc.message) from None
+
+
+def time_scale(text: str) -> float:
+    """``--time-scale``: the simulators' own range (grippers/profiles.py ``TimeScale``), so an absurd scale
+    (1e308 ended in an errno tuple after homing and moving, issue 33 §3) is a usage error before anything
+    moves."""
+    from grippers.profiles import MAX_TIME_SCALE
+
+    return _bounded(text, "time scale", 1 / MAX_TIME_SCALE, MAX_TIME_SCALE)
+
+
+def tolerance(text: str) -> float:
+    value = _bounded(text, "tolerance", 0.0, MAX_TOLERANCE)
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"tolerance must be above 0, not {text!r}")
+    return value
 
 
 def _time_scale(args: argparse.Namespace) -> float:
@@ -80,7 +120,7 @@ def _time_scale(args: argparse.Namespace) -> float:
         if target.family == "sim" and "time_scale" in target.params:
             return to_float(target.params["time_scale"], "time_scale", args.target)
     except URLError:
-        pass  # refused with the grammar's own message when the gripper opens
+        pass  # refused with the grammar's own message when the gripper opens (a time_scale out of range too)
     return 1.0
 
 
@@ -372,68 +412,38 @@ def _document(run: _Run, args: argparse.Namespace, info: Any, written: str | Non
     }
 
 
-def _write_profile(run: _Run, path: str, name: str | None) -> str:
-    from grippers.errors import ProfileError
-    from grippers.profiles import load_file
+def _target(args: argparse.Namespace, gripper: Any) -> ProfileTarget | None:
+    """``--write-profile FILE``, checked before anything moves (grippers/cli/selftest_target.py)."""
+    if not args.write_profile:
+        return None
+    from .selftest_target import check_target
 
-    from .selftest_checks import measured_profile
-    from .toml_out import dumps
-
-    profile = run.g.profile
-    doc = measured_profile(profile, run.lines, run.speeds, name or f"{profile.name}-measured", run.stroke_mm)
-    target = Path(path)
-    header = (
-        "# Written by `grippers selftest`: the base profile with what was measured on this unit.\n"
-        "# `extends` names the base: keep this file on the profile search path (docs/profiles.md).\n"
+    base = gripper.profile
+    return check_target(
+        args.write_profile, base, args.profile_name or f"{base.name}-measured", force=args.force
     )
-    try:
-        target.write_text(header + dumps(doc), encoding="utf-8")
-    except OSError as exc:
-        raise UsageError(f"{path}: cannot write: {exc.strerror or exc}") from None
-    try:
-        load_file(target)  # what is written must load back through the loader every command uses
-    except ProfileError as exc:
-        raise UsageError(f"{path}: the written profile does not load: {exc.message}") from None
-    return str(target)
 
 
-def _check_profile_target(profile: Any, path: str) -> None:
-    """Before anything moves: the written file will be writable, and its ``extends`` will find the base.
+def _write(run: _Run, target: ProfileTarget) -> str:
+    from .selftest_checks import measured_profile
 
-    The written profile names its base, so the base must be found by that name on the search path; a base
-    read from a file elsewhere would make the file unloadable after the whole run."""
-    import os
+    doc = measured_profile(target.base, run.lines, run.speeds, target.name, run.stroke_mm)
+    return target.write(doc)
 
-    from grippers.errors import ProfileError
-    from grippers.profiles import load_profile
 
-    folder = Path(path).resolve().parent
-    if not folder.is_dir() or not os.access(folder, os.W_OK):
-        raise UsageError(f"--write-profile {path}: cannot write in {folder}")
-    try:
-        found = load_profile(profile.name)
-    except ProfileError:
-        found = None
-    if found is None or (
-        profile.path and found.path and Path(found.path).resolve() != Path(profile.path).resolve()
-    ):
-        raise UsageError(
-            f"--write-profile: the profile {profile.name!r} (from {profile.path}) is not the one its name "
-            "finds on the search path, so a profile extending it would not load; put its folder on "
-            "GRIPPERS_PROFILE_PATH (docs/profiles.md)"
-        )
+def _print_table(run: _Run) -> None:
+    rows = [(ln.check, ln.measured, ln.expected, ln.verdict, ln.note) for ln in run.lines]
+    print(table(rows, ("check", "measured", "expected", "verdict", "note")), flush=True)
 
 
 def run(args: argparse.Namespace) -> int:
     if not args.yes and not sys.stdin.isatty():
         raise UsageError("selftest moves the gripper: add --yes to run it without a terminal to ask on")
-    if args.write_profile and not args.write_profile.lower().endswith(".toml"):
-        raise UsageError(f"{args.write_profile}: the profile's name must end in .toml")
+    if args.force and not args.write_profile:
+        raise UsageError("--force goes with --write-profile FILE")
     scale = _time_scale(args)
-    gripper = open_gripper(args)
-    try:
-        if args.write_profile:
-            _check_profile_target(gripper.profile, args.write_profile)
+    with opened_gripper(args) as gripper:
+        target = _target(args, gripper)
         info = gripper.info()
         st = _Run(gripper, scale, args.tolerance)
         _confirm(plan_text(gripper.name, st.lo_mm, st.hi_mm, st.speed_list, st.force), args.yes)
@@ -445,15 +455,23 @@ def run(args: argparse.Namespace) -> int:
         st.close_without_part()
         st.settings()
         st.faults("after")
-    finally:
-        gripper.close()
-    written = _write_profile(st, args.write_profile, args.profile_name) if args.write_profile else None
-    document = _document(st, args, info, written)
+    document = _document(st, args, info, None)
+    summary = "all PASS" if document["ok"] else f"{document['warnings']} WARN"
+    # The results come first, whatever becomes of the file: a run takes minutes and moves the jaws.
+    if not args.json:
+        _print_table(st)
+    try:
+        if target is not None:
+            document["written_profile"] = _write(st, target)
+    except BaseException:
+        if args.json:
+            write_json(document)
+        else:
+            print(f"\n{summary}; the profile was not written")
+        raise
     if args.json:
         write_json(document)
     else:
-        rows = [(ln.check, ln.measured, ln.expected, ln.verdict, ln.note) for ln in st.lines]
-        print(table(rows, ("check", "measured", "expected", "verdict", "note")))
-        summary = "all PASS" if document["ok"] else f"{document['warnings']} WARN"
+        written = document["written_profile"]
         print(f"\n{summary}" + (f"; wrote {written}" if written else ""))
     return EXIT_OK if document["ok"] else EXIT_WARN

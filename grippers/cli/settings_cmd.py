@@ -51,12 +51,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     msg.add_argument("--node-id", type=int, metavar="N", help=f"change the CAN node id (0..{MAX_NODE})")
     msg.add_argument(
         "--watchdog",
-        type=int,
+        type=period_ms,
         metavar="MS",
         help="node raises 'timeout' and idles after MS ms without a 61, data pack or remote request (0 off)",
     )
     msg.add_argument(
-        "--heartbeat", type=int, metavar="MS", help="node sends a heartbeat after MS ms of silence (0 off)"
+        "--heartbeat",
+        type=period_ms,
+        metavar="MS",
+        help="node sends a heartbeat after MS ms of silence (0 off)",
     )
     msg.add_argument(
         "--save",
@@ -187,6 +190,23 @@ def _change_wsg(gripper: Any, args: argparse.Namespace, changed: list[str]) -> N
 
 
 MAX_PERIOD_MS = 0xFFFFFFFF  # u32 milliseconds (commands 15 and 30, docs/protocols.md §2)
+
+
+def period_ms(text: str) -> int:
+    """``--watchdog`` and ``--heartbeat``: whole milliseconds, 0..2³²-1, refused while the arguments are
+    parsed, with the number and the range as written (issue 33 §3: "4.29497e+09 is above 4.29497e+09")."""
+    from grippers.drivers.numbers import finite
+    from grippers.errors import LimitError
+
+    try:
+        value = int(text, 10)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a whole number of milliseconds: {text!r}") from None
+    try:
+        finite(value, "period", low=0, high=MAX_PERIOD_MS)
+    except LimitError as exc:
+        raise argparse.ArgumentTypeError(exc.message) from None
+    return value
 
 
 def _period(value: int | None, name: str, device: str) -> int | None:

@@ -31,3 +31,29 @@ def test_a_deeper_chain_is_a_profile_error(tmp_path: Path, monkeypatch: pytest.M
     # Listing visits every file of the chain; each one ends at the cap instead of walking 300 levels.
     names = {p.name for p in list_profiles()}
     assert "wsg50" in names
+
+
+def test_the_error_is_one_short_line_naming_the_top_file(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Issue 33 §3: every level prefixed its own file ("a.toml: extends 'b': b.toml: extends 'c': ..."), so a
+    # chain of 20 gave an error of 870 characters.
+    _chain(tmp_path, MAX_EXTENDS_DEPTH + 4)
+    monkeypatch.setenv("GRIPPERS_PROFILE_PATH", str(tmp_path))
+    with pytest.raises(ProfileError) as caught:
+        load_profile(f"deep{MAX_EXTENDS_DEPTH + 3}")
+    message = str(caught.value)
+    assert message.startswith(str(tmp_path / f"deep{MAX_EXTENDS_DEPTH + 3}.toml"))
+    assert message.count(".toml") == 2 and "\n" not in message and len(message) < 250, message
+    assert f"at most {MAX_EXTENDS_DEPTH}" in message
+
+
+def test_the_cap_is_exact_and_documented(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    # deepN stands on N + 1 levels of extends (deep0 extends wsg50): the cap's level loads, one more does not.
+    _chain(tmp_path, MAX_EXTENDS_DEPTH + 1)
+    monkeypatch.setenv("GRIPPERS_PROFILE_PATH", str(tmp_path))
+    assert load_profile(f"deep{MAX_EXTENDS_DEPTH - 1}").name == f"deep{MAX_EXTENDS_DEPTH - 1}"
+    with pytest.raises(ProfileError, match=f"more than {MAX_EXTENDS_DEPTH} levels"):
+        load_profile(f"deep{MAX_EXTENDS_DEPTH}")
+    doc = (Path(__file__).resolve().parents[2] / "docs" / "profiles.md").read_text(encoding="utf-8")
+    assert "as long as you like" not in doc and f"up to {MAX_EXTENDS_DEPTH} levels" in doc

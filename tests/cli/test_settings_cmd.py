@@ -148,8 +148,10 @@ def test_msg_save_alone_warns_that_unknown_periods_are_saved_too(msg_on_virtual_
 
 def test_msg_watchdog_out_of_range_is_refused_before_sending(msg_on_virtual_bus, capsys) -> None:
     model, url = msg_on_virtual_bus
-    assert main(["settings", url, "--watchdog", str(2**32), "--yes"]) == 2
-    assert "watchdog" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exited:  # refused while the arguments are parsed (issue 33 §3)
+        main(["settings", url, "--watchdog", str(2**32), "--yes"])
+    assert exited.value.code == 2
+    assert "--watchdog" in capsys.readouterr().err
     assert model.watchdog.timeout_ms == 0
 
 
@@ -197,3 +199,43 @@ def test_settings_over_zenoh_refuses_before_changing_anything(cli, sim_process) 
         proc.terminate()
         proc.communicate(timeout=15)
     assert cli("settings", device, "--json").json()["settings"]["device_tag"] == {"unavailable": "not set"}
+
+
+def test_settings_without_options_shows_what_the_readme_says(capsys) -> None:
+    # Issue 33 §3: the README said `settings` shows an MSG's watchdog and heartbeat; the node cannot report
+    # either, and the command shows its node id, temperature and supply voltage. Each family's line of the
+    # README's paragraph names exactly what the command prints.
+    from pathlib import Path
+
+    readme = (Path(__file__).resolve().parents[2] / "README.md").read_text(encoding="utf-8")
+    paragraph = readme[readme.index("`grippers settings URL` shows") :].split("\n\n", 1)[0]
+    paragraph = " ".join(paragraph.split())
+    wsg_part = paragraph[paragraph.index("on a WSG") : paragraph.index("; on an MSG")]
+    msg_part = paragraph[paragraph.index("on an MSG") : paragraph.index(", and over CAN")]
+    named = {
+        "temperature": "temperature",
+        "acceleration": "acceleration",
+        "force limit": "force limit",
+        "soft limits": "soft limits",
+        "device tag": "device tag",
+        "finger 1": "fingers",
+        "finger 2": "fingers",
+        "node id": "node id",
+        "supply": "supply voltage",
+    }
+    for url, part in (("sim://wsg50", wsg_part), ("sim://msg-150", msg_part)):
+        assert main(["settings", url]) == 0
+        labels = [line.split(":", 1)[0].strip() for line in capsys.readouterr().out.splitlines()]
+        assert labels and all(named[label] in part for label in labels), (labels, part)
+        assert sum(part.count(word) for word in set(named.values())) == len(set(named[x] for x in labels))
+    assert "watchdog" not in msg_part and "heartbeat" not in msg_part
+
+
+def test_a_period_out_of_range_is_a_usage_error_with_the_numbers_as_written(capsys) -> None:
+    # Was "heartbeat 4.29497e+09 is above 4.29497e+09", after the gripper had been opened.
+    with pytest.raises(SystemExit) as exited:  # refused while parsing, before anything opens
+        main(["settings", "sim://msg-150", "--heartbeat", "4294967296"])
+    assert exited.value.code == 2
+    err = capsys.readouterr().err
+    assert "--heartbeat: period 4294967296 is above 4294967295 (allowed: 0..4294967295)" in err, err
+    assert "e+09" not in err and len(err.strip().splitlines()) == 1
