@@ -148,7 +148,7 @@ def wsg_sim() -> Iterator[Callable[..., Any]]:
     """``wsg_sim(listen, time_scale=50, **model_kw)``: a WSG simulator (``serve(WsgModel(**model_kw))``) at
     the driver level; every server is closed after the test, which fails if a simulator thread died (a crash
     in the simulator must not pass for a device that went silent). Profile-level tests use ``gripper_sim``
-    (grippers/testing.py) instead."""
+    (grippers/testing/) instead."""
     from grippers.drivers.wsg.sim import WsgModel, serve
 
     def start(listen: str = "tcp://127.0.0.1:0", *, time_scale: float = 50.0, **model_kw: Any) -> Any:

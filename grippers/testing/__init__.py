@@ -18,6 +18,9 @@ a gripper that stopped answering.
 
 The plugin is registered through the ``pytest11`` entry point in pyproject.toml, so installing the package
 is all a suite needs; importing this module is cheap (the simulators load when first asked for).
+
+:mod:`grippers.testing.conformance` is the backend conformance suite built on this fixture's simulators: a
+family's own tests subclass its ``ConformanceSuite`` (docs/backends.md, "Conformance suite").
 """
 
 from __future__ import annotations
@@ -46,10 +49,10 @@ class GripperSims:
     def __call__(self, profile: str | os.PathLike[str] = "wsg50", **settings: Any) -> SimURL:
         from urllib.parse import urlencode
 
-        from .backends import get_backend
-        from .errors import URLError
-        from .profiles import load_profile
-        from .settings import Settings
+        from ..backends import get_backend
+        from ..errors import URLError
+        from ..profiles import load_profile
+        from ..settings import Settings
 
         chosen = load_profile(profile)
         backend = get_backend(chosen.family)
