@@ -4,8 +4,9 @@ A profile is a TOML file (YAML with the ``yaml`` extra) validated by the pydanti
 in the units people read on datasheets (mm, mm/s, N, mA); the backends convert to SI once. Profiles are found
 on a search path so users add their own without touching the package: an explicit file, then
 ``GRIPPERS_PROFILE_PATH`` (directories or files, ``os.pathsep``-separated), then the user's config directory
-(``$XDG_CONFIG_HOME/grippers/profiles``, default ``~/.config/grippers/profiles``), then the built-ins shipped
-as the data package ``grippers._profiles``.
+(``$XDG_CONFIG_HOME/grippers/profiles``, default ``~/.config/grippers/profiles``), then the folders installed
+plugins declare (entry-point group ``grippers.profiles``), then the built-ins shipped as the data package
+``grippers._profiles``. Which model validates a profile is its family's backend's to say (``profile_model``).
 """
 
 from __future__ import annotations
@@ -15,7 +16,9 @@ import json
 import logging
 import os
 import re
+import sys
 import threading
+import types
 import tomllib
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -396,7 +399,6 @@ class MsgProfile(ProfileBase):
         return limit
 
 
-BUILTIN_PROFILE_MODELS: dict[str, type[ProfileBase]] = {"wsg": WsgProfile, "stepfoc": MsgProfile}
 Profile = ProfileBase  # the type users annotate with
 
 
@@ -413,16 +415,38 @@ def _key(name: str) -> str:
 
 
 def _profile_model(family: Any) -> type[ProfileBase]:
-    if isinstance(family, str) and family in BUILTIN_PROFILE_MODELS:
-        return BUILTIN_PROFILE_MODELS[family]
-    if isinstance(family, str):
-        from .backends import find_backend
+    """The model a profile of ``family`` is validated with: the one its backend declares (the only registry,
+    issue 28), or the generic :class:`ProfileBase` for a backend whose ``profile_model`` is None."""
+    from .backends import available_backends, find_backend
 
+    if isinstance(family, str) and family:
         backend = find_backend(family)
-        if backend is not None and getattr(backend, "profile_model", None) is not None:
-            return backend.profile_model
-    known = ", ".join(sorted(BUILTIN_PROFILE_MODELS))
-    raise ValueError(f"family: unknown family {family!r} (built in: {known}; others come from backends)")
+        if backend is not None:
+            model = getattr(backend, "profile_model", None)
+            return model if model is not None else ProfileBase
+    known = ", ".join(available_backends())
+    raise ValueError(f"family: unknown family {family!r} (installed: {known}; others come from backends)")
+
+
+def installed_profile_models() -> list[type[ProfileBase]]:
+    """The profile model of every installed family (built in or plugin) that declares one, once each.
+
+    A backend that cannot be imported (an optional dependency missing) is skipped with a log line: the models
+    of the others are still what ``grippers profiles schema`` shows.
+    """
+    from .backends import available_backends, find_backend
+
+    models: list[type[ProfileBase]] = []
+    for family in available_backends():
+        try:
+            backend = find_backend(family)
+        except Exception as exc:  # a broken or half-installed plugin must not hide the others
+            log.warning("skipping the profile model of family %r: %s", family, exc)
+            continue
+        model = getattr(backend, "profile_model", None)
+        if model is not None and model not in models:
+            models.append(model)
+    return models
 
 
 Stamp = tuple[int, int, int]  # st_mtime_ns, st_size, st_ino
@@ -684,10 +708,61 @@ def _files_in(entry: Path) -> list[Path]:
     return []
 
 
+PROFILES_ENTRY_POINT_GROUP = "grippers.profiles"
+
+_plugin_folder_cache: dict[tuple[str, ...], list[Path]] = {}
+
+
+def _folder_of(value: Any) -> list[Path]:
+    """The folders an entry point of :data:`PROFILES_ENTRY_POINT_GROUP` names: a package (its own folder), a
+    path, or a list of paths (or a callable returning one of these)."""
+    if callable(value) and not isinstance(value, type):
+        value = value()
+    if isinstance(value, types.ModuleType):
+        return [Path(str(resources.files(value)))] if getattr(value, "__path__", None) else []
+    if isinstance(value, (str, os.PathLike)):
+        return [Path(value)]
+    if isinstance(value, (list, tuple)):
+        return [folder for item in value for folder in _folder_of(item)]
+    return []
+
+
+def plugin_profile_folders() -> list[Path]:
+    """The profile folders installed plugins contribute, in the entry-point group ``grippers.profiles``::
+
+        [project.entry-points."grippers.profiles"]
+        acme = "acme_grippers.profiles"   # a package whose folder holds the family's .toml files
+
+    Searched by name after ``GRIPPERS_PROFILE_PATH`` and the user folder, before the built-ins, so an
+    installed plugin's profiles open by name (``sim://NAME``, ``profiles list``) with no environment variable.
+    Found once per ``sys.path`` (the entry points are read from the installed distributions' metadata).
+    """
+    key = tuple(sys.path)
+    cached = _plugin_folder_cache.get(key)
+    if cached is not None:
+        return list(cached)
+    from importlib.metadata import entry_points
+
+    folders: list[Path] = []
+    for ep in sorted(entry_points(group=PROFILES_ENTRY_POINT_GROUP), key=lambda e: e.name):
+        try:
+            found = _folder_of(ep.load())
+        except Exception as exc:  # one broken plugin must not hide every other profile
+            log.warning("skipping the profile folder of plugin %r (%s): %s", ep.name, ep.value, exc)
+            continue
+        folders.extend(f for f in found if f not in folders)
+    with _cache_lock:
+        _plugin_folder_cache.clear()
+        _plugin_folder_cache[key] = folders
+    return list(folders)
+
+
 def search_path() -> list[Path]:
-    """Directories and files searched for profiles, first match wins (the built-ins come last)."""
+    """Directories and files searched for profiles, first match wins (the built-ins come last):
+    ``GRIPPERS_PROFILE_PATH``, the user folder, then the folders installed plugins contribute."""
     entries = [Path(e) for e in os.environ.get("GRIPPERS_PROFILE_PATH", "").split(os.pathsep) if e]
     entries.append(user_profile_dir())
+    entries.extend(plugin_profile_folders())
     return entries
 
 
@@ -813,6 +888,18 @@ def wsg_profile_for_device_type(device_type: int) -> WsgProfile | None:
 
 
 def json_schema() -> dict[str, Any]:
-    """JSON Schema of every built-in family's profile, for editors (``grippers profiles schema``)."""
-    union = Annotated[WsgProfile | MsgProfile, Field(discriminator="family")]
-    return TypeAdapter(union).json_schema()
+    """JSON Schema of every installed family's profile, for editors (``grippers profiles schema``).
+
+    The union of the models the backends declare; told apart by ``family`` when every model fixes it to one
+    value (a ``Literal``), else a plain union (a plugin's model may leave ``family`` a free string).
+    """
+    models = installed_profile_models() or [ProfileBase]
+    if len(models) == 1:
+        return TypeAdapter(models[0]).json_schema()
+    union: Any = models[0]
+    for model in models[1:]:
+        union = union | model
+    try:
+        return TypeAdapter(Annotated[union, Field(discriminator="family")]).json_schema()
+    except Exception:  # pydantic refuses a discriminator a model does not fix: say "any of" instead
+        return TypeAdapter(union).json_schema()

@@ -8,7 +8,11 @@ import subprocess
 import sys
 from pathlib import Path
 
-BUILTIN = {"wsg25", "wsg32", "wsg50", "wsg70", "msg-100", "msg-150", "msg-200"}
+BUILTIN = {"wsg25", "wsg32", "wsg50", "wsg70", "msg-100", "msg-150", "msg-200"} | {
+    "robotiq-2f85",
+    "robotiq-2f140",
+    "robotiq-hande",
+}
 
 
 def test_list_and_show(cli, cli_json) -> None:
@@ -54,4 +58,7 @@ def test_schema_export(cli) -> None:
     r = cli("profiles", "schema")
     assert r.returncode == 0
     schema = json.loads(r.stdout)
-    assert "WsgProfile" in json.dumps(schema) and "MsgProfile" in json.dumps(schema)
+    text = json.dumps(schema)
+    # The union of the installed families' models, each told apart by its family (issue 28 §2).
+    assert "WsgProfile" in text and "MsgProfile" in text and "RobotiqProfile" in text
+    assert schema["discriminator"]["propertyName"] == "family"
