@@ -639,14 +639,28 @@ def _format_errors(where: str, exc: ValidationError) -> str:
     return f"{where}: " + "; ".join(parts)
 
 
-def parse_profile(data: dict[str, Any], where: str = "<profile>") -> ProfileBase:
-    """Validate a mapping as a profile of its family; errors name ``where``, the field and the rule."""
+class GenericProfile(ProfileBase):
+    """A profile read without its family's model: identity, mechanics, safety and connection; the family's own
+    sections are dropped, not refused. What a ``zenoh://`` client makes of a served profile when the vendor's
+    plugin is not installed here (issue 28 §3: any process can use a served gripper)."""
+
+    model_config = ConfigDict(extra="ignore", frozen=True)
+
+
+def parse_profile(data: dict[str, Any], where: str = "<profile>", *, generic: bool = False) -> ProfileBase:
+    """Validate a mapping as a profile of its family; errors name ``where``, the field and the rule.
+
+    With ``generic=True`` a family that is not installed here is read as a :class:`GenericProfile` instead of
+    refused (a profile served by another process, already validated there by its family's model).
+    """
     if not isinstance(data, dict):
         raise ProfileError(f"{where}: a profile is a mapping of fields, not {type(data).__name__}")
     try:
         model = _profile_model(data.get("family"))
     except ValueError as exc:
-        raise ProfileError(f"{where}: {exc}") from None
+        if not generic:
+            raise ProfileError(f"{where}: {exc}") from None
+        model = GenericProfile
     try:
         profile = model.model_validate(data)
     except ValidationError as exc:
