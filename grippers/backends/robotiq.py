@@ -506,6 +506,12 @@ class RobotiqGripper(Gripper):
 class RobotiqBackend:
     family = "robotiq"
     profile_model = RobotiqProfile
+    default_profile = FALLBACK_PROFILE  # `grippers sim robotiq` without --model
+    sim_help = "simulate a Robotiq gripper (Modbus RTU) on a pseudo-terminal (pty) or tcp://HOST:PORT"
+    sim_example = (
+        "grippers sim robotiq --listen pty --model 2f85\n"
+        "         grippers sim robotiq --listen tcp://127.0.0.1:5020 --model hand-e"
+    )
 
     def open(self, url: ConnectionURL, profile: ProfileBase | None, settings: Settings) -> RobotiqGripper:
         from ..profiles import load_profile

@@ -792,6 +792,13 @@ class StepfocBackend:
     family = "stepfoc"
     profile_model = MsgProfile
 
+    @property
+    def cli_sim(self) -> Any:
+        """``grippers sim``'s options and server start for this family (grippers/cli/sim.py asks for it)."""
+        from . import stepfoc_cli
+
+        return stepfoc_cli
+
     def open(self, url: ConnectionURL, profile: ProfileBase | None, settings: Settings) -> MsgGripper:
         assumed = not isinstance(profile, MsgProfile)  # no profile given: the rail length is a guess
         if not isinstance(profile, MsgProfile):

@@ -416,6 +416,13 @@ class WsgBackend:
     family = "wsg"
     profile_model = WsgProfile
 
+    @property
+    def cli_sim(self) -> Any:
+        """``grippers sim``'s options and server start for this family (grippers/cli/sim.py asks for it)."""
+        from . import wsg_cli
+
+        return wsg_cli
+
     def open(self, url: ConnectionURL, profile: ProfileBase | None, settings: Settings) -> WsgGripper:
         t = profile.transport if isinstance(profile, WsgProfile) else WsgTransport()
         timeout = settings.positive("timeout", t.timeout_s)

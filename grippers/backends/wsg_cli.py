@@ -1,10 +1,13 @@
-"""``grippers sim wsg``: a WSG simulator on TCP, UDP, a pseudo-terminal or a CAN bus."""
+"""The WSG family's command-line hooks: ``grippers sim wsg`` (a WSG simulator on TCP, UDP, a pseudo-terminal or
+a CAN bus, or the replay of a capture). The backend offers this module as its ``cli_sim``."""
 
 from __future__ import annotations
 
 import argparse
 
-from .sim_common import (
+from typing import Any
+
+from ..cli.sim_common import (
     add_sim_arguments,
     serve_forever,
     serve_replay,
@@ -17,6 +20,7 @@ from .sim_common import (
 # simulator. A user without root gets a free port instead, and is told (sim_common.start_server).
 DEFAULT_LISTEN = "tcp://127.0.0.1:1000"
 
+NAMES = ("wsg",)  # `grippers sim wsg`
 HELP = "simulate a WSG gripper (binary protocol) on tcp://, udp://, pty or can://"
 EXAMPLE = (
     "grippers sim wsg --listen tcp://127.0.0.1:1000\n"
@@ -42,18 +46,34 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def run(args: argparse.Namespace) -> int:
-    from grippers.backends import get_backend
+def _replay(args: argparse.Namespace, blob: bytes) -> tuple[Any, Any]:
+    from grippers.drivers.wsg.sim.replay import WsgReplayServer, wsg_script
+    from grippers.urls import parse_url
+
+    from ..cli.output import UsageError
+
+    script = wsg_script(blob, args.replay)
+    listen = args.listen or DEFAULT_LISTEN
+    if listen.partition("://")[0] != "tcp":
+        raise UsageError(f"--replay serves a WSG on tcp://HOST:PORT, not {listen!r}")
+    where = parse_url(listen, bare_family="wsg", listen=True)  # the one grammar: drivers/urls.py
+    host, port = where.host, where.port
+    if not host or port is None:
+        raise UsageError(f"--replay serves a WSG on tcp://HOST:PORT, not {listen!r}")
+    server = start_server(lambda _: WsgReplayServer(script, host, port, args.time_scale), listen, listen)
+    return server, script
+
+
+def run(args: argparse.Namespace, backend: Any) -> int:
     from grippers.profiles import load_profile
 
     if args.replay:
-        return serve_replay(args, "wsg")
+        return serve_replay(args, lambda blob: _replay(args, blob))
 
-    from .output import UsageError
+    from ..cli.output import UsageError
 
     profile = load_profile(args.profile)
-    backend = get_backend("wsg")
-    if profile.family != "wsg":
+    if profile.family != backend.family:
         raise UsageError(f"profile {profile.name} is a {profile.family} profile, not a WSG one")
     warn_private_bus(args.listen or "")
     settings = settings_for(profile, args, firmware=args.firmware)
