@@ -17,7 +17,6 @@ and grippers.testing make on a backend.
 from __future__ import annotations
 
 import importlib
-from importlib.metadata import entry_points
 from typing import TYPE_CHECKING, Any, Protocol
 
 from ..errors import URLError
@@ -83,6 +82,8 @@ def _load(spec: str) -> Any:
 
 
 def _plugin_specs() -> dict[str, Any]:
+    from importlib.metadata import entry_points  # ~30 ms: only when a family is looked up, never at --help
+
     return {ep.name: ep for ep in entry_points(group=ENTRY_POINT_GROUP)}
 
 
