@@ -18,8 +18,8 @@ import os
 import re
 import sys
 import threading
-import types
 import tomllib
+import types
 from collections.abc import Iterator
 from dataclasses import dataclass
 from importlib import resources

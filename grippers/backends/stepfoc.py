@@ -799,6 +799,19 @@ class StepfocBackend:
 
         return stepfoc_cli
 
+    @property
+    def device_settings(self) -> Any:
+        """``grippers settings`` and ``selftest``: what this family stores besides its motion."""
+        from .stepfoc_settings import StepfocDeviceSettings
+
+        return StepfocDeviceSettings()
+
+    def selftest_checks(self, gripper: Any, add: Callable[..., None]) -> None:
+        """``grippers selftest``'s lines of this family (``add(name, measured, expected, verdict, note)``)."""
+        from .stepfoc_settings import selftest_checks
+
+        selftest_checks(gripper, add)
+
     def open(self, url: ConnectionURL, profile: ProfileBase | None, settings: Settings) -> MsgGripper:
         assumed = not isinstance(profile, MsgProfile)  # no profile given: the rail length is a guess
         if not isinstance(profile, MsgProfile):

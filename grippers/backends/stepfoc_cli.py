@@ -1,10 +1,9 @@
-"""The STEPFOC family's command-line hooks: ``grippers sim msg`` (MSG grippers on STEPFOC drivers, as CAN nodes
-or on a UART pseudo-terminal, or the replay of a candump log). The backend offers this module as its ``cli_sim``."""
+"""The STEPFOC family's command-line hooks: ``grippers sim msg`` (MSG grippers on STEPFOC drivers, as CAN
+nodes or on a UART pseudo-terminal, or the replay of a candump log). The backend offers it as its ``cli_sim``."""
 
 from __future__ import annotations
 
 import argparse
-
 from typing import Any
 
 from ..cli.sim_common import add_sim_arguments, serve_forever, serve_replay, settings_for, warn_private_bus

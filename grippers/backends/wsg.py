@@ -415,6 +415,7 @@ def _narrow(limits: Limits, device: SystemLimits, profile: str) -> tuple[Limits,
 class WsgBackend:
     family = "wsg"
     profile_model = WsgProfile
+    reports_stroke = True  # 53h: selftest compares it with the profile
 
     @property
     def cli_sim(self) -> Any:
@@ -422,6 +423,19 @@ class WsgBackend:
         from . import wsg_cli
 
         return wsg_cli
+
+    @property
+    def device_settings(self) -> Any:
+        """``grippers settings`` and ``selftest``: what this family stores besides its motion."""
+        from .wsg_settings import WsgDeviceSettings
+
+        return WsgDeviceSettings()
+
+    def selftest_checks(self, gripper: Any, add: Callable[..., None]) -> None:
+        """``grippers selftest``'s lines of this family (``add(name, measured, expected, verdict, note)``)."""
+        from .wsg_settings import selftest_checks
+
+        selftest_checks(gripper, add)
 
     def open(self, url: ConnectionURL, profile: ProfileBase | None, settings: Settings) -> WsgGripper:
         t = profile.transport if isinstance(profile, WsgProfile) else WsgTransport()

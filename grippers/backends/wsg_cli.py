@@ -1,10 +1,9 @@
-"""The WSG family's command-line hooks: ``grippers sim wsg`` (a WSG simulator on TCP, UDP, a pseudo-terminal or
-a CAN bus, or the replay of a capture). The backend offers this module as its ``cli_sim``."""
+"""The WSG family's command-line hooks: ``grippers sim wsg`` (a WSG simulator on TCP, UDP, a pseudo-terminal
+or a CAN bus, or the replay of a capture). The backend offers this module as its ``cli_sim``."""
 
 from __future__ import annotations
 
 import argparse
-
 from typing import Any
 
 from ..cli.sim_common import (

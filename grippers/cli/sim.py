@@ -1,10 +1,10 @@
 """``grippers sim FAMILY``: serve a simulated gripper of any installed family over a real transport.
 
 The family's backend says what its simulator takes (issue 28 §2): a backend with a ``cli_sim`` object (its
-``HELP``, ``EXAMPLE``, ``NAMES``, ``add_arguments(parser)`` and ``run(args, backend)``) has its own options (a
-WSG's ``--firmware``, an MSG's CAN nodes); a backend with only ``simulator(profile, settings, listen)`` gets the
-common options (:data:`GENERIC`). The family is read first and its parser built then, so ``grippers --help``
-loads no backend.
+``HELP``, ``EXAMPLE``, ``NAMES``, ``add_arguments(parser)`` and ``run(args, backend)``) has its own options
+(a WSG's ``--firmware``, an MSG's CAN nodes); a backend with only ``simulator(profile, settings, listen)``
+gets the common options (:class:`Generic`). The family is read first and its parser built then, so
+``grippers --help`` loads no backend.
 """
 
 from __future__ import annotations

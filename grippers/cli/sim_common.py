@@ -1,4 +1,4 @@
-"""What every family's ``grippers sim FAMILY`` shares: options, replaying a capture, serving until interrupted."""
+"""What every family's ``grippers sim FAMILY`` shares: options, replaying a capture, serving until stopped."""
 
 from __future__ import annotations
 
@@ -43,8 +43,8 @@ def add_sim_arguments(
         parser.add_argument(
             "--replay",
             metavar="FILE",
-            help="answer as the captured session did (a capture saved by grippers monitor --write); a request "
-            "that differs from the capture is reported on stderr and not answered",
+            help="answer as the captured session did (a capture saved by grippers monitor --write); a "
+            "request that differs from the capture is reported on stderr and not answered",
         )
     parser.add_argument(
         "--json",

@@ -102,7 +102,7 @@ def test_plugin_gripper_moves_with_limit_checks(plugin_site: Path) -> None:
 # ``acme`` reuses the Robotiq driver and simulator (a lab's rebadged 2F-85), and declares its own profile
 # model and its profile folder in the entry-point group ``grippers.profiles``.
 
-ACME_PLUGIN = '''
+ACME_PLUGIN = """
 from typing import Literal
 
 from grippers.backends.robotiq import RobotiqBackend, RobotiqProfile
@@ -123,7 +123,7 @@ class AcmeBackend(RobotiqBackend):
 
     def simulate(self, profile, settings):
         return self.simulator(profile, settings)
-'''
+"""
 
 ACME_PROFILE = """
 name = "acme-a1"
