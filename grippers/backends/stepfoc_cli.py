@@ -1,5 +1,6 @@
 """The STEPFOC family's command-line hooks: ``grippers sim msg`` (MSG grippers on STEPFOC drivers, as CAN
-nodes or on a UART pseudo-terminal, or the replay of a candump log). The backend offers it as its ``cli_sim``."""
+nodes or on a UART pseudo-terminal, or the replay of a candump log). The backend offers it as
+its ``cli_sim``."""
 
 from __future__ import annotations
 
