@@ -17,6 +17,8 @@ and grippers.testing make on a backend.
 from __future__ import annotations
 
 import importlib
+from collections.abc import Callable
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Protocol
 
 from ..errors import URLError
@@ -62,6 +64,20 @@ class BusSimulatedBackend(SimulatedBackend, Protocol):
     def sim_model(self, profile: ProfileBase, node: int, part_width_mm: float | None) -> Any: ...
 
     def serve(self, models: list[Any], listen: str, settings: Settings) -> SimServer: ...
+
+
+@dataclass(frozen=True)
+class Dissector:
+    """What a family's ``dissector()`` hook gives ``grippers monitor`` (issue 28 §2): its protocol's name,
+    and the readers it has: ``stream()`` for a byte stream (a capture, the TCP proxy), ``can(options)`` for
+    CAN frames (``options``: ``only`` when ``--protocol`` names it, ``wsg_id`` from ``--wsg-id``), and the
+    device's TCP port for the proxy. ``bytes_default``: the reader of a byte capture when none is named."""
+
+    protocol: str
+    stream: Callable[[], Any] | None = None
+    can: Callable[[dict[str, Any]], Any] | None = None
+    tcp_port: int | None = None
+    bytes_default: bool = False
 
 
 class SimServer(Protocol):

@@ -513,6 +513,14 @@ class RobotiqBackend:
         "         grippers sim robotiq --listen tcp://127.0.0.1:5020 --model hand-e"
     )
 
+    def dissector(self) -> Any:
+        """``grippers monitor``: Modbus RTU frames (a byte capture, or the TCP proxy to a gateway)."""
+        from grippers.drivers.robotiq.dissect import PROTOCOL, ModbusDissector
+
+        from . import Dissector
+
+        return Dissector(PROTOCOL, stream=ModbusDissector, tcp_port=RobotiqTransport().tcp_port)
+
     def open(self, url: ConnectionURL, profile: ProfileBase | None, settings: Settings) -> RobotiqGripper:
         from ..profiles import load_profile
 

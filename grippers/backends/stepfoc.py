@@ -812,6 +812,14 @@ class StepfocBackend:
 
         selftest_checks(gripper, add)
 
+    def dissector(self) -> Any:
+        """``grippers monitor``: STEPFOC CAN frames (its captures are candump logs)."""
+        from grippers.drivers.stepfoc.dissect import StepfocCanDissector
+
+        from . import Dissector
+
+        return Dissector(StepfocCanDissector.protocol, can=lambda _o: StepfocCanDissector())
+
     def open(self, url: ConnectionURL, profile: ProfileBase | None, settings: Settings) -> MsgGripper:
         assumed = not isinstance(profile, MsgProfile)  # no profile given: the rail length is a guess
         if not isinstance(profile, MsgProfile):

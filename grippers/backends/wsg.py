@@ -437,6 +437,20 @@ class WsgBackend:
 
         selftest_checks(gripper, add)
 
+    def dissector(self) -> Any:
+        """``grippers monitor``: WSG packets from bytes (captures, the TCP proxy) or CAN frames."""
+        from grippers.drivers.wsg.dissect import PROTOCOL, WsgCanDissector, WsgStream
+
+        from . import Dissector
+
+        return Dissector(
+            PROTOCOL,
+            stream=WsgStream,
+            can=lambda o: WsgCanDissector(o.get("wsg_id", 0x000), bool(o.get("only"))),
+            tcp_port=WsgTransport().tcp_port,
+            bytes_default=True,
+        )
+
     def open(self, url: ConnectionURL, profile: ProfileBase | None, settings: Settings) -> WsgGripper:
         t = profile.transport if isinstance(profile, WsgProfile) else WsgTransport()
         timeout = settings.positive("timeout", t.timeout_s)
