@@ -80,6 +80,31 @@ class Dissector:
     bytes_default: bool = False
 
 
+@dataclass(frozen=True)
+class ProbeCandidate:
+    """One URL a family's ``probe_candidates(transport, where, options)`` hook offers for a bare transport
+    (``grippers probe tcp://HOST``, a serial port, a CAN bus). Candidates sharing a serial port are tried
+    in ``order``; ``unless_nodes``: tried only when no node answered at these bus nodes (a frame that would
+    be another family's E-stop there)."""
+
+    url: str
+    order: int = 50
+    unless_nodes: tuple[int, ...] = ()
+
+
+@dataclass(frozen=True)
+class RawProbe:
+    """A family's ``raw_probe(transport)`` hook: after a silent open, ``grippers probe`` sends ``request`` on
+    a raw connection and tells a device that answers garbage (another protocol, baud rate) from a silent
+    one. ``goodbye`` is sent after (a WSG on TCP must not be left in FAST STOP); ``is_answer(received)``:
+    bytes that are the family's (a late answer: the timeout stands); ``port``: for a URL without one."""
+
+    request: bytes
+    goodbye: bytes = b""
+    is_answer: Callable[[bytes], bool] | None = None
+    port: int | None = None
+
+
 class SimServer(Protocol):
     """A running simulator: where to connect, and how to stop it."""
 

@@ -521,6 +521,15 @@ class RobotiqBackend:
 
         return Dissector(PROTOCOL, stream=ModbusDissector, tcp_port=RobotiqTransport().tcp_port)
 
+    def probe_candidates(self, transport: str, where: ConnectionURL, options: dict[str, Any]) -> list[Any]:
+        """``grippers probe`` on a bare serial port: Modbus RTU at the gripper's factory slave id (9)."""
+        from . import ProbeCandidate
+
+        if transport != "serial":
+            return []
+        t = RobotiqTransport()
+        return [ProbeCandidate(f"robotiq+serial://{where.serial_port}?baudrate={t.baudrate}", order=30)]
+
     def open(self, url: ConnectionURL, profile: ProfileBase | None, settings: Settings) -> RobotiqGripper:
         from ..profiles import load_profile
 

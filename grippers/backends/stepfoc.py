@@ -788,6 +788,10 @@ class MsgGripper(Gripper):
         self._mode, self._held = "idle", False
 
 
+UART_BAUD = 256000  # docs/protocols.md §2: the probe's speed on a bare serial port
+PROBE_NODES = 16  # 4-bit node id (MSG manual, "Bits 10 - 7 of CAN ID")
+
+
 class StepfocBackend:
     family = "stepfoc"
     profile_model = MsgProfile
@@ -819,6 +823,28 @@ class StepfocBackend:
         from . import Dissector
 
         return Dissector(StepfocCanDissector.protocol, can=lambda _o: StepfocCanDissector())
+
+    def probe_candidates(self, transport: str, where: ConnectionURL, options: dict[str, Any]) -> list[Any]:
+        """``grippers probe`` on a bare transport: the UART on a serial port, nodes 0-15 on a CAN bus."""
+        from . import ProbeCandidate
+
+        if transport == "serial":
+            return [ProbeCandidate(f"stepfoc+serial://{where.serial_port}?baudrate={UART_BAUD}", order=20)]
+        if transport == "can":
+            extra = f"&bitrate={options['bitrate']}" if options.get("bitrate") else ""
+            base = f"stepfoc+can://{where.interface}/{where.channel}"
+            # Each node gets its own bus connection, so the nodes are asked in parallel.
+            return [ProbeCandidate(f"{base}?node={node}{extra}", order=10) for node in range(PROBE_NODES)]
+        return []
+
+    def raw_probe(self, transport: str) -> Any:
+        if transport != "serial":
+            return None
+        from grippers.drivers.stepfoc import probe as stepfoc_probe
+
+        from . import RawProbe
+
+        return RawProbe(stepfoc_probe.identify_request())
 
     def open(self, url: ConnectionURL, profile: ProfileBase | None, settings: Settings) -> MsgGripper:
         assumed = not isinstance(profile, MsgProfile)  # no profile given: the rail length is a guess

@@ -85,3 +85,66 @@ def run(args: argparse.Namespace, backend: Any) -> int:
     settings.finish()
     what = f"simulated {profile.model} (firmware {server.model.firmware})"
     return serve_forever(server, what, as_json=args.json)
+
+
+# --- grippers probe ----------------------------------------------------------------------------------------
+# Defaults not in the manuals; docs/protocols.md §1 "Transport defaults".
+TCP_PORT = 1000
+UDP_PORT = 1500
+SERIAL_BAUD = 115200
+# The WSG over CAN: commands on a base id, replies on base + 1, base 0x000 (docs/protocols.md §1, one public
+# driver); the probe adds the ids of every WSG profile on the search path.
+CAN_IDS: tuple[tuple[int, int], ...] = ((0x000, 0x001),)
+
+
+def can_ids(given: list[int] | None) -> tuple[tuple[int, int], ...]:
+    """``--can-id`` as id pairs, or those of every WSG profile on the search path."""
+    if given:
+        return tuple((i, i + 1) for i in dict.fromkeys(given))
+    from grippers.profiles import WsgProfile, list_profiles
+
+    ids = {
+        (p.transport.can_send_id, p.transport.can_recv_id)
+        for p in list_profiles()
+        if isinstance(p, WsgProfile)
+    }
+    return tuple(sorted(ids)) or CAN_IDS
+
+
+def probe_candidates(transport: str, where: Any, options: dict[str, Any]) -> list[Any]:
+    from grippers.urls import format_host
+
+    from . import ProbeCandidate
+
+    if transport in ("tcp", "udp"):
+        port = where.port or (TCP_PORT if transport == "tcp" else UDP_PORT)
+        return [ProbeCandidate(f"wsg+{transport}://{format_host(where.host, port)}", order=10)]
+    if transport == "serial":
+        return [ProbeCandidate(f"wsg+serial://{where.serial_port}?baudrate={SERIAL_BAUD}", order=10)]
+    if transport == "can":
+        ids = options.get("wsg_can_ids") or can_ids(options.get("can_ids"))
+        extra = f"&bitrate={options['bitrate']}" if options.get("bitrate") else ""
+        out = []
+        for send_id, recv_id in ids:
+            url = (
+                f"wsg+can://{where.interface}/{where.channel}?send_id=0x{send_id:03X}&recv_id=0x{recv_id:03X}"
+            )
+            # A STEPFOC node answering on the ids a WSG packet would use must not receive one (an id with
+            # command 0 is that node's E-stop): those WSG candidates wait for the node probe.
+            nodes = tuple({i >> 7 for i in (send_id, recv_id)})
+            out.append(ProbeCandidate(url + extra, order=20, unless_nodes=nodes))
+        return out
+    return []
+
+
+def raw_probe(transport: str) -> Any:
+    from grippers.drivers.wsg import probe as wsg_probe
+
+    from . import RawProbe
+
+    return RawProbe(
+        wsg_probe.identify_request(),
+        goodbye=wsg_probe.goodbye(transport),  # a WSG on TCP must not be left in FAST STOP by this check
+        is_answer=wsg_probe.holds_a_packet,
+        port=TCP_PORT if transport == "tcp" else UDP_PORT,
+    )

@@ -1,6 +1,6 @@
 """Issue 28 §2: the Robotiq family takes part in the commands through its backend's hooks, with no
-``family ==`` branch in the CLI: ``grippers sim robotiq``, ``monitor`` dissecting its Modbus frames through the
-TCP proxy, ``settings`` saying the family has none, and a bare serial port probed for Modbus slave 9."""
+``family ==`` branch in the CLI: ``grippers sim robotiq``, ``monitor`` dissecting its Modbus frames through
+the TCP proxy, ``settings`` saying the family has none, and a bare serial port probed for Modbus slave 9."""
 
 from __future__ import annotations
 
@@ -72,3 +72,12 @@ def test_sim_robotiq_serves_a_model_on_a_pty() -> None:
     finally:
         sim.terminate()
         sim.wait(10)
+
+
+def test_probe_on_a_bare_serial_port_finds_the_gripper_at_slave_9(gripper_sim, capsys) -> None:
+    url = gripper_sim("robotiq-2f85", transport="pty", activated=True)
+    path = url.partition("://")[2].partition("?")[0]
+    assert main(["probe", f"serial://{path}", "--timeout", "1", "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    found = [g for g in doc["grippers"] if g["url"].startswith("robotiq+serial://")]
+    assert len(found) == 1 and found[0]["model"] == "2F-85" and found[0]["profile"] == "robotiq-2f85", doc
