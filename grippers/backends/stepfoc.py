@@ -31,9 +31,10 @@ from ..gripper import (
     StartedRead,
     StateCallback,
 )
-from ..profiles import MsgProfile, ProfileBase, load_profile
+from ..profiles import ProfileBase, load_profile
 from ..settings import Settings
 from ..urls import ConnectionURL
+from .stepfoc_profile import MsgProfile
 
 if TYPE_CHECKING:
     import asyncio

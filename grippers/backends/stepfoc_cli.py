@@ -52,7 +52,9 @@ def _replay(args: argparse.Namespace, blob: bytes) -> tuple[Any, Any]:
 
 
 def run(args: argparse.Namespace, backend: Any) -> int:
-    from grippers.profiles import MsgProfile, load_profile
+    from grippers.profiles import load_profile
+
+    from .stepfoc_profile import MsgProfile
 
     if args.replay:
         return serve_replay(args, lambda blob: _replay(args, blob))

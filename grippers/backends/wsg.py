@@ -38,16 +38,10 @@ from ..gripper import (
     StartedRead,
     StateCallback,
 )
-from ..profiles import (
-    Limits,
-    ProfileBase,
-    WsgProfile,
-    WsgTransport,
-    load_profile,
-    wsg_profile_for_device_type,
-)
+from ..profiles import Limits, ProfileBase, load_profile
 from ..settings import Settings
 from ..urls import ConnectionURL
+from .wsg_profile import WsgProfile, WsgTransport, wsg_profile_for_device_type
 
 # WSG grasping states (manual 4.0.x §3.4.2) onto the common enum: the names match one to one.
 _GRASP: dict[int, GraspState] = {

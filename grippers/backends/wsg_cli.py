@@ -101,7 +101,9 @@ def can_ids(given: list[int] | None) -> tuple[tuple[int, int], ...]:
     """``--can-id`` as id pairs, or those of every WSG profile on the search path."""
     if given:
         return tuple((i, i + 1) for i in dict.fromkeys(given))
-    from grippers.profiles import WsgProfile, list_profiles
+    from grippers.profiles import list_profiles
+
+    from .wsg_profile import WsgProfile
 
     ids = {
         (p.transport.can_send_id, p.transport.can_recv_id)
