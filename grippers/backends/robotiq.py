@@ -506,6 +506,7 @@ class RobotiqGripper(Gripper):
 class RobotiqBackend:
     family = "robotiq"
     profile_model = RobotiqProfile
+    bare_forms = {"serial": (30, "robotiq+serial://{rest}")}  # the "did you mean" of a bare serial port
     default_profile = FALLBACK_PROFILE  # `grippers sim robotiq` without --model
     sim_help = "simulate a Robotiq gripper (Modbus RTU) on a pseudo-terminal (pty) or tcp://HOST:PORT"
     sim_example = (

@@ -796,6 +796,8 @@ PROBE_NODES = 16  # 4-bit node id (MSG manual, "Bits 10 - 7 of CAN ID")
 class StepfocBackend:
     family = "stepfoc"
     profile_model = MsgProfile
+    # What a bare transport's URL would be for an MSG (the "did you mean" of a mistyped target), ranked.
+    bare_forms = {"serial": (20, "stepfoc+serial://{rest}"), "can": (10, "stepfoc+can://{rest}?node=0")}
 
     @property
     def cli_sim(self) -> Any:

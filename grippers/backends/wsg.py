@@ -409,6 +409,13 @@ def _narrow(limits: Limits, device: SystemLimits, profile: str) -> tuple[Limits,
 class WsgBackend:
     family = "wsg"
     profile_model = WsgProfile
+    # What a bare transport's URL would be for a WSG (the "did you mean" of a mistyped target), ranked.
+    bare_forms = {
+        "tcp": (10, "wsg+tcp://{rest}"),
+        "udp": (10, "wsg+udp://{rest}"),
+        "serial": (10, "wsg+serial://{rest}"),
+        "can": (20, "wsg+can://{rest}"),
+    }
     reports_stroke = True  # 53h: selftest compares it with the profile
 
     @property
