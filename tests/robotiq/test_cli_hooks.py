@@ -81,3 +81,11 @@ def test_probe_on_a_bare_serial_port_finds_the_gripper_at_slave_9(gripper_sim, c
     doc = json.loads(capsys.readouterr().out)
     found = [g for g in doc["grippers"] if g["url"].startswith("robotiq+serial://")]
     assert len(found) == 1 and found[0]["model"] == "2F-85" and found[0]["profile"] == "robotiq-2f85", doc
+
+
+def test_selftest_runs_and_says_the_family_offers_no_settings(capsys) -> None:
+    code = main(["selftest", "sim://robotiq-2f85?time_scale=50&activated=true", "--yes"])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    assert "the robotiq backend offers no device settings" in out
+    assert "the robotiq gripper does not report its stroke" in out
