@@ -115,6 +115,7 @@ class AcmeProfile(RobotiqProfile):
 class AcmeBackend(RobotiqBackend):
     family = "acme"
     profile_model = AcmeProfile
+    default_profile = None  # `grippers sim acme`: the first acme profile on the search path
 
     def simulator(self, profile, settings, listen=None):
         server = super().simulator(profile, settings, listen)
@@ -196,3 +197,25 @@ def test_gripper_sim_starts_a_plugin_profile_by_name(
     with grippers.open(url) as g:
         assert g.profile.name == "acme-a1" and type(g.profile).__name__ == "AcmeProfile"
         assert g.limits.max_width == pytest.approx(0.085)
+
+
+def test_grippers_sim_serves_a_plugin_family_by_its_hooks(acme_site: Path) -> None:
+    """``grippers sim acme``: the plugin declares no sim command of its own, so its ``simulator`` gets the
+    common options, and its default profile is the first of its family on the search path."""
+    import json
+
+    env = {**os.environ, "PYTHONPATH": str(acme_site), "PYTHONUNBUFFERED": "1"}
+    cmd = [sys.executable, "-m", "grippers", "sim", "acme", "--listen", "tcp://127.0.0.1:0", "--json"]
+    proc = subprocess.Popen(cmd, cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert proc.stdout is not None
+        line = proc.stdout.readline()
+        assert line, proc.stderr.read() if proc.stderr else ""
+        doc = json.loads(line)
+        assert doc["urls"][0].startswith("acme+tcp://127.0.0.1:") and doc["what"] == "simulated A1"
+    finally:
+        proc.terminate()
+        proc.wait(10)
+        for stream in (proc.stdout, proc.stderr):
+            if stream:
+                stream.close()
