@@ -3,9 +3,11 @@
 
 A record is a plain dict (time, protocol, direction, id, node, command, fields, status, text, raw), the
 ``grippers.monitor/1`` document of docs/cli.md; :func:`render_line` is its one-line text form. The family
-dissectors beside the drivers fill it (:mod:`.wsg.dissect` reassembles WSG packets from bytes,
-:mod:`.stepfoc.dissect` reads STEPFOC CAN frames and UART lines); :class:`CanDecoder` chooses between them
-for a bus that carries both. Pure code, no I/O; the drivers import it, never ``grippers``.
+dissectors beside each family's driver fill it, and this module knows none of them (issue 28 §2): a family
+that shows its text in its own way registers that form (:func:`register_text_form`), and
+:class:`CanDecoder` asks the CAN dissectors it is given, in order, which of them reads a frame (a bus may
+carry several families). The backends hand their dissectors to ``grippers monitor`` (their ``dissector()``
+hook). Pure code, no I/O; the drivers import it, never ``grippers``.
 """
 
 from __future__ import annotations
@@ -13,8 +15,8 @@ from __future__ import annotations
 import dataclasses
 import enum
 import logging
-from collections.abc import Iterator
-from typing import Any
+from collections.abc import Callable, Iterator, Sequence
+from typing import Any, Protocol
 
 from .captures import FROM_DEVICE as FROM_GRIPPER
 from .captures import TO_DEVICE as TO_GRIPPER
@@ -24,9 +26,11 @@ __all__ = [
     "TO_GRIPPER",
     "WIRE_LOGGER",
     "CanDecoder",
+    "CanDissector",
     "field_value",
     "log_record",
     "record",
+    "register_text_form",
     "render_line",
 ]
 
@@ -59,7 +63,7 @@ def field_value(value: Any) -> Any:
 def record(**fields: Any) -> dict[str, Any]:
     base: dict[str, Any] = {
         "time": None,
-        "protocol": "wsg",
+        "protocol": None,  # the family dissector's own name ("can" for a frame no family reads)
         "direction": "?",
         "id": None,
         "node": None,
@@ -73,17 +77,29 @@ def record(**fields: Any) -> dict[str, Any]:
     return base
 
 
+# protocol -> the one-line text of its records, for a family whose text is not "ID  description"
+_text_forms: dict[str, Callable[[dict[str, Any]], str]] = {}
+
+
+def register_text_form(protocol: str, form: Callable[[dict[str, Any]], str]) -> None:
+    """A family's own text column (its dissector module registers it when imported, before any record)."""
+    _text_forms[protocol] = form
+
+
 def render_line(rec: dict[str, Any], *, with_time: bool = True) -> str:
-    """time, arrow, protocol, then the drivers' own one-line description (the CAN id for STEPFOC frames).
+    """time, arrow, protocol, then the drivers' own one-line description (the frame's id first, unless the
+    family registered its own form).
 
     ``with_time=False`` leaves the time column out: a log line carries its own time stamp.
     """
     arrow = {TO_GRIPPER: "->", FROM_GRIPPER: "<-"}.get(rec["direction"], "??")
-    text = rec["text"]
-    if rec["protocol"] == "wsg":
-        text = text.removeprefix("-> ").removeprefix("<- ")  # the arrow column says it already
-    elif rec["id"] is not None:  # CAN frames; UART lines have no id
-        text = f"{rec['id']}  {text}"
+    form = _text_forms.get(rec["protocol"])
+    if form is not None:
+        text = form(rec)
+    elif rec["id"] is not None:  # CAN frames and the like; UART lines have no id
+        text = f"{rec['id']}  {rec['text']}"
+    else:
+        text = rec["text"]
     line = f"{arrow}  {rec['protocol']:<7}  {text}".rstrip()
     if not with_time:
         return line
@@ -96,29 +112,27 @@ def log_record(device: str, rec: dict[str, Any]) -> None:
     wire_log.debug("%s  %s", device, render_line(rec, with_time=False))
 
 
+class CanDissector(Protocol):
+    """One family's reading of CAN frames (its driver's ``dissect`` module makes it)."""
+
+    protocol: str
+    catch_all: bool  # reads any 11-bit frame (asked last), or only its own (asked first)
+
+    def claims(self, arbitration_id: int, data: bytes, is_remote: bool) -> bool: ...
+
+    def decode(
+        self, arbitration_id: int, data: bytes, is_remote: bool, stamp: float | None
+    ) -> list[dict]: ...
+
+    def flush(self) -> Iterator[dict[str, Any]]: ...
+
+
 class CanDecoder:
-    """Decodes CAN frames: STEPFOC frames by the drivers' table, WSG packets reassembled from their ids."""
+    """Decodes CAN frames with the families' dissectors: the first that claims a frame reads it; those that
+    read only their own ids are asked before one that reads anything."""
 
-    def __init__(self, protocol: str, wsg_id: int) -> None:
-        self.protocol = protocol
-        self.wsg_id = wsg_id
-        self._wsg: Any = None  # a wsg.dissect.WsgStream, made on the first WSG frame
-
-    def _wsg_stream(self) -> Any:
-        if self._wsg is None:
-            from .wsg.dissect import WsgStream
-
-            self._wsg = WsgStream()
-        return self._wsg
-
-    def _is_wsg(self, arbitration_id: int, data: bytes, direction: str) -> bool:
-        if self.protocol != "auto":
-            return self.protocol == "wsg"
-        if arbitration_id not in (self.wsg_id, self.wsg_id + 1):
-            return False
-        # These ids are also a STEPFOC node's frames (0x000 is node 0's E-stop, which has no data): a frame is
-        # WSG when it starts a packet or continues one (docs/protocols.md §1 CAN: 8-byte chunks of a packet).
-        return data.startswith(b"\xaa") or (self._wsg is not None and self._wsg.busy(direction))
+    def __init__(self, dissectors: Sequence[CanDissector]) -> None:
+        self.dissectors = sorted(dissectors, key=lambda d: d.catch_all)  # stable: the given order otherwise
 
     def decode(
         self,
@@ -140,10 +154,10 @@ class CanDecoder:
         if is_error:
             other = "error frame", f"CAN error frame (class 0x{arbitration_id:X}, data {data.hex() or '-'})"
         elif is_extended or arbitration_id > 0x7FF:
-            # STEPFOC and the WSG use 11-bit identifiers only (docs/protocols.md §1 CAN, §2 CAN).
-            other = "extended frame", f"extended (29-bit) id, not a WSG or STEPFOC frame: {data.hex() or '-'}"
+            # The families' CAN protocols use 11-bit identifiers only (docs/protocols.md §1 CAN, §2 CAN).
+            other = "extended frame", f"extended (29-bit) id, not a gripper's frame: {data.hex() or '-'}"
         elif is_fd:
-            other = "fd frame", f"CAN FD frame ({len(data)} bytes), not a WSG or STEPFOC frame: {data.hex()}"
+            other = "fd frame", f"CAN FD frame ({len(data)} bytes), not a gripper's frame: {data.hex()}"
         if other is not None:
             return [
                 record(
@@ -172,13 +186,21 @@ class CanDecoder:
             ]
 
     def _decode(self, arbitration_id: int, data: bytes, is_remote: bool, stamp: float | None) -> list[dict]:
-        direction = FROM_GRIPPER if arbitration_id == self.wsg_id + 1 else TO_GRIPPER
-        if not is_remote and self._is_wsg(arbitration_id, data, direction):
-            return list(self._wsg_stream().feed(direction, data, stamp))
-        from .stepfoc.dissect import can_frame_record
-
-        return [can_frame_record(arbitration_id, data, is_remote, stamp)]
+        for dissector in self.dissectors:
+            if dissector.claims(arbitration_id, data, is_remote):
+                return dissector.decode(arbitration_id, data, is_remote, stamp)
+        return [
+            record(
+                time=stamp,
+                protocol="can",
+                id=f"{arbitration_id:03X}",
+                status="unclaimed",
+                fields={"bytes": len(data)},
+                text=f"no dissector reads this frame: {data.hex() or '-'}",
+                raw="R" if is_remote else data.hex(),
+            )
+        ]
 
     def flush(self) -> Iterator[dict[str, Any]]:
-        if self._wsg is not None:
-            yield from self._wsg.flush()
+        for dissector in self.dissectors:
+            yield from dissector.flush()

@@ -4,8 +4,9 @@ A profile is a TOML file (YAML with the ``yaml`` extra) validated by the pydanti
 in the units people read on datasheets (mm, mm/s, N, mA); the backends convert to SI once. Profiles are found
 on a search path so users add their own without touching the package: an explicit file, then
 ``GRIPPERS_PROFILE_PATH`` (directories or files, ``os.pathsep``-separated), then the user's config directory
-(``$XDG_CONFIG_HOME/grippers/profiles``, default ``~/.config/grippers/profiles``), then the built-ins shipped
-as the data package ``grippers._profiles``.
+(``$XDG_CONFIG_HOME/grippers/profiles``, default ``~/.config/grippers/profiles``), then the folders installed
+plugins declare (entry-point group ``grippers.profiles``), then the built-ins shipped as the data package
+``grippers._profiles``. Which model validates a profile is its family's backend's to say (``profile_model``).
 """
 
 from __future__ import annotations
@@ -15,13 +16,15 @@ import json
 import logging
 import os
 import re
+import sys
 import threading
 import tomllib
+import types
 from collections.abc import Iterator
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any
 
 from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError, model_validator
 
@@ -149,8 +152,9 @@ class Connection(_Model):
 class ProfileBase(_Model):
     """A device profile (docs/profiles.md): the model's mechanics, safety limits and connection defaults.
 
-    Read from TOML, YAML or JSON by :func:`load_profile`; each family adds its own section (``WsgProfile``,
-    ``MsgProfile``). Validation errors name the file, the field and the rule (``ProfileError``).
+    Read from TOML, YAML or JSON by :func:`load_profile`; each family's backend declares a subclass with its
+    own sections (its ``profile_model``: ``WsgProfile``, ``MsgProfile``, ``RobotiqProfile``). Validation
+    errors name the file, the field and the rule (``ProfileError``).
     """
 
     name: Annotated[str, Field(pattern=r"^[a-z0-9][a-z0-9._-]*$")]
@@ -211,192 +215,30 @@ class ProfileBase(_Model):
         return key == _key(self.name) or any(key == _key(a) for a in self.aliases)
 
 
-# --- WSG ------------------------------------------------------------------------------------------------
+# The families' own sections and profile models live with their backends (issue 28 §2: the backend declares
+# its profile model); the names stay importable from here for programs written against them.
+_MOVED = {
+    "WsgTransport": "grippers.backends.wsg_profile",
+    "WsgDevice": "grippers.backends.wsg_profile",
+    "WsgSimulator": "grippers.backends.wsg_profile",
+    "WsgProfile": "grippers.backends.wsg_profile",
+    "wsg_profile_for_device_type": "grippers.backends.wsg_profile",
+    "StepfocTransport": "grippers.backends.stepfoc_profile",
+    "MsgMaps": "grippers.backends.stepfoc_profile",
+    "MsgSimulator": "grippers.backends.stepfoc_profile",
+    "MsgProfile": "grippers.backends.stepfoc_profile",
+}
 
 
-class WsgTransport(_Model):
-    # Defaults from docs/protocols.md §1 "Transport defaults" (public drivers and set-up notes, not manuals).
-    timeout_s: Timeout = 1.0
-    tcp_port: Port = 1000
-    udp_port: Port = 1500
-    udp_local_port: Annotated[int, Field(ge=0, le=65535)] = 1501
-    baudrate: Annotated[int, Field(gt=0)] = 115200
-    bytesize: Literal[5, 6, 7, 8] = 8
-    parity: Literal["N", "E", "O", "M", "S"] = "N"
-    # 1, 1.5 or 2 (one public driver uses 2); 1.5 spelled as a range, since a typing Literal takes no floats.
-    stopbits: Literal[1, 2] | Annotated[float, Field(ge=1.5, le=1.5)] = 1
-    can_interface: str = "socketcan"
-    can_channel: str = "can0"
-    can_bitrate: Annotated[int, Field(gt=0)] = 500_000
-    can_send_id: CanId = 0x000  # host -> gripper
-    can_recv_id: CanId = 0x001  # gripper -> host
-    verify_checksum: bool = True
+def __getattr__(name: str) -> Any:
+    module = _MOVED.get(name)
+    if module is None:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    import importlib
+
+    return getattr(importlib.import_module(module), name)
 
 
-class WsgDevice(_Model):
-    device_type: Annotated[int, Field(ge=0, le=255)]  # 50h TYPE: 1 WSG 50, 2 WSG 32, 5 WSG 25, 6 WSG 70
-    # Set in the web interface: how far Grip Part (25h) may close past the width (docs/protocols.md §1).
-    clamping_travel_mm: Length = 10.0
-
-
-class WsgSimulator(_Model):
-    firmware: Annotated[str, Field(pattern=r"^\d+\.\d+\.\d+$")] = "4.0.1"
-    serial: Annotated[int, Field(ge=0, le=0xFFFFFFFF)] = 12345
-    part_width_mm: Length | None = None
-    force_fingers: bool = False
-    time_scale: TimeScale = 1.0
-
-
-class WsgProfile(ProfileBase):
-    family: Literal["wsg"] = "wsg"
-    transport: WsgTransport = WsgTransport()
-    wsg: WsgDevice
-    simulator: WsgSimulator = WsgSimulator()
-
-
-# --- MSG on STEPFOC ---------------------------------------------------------------------------------------
-
-
-class StepfocTransport(_Model):
-    timeout_s: Timeout = 0.5
-    baudrate: Annotated[int, Field(gt=0)] = 256_000  # docs/protocols.md §2 UART
-    can_interface: str = "socketcan"
-    can_channel: str = "can0"
-    can_bitrate: Annotated[int, Field(gt=0)] = 1_000_000  # docs/protocols.md §2 CAN
-    node: Annotated[int, Field(ge=0, le=15)] = 0
-
-
-class MsgMaps(_Model):
-    """How the driver's raw bytes and milliamps relate to width, speed and force.
-
-    Position: byte 0 is fully open, 255 fully closed, linear between the calibrated end stops
-    (docs/protocols.md §2). Speed: byte 0..255 maps linearly to about 500..60000 encoder ticks/s; the mm/s at
-    both ends depend on the rail's gearing and are estimates to calibrate per unit. Force: the MSG has no
-    force sensor; force is estimated from the current limit.
-    """
-
-    open_width_mm: Length
-    closed_width_mm: Length = 0.0
-    # The one speed model (drivers/stepfoc/speed.py): the driver's firmware maps the speed byte to ticks/s,
-    # ticks_per_mm (from the calibrated stops) makes it mm/s. speed_at_* are derived from them (properties,
-    # so a profile that extends another with another driver gets its own); given by hand they must agree,
-    # or a requested speed would not be the speed the jaws move (issue 19).
-    driver: Literal["stepfoc", "spectral-micro"] = "stepfoc"
-    ticks_per_mm: Annotated[float, Field(gt=0, le=1e6, allow_inf_nan=False)] = 200.0
-    newton_per_amp: Annotated[float, Field(gt=0, le=MAX_FORCE_N, allow_inf_nan=False)]
-    min_current_ma: Annotated[int, Field(ge=0)] = 150  # below about 150 mA the motion is unstable (MSG doc)
-    max_current_ma: Annotated[int, Field(gt=0, le=2800)] = 1000  # MSG doc: 0-1000 mA
-    default_current_ma: Annotated[int, Field(gt=0)] = 500
-    grasp_travel_mm: Length = 10.0  # a grasp commands this far inside the nominal width
-    inside_grip: bool = False  # a part gripped from inside (object detected while opening)
-
-    @model_validator(mode="before")
-    @classmethod
-    def _speeds_from_the_driver(cls, data: Any) -> Any:
-        if not isinstance(data, dict):
-            return data
-        from .drivers.stepfoc.speed import speed_mm_s, variant
-
-        try:
-            driver = variant(str(data.get("driver", "stepfoc")))
-            tpm = float(data.get("ticks_per_mm", 200.0))
-        except (TypeError, ValueError):
-            return data  # the field validators name the problem
-        if not tpm > 0:
-            return data
-        derived = {
-            "speed_at_0_mm_s": speed_mm_s(0, tpm, driver),
-            "speed_at_255_mm_s": speed_mm_s(255, tpm, driver),
-        }
-        out = dict(data)
-        for key, value in derived.items():
-            given = out.pop(key, None)
-            if given is None:
-                continue
-            if not isinstance(given, int | float) or abs(float(given) - value) > 0.01 * value:
-                raise ValueError(
-                    f"{key} = {given!r} disagrees with the {driver.name} speed map at {tpm:g} ticks/mm "
-                    f"({value:g} mm/s): set maps.ticks_per_mm (calibrated stops / stroke) instead"
-                )
-        return out
-
-    @property
-    def speed_at_0_mm_s(self) -> float:
-        """Jaw speed of speed byte 0 (mm/s), from the driver's speed map and ticks_per_mm."""
-        from .drivers.stepfoc.speed import speed_mm_s, variant
-
-        return speed_mm_s(0, self.ticks_per_mm, variant(self.driver))
-
-    @property
-    def speed_at_255_mm_s(self) -> float:
-        """Jaw speed of speed byte 255 (mm/s)."""
-        from .drivers.stepfoc.speed import speed_mm_s, variant
-
-        return speed_mm_s(255, self.ticks_per_mm, variant(self.driver))
-
-    @model_validator(mode="after")
-    def _ordered(self) -> MsgMaps:
-        if self.open_width_mm <= self.closed_width_mm:
-            raise ValueError("needs open_width_mm > closed_width_mm")
-        if not self.min_current_ma <= self.default_current_ma <= self.max_current_ma:
-            raise ValueError("needs min_current_ma <= default_current_ma <= max_current_ma")
-        return self
-
-
-class MsgSimulator(_Model):
-    part_width_mm: Length | None = None
-    hardware_version: Annotated[int, Field(ge=0, le=255)] = 1
-    software_version: Annotated[int, Field(ge=0, le=255)] = 1
-    serial: Annotated[int, Field(ge=0, le=0xFFFFFFFF)] = 1001
-    time_scale: TimeScale = 1.0
-
-
-class MsgProfile(ProfileBase):
-    family: Literal["stepfoc"] = "stepfoc"
-    transport: StepfocTransport = StepfocTransport()
-    maps: MsgMaps
-    simulator: MsgSimulator = MsgSimulator()
-
-    @model_validator(mode="after")
-    def _maps_fit_the_mechanics(self) -> MsgProfile:
-        m, maps = self.mechanics, self.maps
-        # Position bytes 0..255 span closed..open (docs/protocols.md §2): a map narrower than the stroke
-        # would clamp every byte at its end and silently end moves early.
-        if maps.closed_width_mm > m.min_width_mm + 1e-9 or maps.open_width_mm < m.max_width_mm - 1e-9:
-            raise ValueError(
-                f"maps: closed_width_mm..open_width_mm ({maps.closed_width_mm:g}..{maps.open_width_mm:g} mm) "
-                f"must cover the stroke ({m.min_width_mm:g}..{m.max_width_mm:g} mm), or moves end early"
-            )
-        # The speed limits must be speeds the driver can run (bytes 0..255 of the one speed model).
-        if (
-            m.min_speed_mm_s < maps.speed_at_0_mm_s * 0.999
-            or m.max_speed_mm_s > maps.speed_at_255_mm_s * 1.001
-        ):
-            raise ValueError(
-                f"mechanics speeds {m.min_speed_mm_s:g}..{m.max_speed_mm_s:g} mm/s must lie within what the "
-                f"driver runs ({maps.speed_at_0_mm_s:g}..{maps.speed_at_255_mm_s:g} mm/s at "
-                f"{maps.ticks_per_mm:g} ticks/mm)"
-            )
-        # The force is estimated from the current limit: the currents the driver may use must give a force
-        # inside the mechanics' range, or every grasp is refused.
-        npa, low_ma, high_ma = maps.newton_per_amp, maps.min_current_ma, self.effective_max_current_ma
-        if max(m.min_force_n, low_ma / 1000 * npa) > min(m.max_force_n, high_ma / 1000 * npa):
-            raise ValueError(
-                f"maps.newton_per_amp: {npa:g} N/A over {low_ma}..{high_ma} mA gives "
-                f"{low_ma / 1000 * npa:g}..{high_ma / 1000 * npa:g} N, outside mechanics' "
-                f"{m.min_force_n:g}..{m.max_force_n:g} N: no grasp force would be possible"
-            )
-        return self
-
-    @property
-    def effective_max_current_ma(self) -> int:
-        limit = self.maps.max_current_ma
-        if self.safety.max_current_ma is not None:
-            limit = min(limit, self.safety.max_current_ma)
-        return limit
-
-
-BUILTIN_PROFILE_MODELS: dict[str, type[ProfileBase]] = {"wsg": WsgProfile, "stepfoc": MsgProfile}
 Profile = ProfileBase  # the type users annotate with
 
 
@@ -413,16 +255,38 @@ def _key(name: str) -> str:
 
 
 def _profile_model(family: Any) -> type[ProfileBase]:
-    if isinstance(family, str) and family in BUILTIN_PROFILE_MODELS:
-        return BUILTIN_PROFILE_MODELS[family]
-    if isinstance(family, str):
-        from .backends import find_backend
+    """The model a profile of ``family`` is validated with: the one its backend declares (the only registry,
+    issue 28), or the generic :class:`ProfileBase` for a backend whose ``profile_model`` is None."""
+    from .backends import available_backends, find_backend
 
+    if isinstance(family, str) and family:
         backend = find_backend(family)
-        if backend is not None and getattr(backend, "profile_model", None) is not None:
-            return backend.profile_model
-    known = ", ".join(sorted(BUILTIN_PROFILE_MODELS))
-    raise ValueError(f"family: unknown family {family!r} (built in: {known}; others come from backends)")
+        if backend is not None:
+            model = getattr(backend, "profile_model", None)
+            return model if model is not None else ProfileBase
+    known = ", ".join(available_backends())
+    raise ValueError(f"family: unknown family {family!r} (installed: {known}; others come from backends)")
+
+
+def installed_profile_models() -> list[type[ProfileBase]]:
+    """The profile model of every installed family (built in or plugin) that declares one, once each.
+
+    A backend that cannot be imported (an optional dependency missing) is skipped with a log line: the models
+    of the others are still what ``grippers profiles schema`` shows.
+    """
+    from .backends import available_backends, find_backend
+
+    models: list[type[ProfileBase]] = []
+    for family in available_backends():
+        try:
+            backend = find_backend(family)
+        except Exception as exc:  # a broken or half-installed plugin must not hide the others
+            log.warning("skipping the profile model of family %r: %s", family, exc)
+            continue
+        model = getattr(backend, "profile_model", None)
+        if model is not None and model not in models:
+            models.append(model)
+    return models
 
 
 Stamp = tuple[int, int, int]  # st_mtime_ns, st_size, st_ino
@@ -615,14 +479,28 @@ def _format_errors(where: str, exc: ValidationError) -> str:
     return f"{where}: " + "; ".join(parts)
 
 
-def parse_profile(data: dict[str, Any], where: str = "<profile>") -> ProfileBase:
-    """Validate a mapping as a profile of its family; errors name ``where``, the field and the rule."""
+class GenericProfile(ProfileBase):
+    """A profile read without its family's model: identity, mechanics, safety and connection; the family's own
+    sections are dropped, not refused. What a ``zenoh://`` client makes of a served profile when the vendor's
+    plugin is not installed here (issue 28 §3: any process can use a served gripper)."""
+
+    model_config = ConfigDict(extra="ignore", frozen=True)
+
+
+def parse_profile(data: dict[str, Any], where: str = "<profile>", *, generic: bool = False) -> ProfileBase:
+    """Validate a mapping as a profile of its family; errors name ``where``, the field and the rule.
+
+    With ``generic=True`` a family that is not installed here is read as a :class:`GenericProfile` instead of
+    refused (a profile served by another process, already validated there by its family's model).
+    """
     if not isinstance(data, dict):
         raise ProfileError(f"{where}: a profile is a mapping of fields, not {type(data).__name__}")
     try:
         model = _profile_model(data.get("family"))
     except ValueError as exc:
-        raise ProfileError(f"{where}: {exc}") from None
+        if not generic:
+            raise ProfileError(f"{where}: {exc}") from None
+        model = GenericProfile
     try:
         profile = model.model_validate(data)
     except ValidationError as exc:
@@ -684,10 +562,61 @@ def _files_in(entry: Path) -> list[Path]:
     return []
 
 
+PROFILES_ENTRY_POINT_GROUP = "grippers.profiles"
+
+_plugin_folder_cache: dict[tuple[str, ...], list[Path]] = {}
+
+
+def _folder_of(value: Any) -> list[Path]:
+    """The folders an entry point of :data:`PROFILES_ENTRY_POINT_GROUP` names: a package (its own folder), a
+    path, or a list of paths (or a callable returning one of these)."""
+    if callable(value) and not isinstance(value, type):
+        value = value()
+    if isinstance(value, types.ModuleType):
+        return [Path(str(resources.files(value)))] if getattr(value, "__path__", None) else []
+    if isinstance(value, (str, os.PathLike)):
+        return [Path(value)]
+    if isinstance(value, (list, tuple)):
+        return [folder for item in value for folder in _folder_of(item)]
+    return []
+
+
+def plugin_profile_folders() -> list[Path]:
+    """The profile folders installed plugins contribute, in the entry-point group ``grippers.profiles``::
+
+        [project.entry-points."grippers.profiles"]
+        acme = "acme_grippers.profiles"   # a package whose folder holds the family's .toml files
+
+    Searched by name after ``GRIPPERS_PROFILE_PATH`` and the user folder, before the built-ins, so an
+    installed plugin's profiles open by name (``sim://NAME``, ``profiles list``) with no environment variable.
+    Found once per ``sys.path`` (the entry points are read from the installed distributions' metadata).
+    """
+    key = tuple(sys.path)
+    cached = _plugin_folder_cache.get(key)
+    if cached is not None:
+        return list(cached)
+    from importlib.metadata import entry_points
+
+    folders: list[Path] = []
+    for ep in sorted(entry_points(group=PROFILES_ENTRY_POINT_GROUP), key=lambda e: e.name):
+        try:
+            found = _folder_of(ep.load())
+        except Exception as exc:  # one broken plugin must not hide every other profile
+            log.warning("skipping the profile folder of plugin %r (%s): %s", ep.name, ep.value, exc)
+            continue
+        folders.extend(f for f in found if f not in folders)
+    with _cache_lock:
+        _plugin_folder_cache.clear()
+        _plugin_folder_cache[key] = folders
+    return list(folders)
+
+
 def search_path() -> list[Path]:
-    """Directories and files searched for profiles, first match wins (the built-ins come last)."""
+    """Directories and files searched for profiles, first match wins (the built-ins come last):
+    ``GRIPPERS_PROFILE_PATH``, the user folder, then the folders installed plugins contribute."""
     entries = [Path(e) for e in os.environ.get("GRIPPERS_PROFILE_PATH", "").split(os.pathsep) if e]
     entries.append(user_profile_dir())
+    entries.extend(plugin_profile_folders())
     return entries
 
 
@@ -795,24 +724,19 @@ def _describe_path() -> str:
     return os.pathsep.join(str(p) for p in search_path()) + os.pathsep + "<built-in>"
 
 
-def wsg_profile_for_device_type(device_type: int) -> WsgProfile | None:
-    """The first profile on the search path for the WSG model that reports ``device_type`` in 50h.
-
-    A profile that ``extends`` another is a variant (``wsg50-glass``: the stock WSG 50 limited to 15 N),
-    never chosen here: dropped on the search path, it would silently become the profile of every plain
-    ``wsg+tcp://`` open and every probe (issue 22 §1). Variants are selected only by name: ``profile=``, or
-    opening the profile itself (which connects to its ``url``). A user's file that takes a built-in's NAME
-    still replaces that built-in (with or without ``extends`` of it): that is how a user corrects a stock
-    profile on purpose.
-    """
-    for profile in list_profiles():
-        variant = profile.extends is not None and _key(profile.extends) != _key(profile.name)
-        if isinstance(profile, WsgProfile) and not variant and profile.wsg.device_type == device_type:
-            return profile
-    return None
-
-
 def json_schema() -> dict[str, Any]:
-    """JSON Schema of every built-in family's profile, for editors (``grippers profiles schema``)."""
-    union = Annotated[WsgProfile | MsgProfile, Field(discriminator="family")]
-    return TypeAdapter(union).json_schema()
+    """JSON Schema of every installed family's profile, for editors (``grippers profiles schema``).
+
+    The union of the models the backends declare; told apart by ``family`` when every model fixes it to one
+    value (a ``Literal``), else a plain union (a plugin's model may leave ``family`` a free string).
+    """
+    models = installed_profile_models() or [ProfileBase]
+    if len(models) == 1:
+        return TypeAdapter(models[0]).json_schema()
+    union: Any = models[0]
+    for model in models[1:]:
+        union = union | model
+    try:
+        return TypeAdapter(Annotated[union, Field(discriminator="family")]).json_schema()
+    except Exception:  # pydantic refuses a discriminator a model does not fix: say "any of" instead
+        return TypeAdapter(union).json_schema()

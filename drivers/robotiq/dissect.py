@@ -126,3 +126,23 @@ class ModbusStream:
         if self.direction == TO_GRIPPER:
             return [request_record(r, stamp) for r in self._requests.feed(data)]
         return [response_record(r, stamp) for r in self._responses.feed(data)]
+
+
+class ModbusDissector:
+    """Both directions of a Modbus RTU line (a monitor's proxy or a byte capture): requests to the gripper,
+    responses from it, each reassembled by its own parser (the ``feed(direction, data, stamp)`` of a byte
+    stream dissector, as ``grippers monitor`` calls it)."""
+
+    protocol = PROTOCOL
+
+    def __init__(self) -> None:
+        self._streams = {TO_GRIPPER: ModbusStream(TO_GRIPPER), FROM_GRIPPER: ModbusStream(FROM_GRIPPER)}
+
+    def feed(self, direction: str, data: bytes, stamp: float | None) -> list[dict[str, Any]]:
+        stream = self._streams.get(direction)
+        if stream is None:  # a capture without direction marks: a request parser reads what a client sent
+            stream = self._streams[TO_GRIPPER]
+        return stream.feed(data, stamp)
+
+    def flush(self) -> list[dict[str, Any]]:
+        return []

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+from collections.abc import Iterator
 from typing import Any
 
 from ..dissect import FROM_GRIPPER, TO_GRIPPER, field_value, log_record, record, wire_log
@@ -48,6 +49,23 @@ def can_frame_record(
         fields=fields,
         status="error" if msg.error else None,
     )
+
+
+class StepfocCanDissector:
+    """STEPFOC frames for :class:`grippers.drivers.dissect.CanDecoder`: any 11-bit frame is some node's
+    (the id holds the node and the command), so it reads what no family with its own ids claimed."""
+
+    protocol = "stepfoc"
+    catch_all = True
+
+    def claims(self, arbitration_id: int, data: bytes, is_remote: bool) -> bool:
+        return True
+
+    def decode(self, arbitration_id: int, data: bytes, is_remote: bool, stamp: float | None) -> list[dict]:
+        return [can_frame_record(arbitration_id, data, is_remote, stamp)]
+
+    def flush(self) -> Iterator[dict[str, Any]]:
+        return iter(())
 
 
 def uart_line_record(direction: str, text: str, stamp: float | None) -> dict[str, Any]:

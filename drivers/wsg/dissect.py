@@ -9,8 +9,22 @@ import time
 from collections.abc import Iterator
 from typing import Any
 
-from ..dissect import FROM_GRIPPER, TO_GRIPPER, field_value, log_record, record, wire_log
+from ..dissect import (
+    FROM_GRIPPER,
+    TO_GRIPPER,
+    field_value,
+    log_record,
+    record,
+    register_text_form,
+    wire_log,
+)
 from . import commands, protocol
+
+PROTOCOL = "wsg"
+
+# The WSG's description carries its own arrow (the command table's), which the arrow column says already; its
+# id is the command code, named in the description.
+register_text_form(PROTOCOL, lambda rec: rec["text"].removeprefix("-> ").removeprefix("<- "))
 
 
 class WsgStream:
@@ -54,6 +68,7 @@ class WsgStream:
     def _noise(self, direction: str, raw: bytes, reason: str, stamp: float | None) -> dict[str, Any]:
         return record(
             time=stamp,
+            protocol=PROTOCOL,
             direction=direction,
             status="noise",
             fields={"bytes": len(raw), "reason": reason},
@@ -73,6 +88,7 @@ class WsgStream:
             )
             return record(
                 time=stamp,
+                protocol=PROTOCOL,
                 direction=direction,
                 id=f"{item.command:02X}h",
                 command=c.command_name(item.command),
@@ -96,6 +112,7 @@ class WsgStream:
         describe_as = "reply" if direction == FROM_GRIPPER else "request"
         return record(
             time=stamp,
+            protocol=PROTOCOL,
             direction=direction,
             id=f"{packet.command:02X}h",
             command=c.command_name(packet.command),
@@ -124,6 +141,40 @@ class WsgStream:
         except Exception:
             pass
         return fits[0] if len(fits) == 1 else "?"
+
+
+class WsgCanDissector:
+    """WSG packets carried over CAN (docs/protocols.md §1 CAN: 8-byte chunks of a packet on a command id, the
+    replies on id + 1), for :class:`grippers.drivers.dissect.CanDecoder`.
+
+    Those ids are also a STEPFOC node's frames (0x000 is node 0's E-stop, which has no data): a frame is WSG
+    when it starts a packet or continues one, unless ``only`` says every frame is WSG (``--protocol wsg``).
+    """
+
+    protocol = PROTOCOL
+
+    def __init__(self, wsg_id: int = 0x000, only: bool = False) -> None:
+        self.wsg_id = wsg_id
+        self.catch_all = only
+        self._stream = WsgStream()
+
+    def _direction(self, arbitration_id: int) -> str:
+        return FROM_GRIPPER if arbitration_id == self.wsg_id + 1 else TO_GRIPPER
+
+    def claims(self, arbitration_id: int, data: bytes, is_remote: bool) -> bool:
+        if is_remote:
+            return False
+        if self.catch_all:
+            return True
+        if arbitration_id not in (self.wsg_id, self.wsg_id + 1):
+            return False
+        return data.startswith(b"\xaa") or self._stream.busy(self._direction(arbitration_id))
+
+    def decode(self, arbitration_id: int, data: bytes, is_remote: bool, stamp: float | None) -> list[dict]:
+        return list(self._stream.feed(self._direction(arbitration_id), data, stamp))
+
+    def flush(self) -> Iterator[dict[str, Any]]:
+        yield from self._stream.flush()
 
 
 class WireTap:

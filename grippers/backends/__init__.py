@@ -17,7 +17,8 @@ and grippers.testing make on a backend.
 from __future__ import annotations
 
 import importlib
-from importlib.metadata import entry_points
+from collections.abc import Callable
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Protocol
 
 from ..errors import URLError
@@ -65,6 +66,53 @@ class BusSimulatedBackend(SimulatedBackend, Protocol):
     def serve(self, models: list[Any], listen: str, settings: Settings) -> SimServer: ...
 
 
+@dataclass(frozen=True)
+class Dissector:
+    """What a family's ``dissector()`` hook gives ``grippers monitor`` (issue 28 §2): its protocol's name,
+    and the readers it has: ``stream()`` for a byte stream (a capture, the TCP proxy), ``can(options)`` for
+    CAN frames (``options``: ``only`` when ``--protocol`` names it, ``wsg_id`` from ``--wsg-id``), and the
+    device's TCP port for the proxy. ``bytes_default``: the reader of a byte capture when none is named."""
+
+    protocol: str
+    stream: Callable[[], Any] | None = None
+    can: Callable[[dict[str, Any]], Any] | None = None
+    tcp_port: int | None = None
+    bytes_default: bool = False
+
+
+@dataclass(frozen=True)
+class ProbeCandidate:
+    """One URL a family's ``probe_candidates(transport, where, options)`` hook offers for a bare transport
+    (``grippers probe tcp://HOST``, a serial port, a CAN bus). Candidates sharing a serial port are tried
+    in ``order``; ``unless_nodes``: tried only when no node answered at these bus nodes (a frame that would
+    be another family's E-stop there)."""
+
+    url: str
+    order: int = 50
+    unless_nodes: tuple[int, ...] = ()
+
+
+def bus_query(options: dict[str, Any]) -> str:
+    """The ``&k=v`` a CAN probe candidate's URL carries for the bus options of the probed URL (``options
+    ["bus"]``: ``?port=`` of a udp_multicast bus, the bit rate): every family's candidates stay on the bus the
+    user named (issue 33 §3: dropping ``port=`` searched python-can's default port and found another process's
+    nodes)."""
+    return "".join(f"&{k}={v}" for k, v in (options.get("bus") or {}).items())
+
+
+@dataclass(frozen=True)
+class RawProbe:
+    """A family's ``raw_probe(transport)`` hook: after a silent open, ``grippers probe`` sends ``request`` on
+    a raw connection and tells a device that answers garbage (another protocol, baud rate) from a silent
+    one. ``goodbye`` is sent after (a WSG on TCP must not be left in FAST STOP); ``is_answer(received)``:
+    bytes that are the family's (a late answer: the timeout stands); ``port``: for a URL without one."""
+
+    request: bytes
+    goodbye: bytes = b""
+    is_answer: Callable[[bytes], bool] | None = None
+    port: int | None = None
+
+
 class SimServer(Protocol):
     """A running simulator: where to connect, and how to stop it."""
 
@@ -83,6 +131,8 @@ def _load(spec: str) -> Any:
 
 
 def _plugin_specs() -> dict[str, Any]:
+    from importlib.metadata import entry_points  # ~30 ms: only when a family is looked up, never at --help
+
     return {ep.name: ep for ep in entry_points(group=ENTRY_POINT_GROUP)}
 
 

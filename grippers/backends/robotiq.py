@@ -485,6 +485,30 @@ class RobotiqGripper(Gripper):
 class RobotiqBackend:
     family = "robotiq"
     profile_model = RobotiqProfile
+    bare_forms = {"serial": (30, "robotiq+serial://{rest}")}  # the "did you mean" of a bare serial port
+    default_profile = FALLBACK_PROFILE  # `grippers sim robotiq` without --model
+    sim_help = "simulate a Robotiq gripper (Modbus RTU) on a pseudo-terminal (pty) or tcp://HOST:PORT"
+    sim_example = (
+        "grippers sim robotiq --listen pty --model 2f85\n"
+        "         grippers sim robotiq --listen tcp://127.0.0.1:5020 --model hand-e"
+    )
+
+    def dissector(self) -> Any:
+        """``grippers monitor``: Modbus RTU frames (a byte capture, or the TCP proxy to a gateway)."""
+        from grippers.drivers.robotiq.dissect import PROTOCOL, ModbusDissector
+
+        from . import Dissector
+
+        return Dissector(PROTOCOL, stream=ModbusDissector, tcp_port=RobotiqTransport().tcp_port)
+
+    def probe_candidates(self, transport: str, where: ConnectionURL, options: dict[str, Any]) -> list[Any]:
+        """``grippers probe`` on a bare serial port: Modbus RTU at the gripper's factory slave id (9)."""
+        from . import ProbeCandidate
+
+        if transport != "serial":
+            return []
+        t = RobotiqTransport()
+        return [ProbeCandidate(f"robotiq+serial://{where.serial_port}?baudrate={t.baudrate}", order=30)]
 
     def open(self, url: ConnectionURL, profile: ProfileBase | None, settings: Settings) -> RobotiqGripper:
         from ..profiles import load_profile

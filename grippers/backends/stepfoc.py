@@ -39,9 +39,10 @@ from ..gripper import (
     StartedRead,
     StateCallback,
 )
-from ..profiles import MsgProfile, ProfileBase, load_profile
+from ..profiles import ProfileBase, load_profile
 from ..settings import Settings
 from ..urls import ConnectionURL
+from .stepfoc_profile import MsgProfile
 
 if TYPE_CHECKING:
     import asyncio
@@ -834,9 +835,65 @@ class MsgGripper(Gripper):
         self._calibrated = None
 
 
+UART_BAUD = 256000  # docs/protocols.md §2: the probe's speed on a bare serial port
+PROBE_NODES = 16  # 4-bit node id (MSG manual, "Bits 10 - 7 of CAN ID")
+
+
 class StepfocBackend:
     family = "stepfoc"
     profile_model = MsgProfile
+    # What a bare transport's URL would be for an MSG (the "did you mean" of a mistyped target), ranked.
+    bare_forms = {"serial": (20, "stepfoc+serial://{rest}"), "can": (10, "stepfoc+can://{rest}?node=0")}
+
+    @property
+    def cli_sim(self) -> Any:
+        """``grippers sim``'s options and server start for this family (grippers/cli/sim.py asks for it)."""
+        from . import stepfoc_cli
+
+        return stepfoc_cli
+
+    @property
+    def device_settings(self) -> Any:
+        """``grippers settings`` and ``selftest``: what this family stores besides its motion."""
+        from .stepfoc_settings import StepfocDeviceSettings
+
+        return StepfocDeviceSettings()
+
+    def selftest_checks(self, gripper: Any, add: Callable[..., None]) -> None:
+        """``grippers selftest``'s lines of this family (``add(name, measured, expected, verdict, note)``)."""
+        from .stepfoc_settings import selftest_checks
+
+        selftest_checks(gripper, add)
+
+    def dissector(self) -> Any:
+        """``grippers monitor``: STEPFOC CAN frames (its captures are candump logs)."""
+        from grippers.drivers.stepfoc.dissect import StepfocCanDissector
+
+        from . import Dissector
+
+        return Dissector(StepfocCanDissector.protocol, can=lambda _o: StepfocCanDissector())
+
+    def probe_candidates(self, transport: str, where: ConnectionURL, options: dict[str, Any]) -> list[Any]:
+        """``grippers probe`` on a bare transport: the UART on a serial port, nodes 0-15 on a CAN bus."""
+        from . import ProbeCandidate, bus_query
+
+        if transport == "serial":
+            return [ProbeCandidate(f"stepfoc+serial://{where.serial_port}?baudrate={UART_BAUD}", order=20)]
+        if transport == "can":
+            extra = bus_query(options)
+            base = f"stepfoc+can://{where.interface}/{where.channel}"
+            # Each node gets its own bus connection, so the nodes are asked in parallel.
+            return [ProbeCandidate(f"{base}?node={node}{extra}", order=10) for node in range(PROBE_NODES)]
+        return []
+
+    def raw_probe(self, transport: str) -> Any:
+        if transport != "serial":
+            return None
+        from grippers.drivers.stepfoc import probe as stepfoc_probe
+
+        from . import RawProbe
+
+        return RawProbe(stepfoc_probe.identify_request())
 
     def open(self, url: ConnectionURL, profile: ProfileBase | None, settings: Settings) -> MsgGripper:
         assumed = not isinstance(profile, MsgProfile)  # no profile given: the rail length is a guess

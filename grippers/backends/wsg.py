@@ -39,16 +39,10 @@ from ..gripper import (
     StartedRead,
     StateCallback,
 )
-from ..profiles import (
-    Limits,
-    ProfileBase,
-    WsgProfile,
-    WsgTransport,
-    load_profile,
-    wsg_profile_for_device_type,
-)
+from ..profiles import Limits, ProfileBase, load_profile
 from ..settings import Settings
 from ..urls import ConnectionURL
+from .wsg_profile import WsgProfile, WsgTransport, wsg_profile_for_device_type
 
 # WSG grasping states (manual 4.0.x §3.4.2) onto the common enum: the names match one to one.
 _GRASP: dict[int, GraspState] = {
@@ -444,6 +438,61 @@ def _narrow(limits: Limits, device: SystemLimits, profile: str) -> tuple[Limits,
 class WsgBackend:
     family = "wsg"
     profile_model = WsgProfile
+    # What a bare transport's URL would be for a WSG (the "did you mean" of a mistyped target), ranked.
+    bare_forms = {
+        "tcp": (10, "wsg+tcp://{rest}"),
+        "udp": (10, "wsg+udp://{rest}"),
+        "serial": (10, "wsg+serial://{rest}"),
+        "can": (20, "wsg+can://{rest}"),
+    }
+    reports_stroke = True  # 53h: selftest compares it with the profile
+
+    @property
+    def cli_sim(self) -> Any:
+        """``grippers sim``'s options and server start for this family (grippers/cli/sim.py asks for it)."""
+        from . import wsg_cli
+
+        return wsg_cli
+
+    @property
+    def device_settings(self) -> Any:
+        """``grippers settings`` and ``selftest``: what this family stores besides its motion."""
+        from .wsg_settings import WsgDeviceSettings
+
+        return WsgDeviceSettings()
+
+    def selftest_checks(self, gripper: Any, add: Callable[..., None]) -> None:
+        """``grippers selftest``'s lines of this family (``add(name, measured, expected, verdict, note)``)."""
+        from .wsg_settings import selftest_checks
+
+        selftest_checks(gripper, add)
+
+    def dissector(self) -> Any:
+        """``grippers monitor``: WSG packets from bytes (captures, the TCP proxy) or CAN frames."""
+        from grippers.drivers.wsg.dissect import PROTOCOL, WsgCanDissector, WsgStream
+
+        from . import Dissector
+
+        return Dissector(
+            PROTOCOL,
+            stream=WsgStream,
+            can=lambda o: WsgCanDissector(o.get("wsg_id", 0x000), bool(o.get("only"))),
+            tcp_port=WsgTransport().tcp_port,
+            bytes_default=True,
+        )
+
+    factory_address = "tcp://192.168.1.20:1000"  # set-up default (docs/protocols.md §1): the machine scan
+
+    def probe_candidates(self, transport: str, where: ConnectionURL, options: dict[str, Any]) -> list[Any]:
+        """``grippers probe`` on a bare transport: the WSG's ports, its serial speed, its CAN id pairs."""
+        from .wsg_cli import probe_candidates
+
+        return probe_candidates(transport, where, options)
+
+    def raw_probe(self, transport: str) -> Any:
+        from .wsg_cli import raw_probe
+
+        return raw_probe(transport)
 
     def open(self, url: ConnectionURL, profile: ProfileBase | None, settings: Settings) -> WsgGripper:
         t = profile.transport if isinstance(profile, WsgProfile) else WsgTransport()

@@ -33,7 +33,6 @@ EXAMPLE = (
     "         grippers monitor -i socketcan -c can0 -t r --write session.log   (record a fixture)"
 )
 
-PROTOCOLS = ("auto", "wsg", "stepfoc")
 FORMATS = ("auto", "candump", "hex", "raw")
 # The longest line a text capture may have: a --proxy --write line holds one 64 KiB read, 128 KiB of hex. A
 # longer one is not a capture (``monitor /dev/zero`` read 7.9 GB looking for the first line end, issue 33 §3).
@@ -63,10 +62,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--format", choices=FORMATS, default="auto", help="capture format (default: detect)")
     parser.add_argument(
         "--protocol",
-        choices=PROTOCOLS,
         default="auto",
-        help="decode CAN frames as WSG or STEPFOC (default: frames on the WSG ids that carry a WSG packet "
-        "as WSG, the rest as STEPFOC); byte captures are always WSG",
+        metavar="NAME",
+        help="decode with this family's dissector (wsg, stepfoc, robotiq or modbus, a plugin's; default: on "
+        "CAN, frames on the WSG ids that carry a WSG packet as WSG, the rest as STEPFOC; bytes as WSG)",
     )
     parser.add_argument(
         "--wsg-id",
@@ -208,14 +207,12 @@ def _capture_records(args: argparse.Namespace) -> Iterator[dict[str, Any]]:
         parse_candump,
         parse_hex_dump,
     )
-    from grippers.drivers.dissect import CanDecoder
-    from grippers.drivers.wsg.dissect import WsgStream
 
     capture = _Capture(args.capture)
     try:
         fmt = args.format if args.format != "auto" else capture.sniff()
         if fmt == "candump":
-            decoder = CanDecoder(args.protocol, args.wsg_id)
+            decoder = can_decoder(args)
             for frame in parse_candump(capture.lines()):
                 yield from decoder.decode(
                     frame.arbitration_id,
@@ -228,10 +225,8 @@ def _capture_records(args: argparse.Namespace) -> Iterator[dict[str, Any]]:
                 )
             yield from decoder.flush()
             return
-        if args.protocol == "stepfoc":
-            raise UsageError("a byte capture holds WSG packets; STEPFOC captures are candump logs")
         default = {"to": TO_DEVICE, "from": FROM_DEVICE}.get(args.direction, UNKNOWN_DIRECTION)
-        stream = WsgStream()
+        stream = byte_stream(args)
         if fmt == "raw":
             for piece in capture.chunks():
                 yield from stream.feed(default, piece, None)
@@ -249,7 +244,6 @@ def _live_can_records(args: argparse.Namespace, writer: Writer | None) -> Iterat
     import can
 
     from grippers.drivers.captures import format_candump
-    from grippers.drivers.dissect import CanDecoder
 
     if not (args.interface and args.channel):
         raise UsageError(
@@ -260,9 +254,10 @@ def _live_can_records(args: argparse.Namespace, writer: Writer | None) -> Iterat
         kwargs["bitrate"] = args.bitrate
     if getattr(args, "bus_port", None) is not None:  # ?port= of the URL (apply_url)
         kwargs["port"] = args.bus_port
-    decoder = CanDecoder(args.protocol, args.wsg_id)
     end = None if args.duration is None else time.monotonic() + args.duration
     with can.Bus(**kwargs) as bus:
+        # The dissectors load the families' code (~0.3 s): the open bus holds what arrives meanwhile.
+        decoder = can_decoder(args)
         while end is None or time.monotonic() < end:
             wait = 0.25 if end is None else max(0.0, min(0.25, end - time.monotonic()))
             msg = bus.recv(timeout=wait)
@@ -284,14 +279,16 @@ def _live_can_records(args: argparse.Namespace, writer: Writer | None) -> Iterat
 
 
 def _proxy_records(args: argparse.Namespace, writer: Writer | None) -> Iterator[dict[str, Any]]:
-    """A transparent TCP relay between clients and a WSG; both directions are decoded as they pass.
+    """A transparent TCP relay between clients and a gripper (or its gateway); both directions are decoded
+    as they pass, by the family's byte stream dissector.
 
     Each client connection gets its own connection to the gripper and its own parsers, so two programs
     talking through the proxy do not garble each other's packets.
     """
     from grippers.drivers.captures import format_hex_line
     from grippers.drivers.dissect import FROM_GRIPPER, TO_GRIPPER
-    from grippers.drivers.wsg.dissect import WsgStream
+
+    byte_stream(args)  # a protocol without a byte reader is refused before anything listens
 
     if args.to is None:
         raise UsageError("--proxy needs --to HOST:PORT (the gripper)")
@@ -318,7 +315,7 @@ def _proxy_records(args: argparse.Namespace, writer: Writer | None) -> Iterator[
                         print(f"grippers monitor: cannot reach {args.to}: {exc}", file=sys.stderr)
                         client.close()
                         continue
-                    stream = WsgStream()
+                    stream = byte_stream(args)
                     for sock, peer, direction in (
                         (client, gripper, TO_GRIPPER),
                         (gripper, client, FROM_GRIPPER),
@@ -357,6 +354,57 @@ def _proxy_records(args: argparse.Namespace, writer: Writer | None) -> Iterator[
 Writer = Callable[[str], None]
 
 
+def dissectors() -> dict[str, Any]:
+    """Every installed family's ``dissector()`` (issue 28 §2), by family name and by protocol name."""
+    from grippers.backends import available_backends, find_backend
+
+    found: dict[str, Any] = {}
+    for family in available_backends():
+        try:
+            hook = getattr(find_backend(family), "dissector", None)
+        except Exception:  # a family whose optional dependency is missing dissects nothing here
+            continue
+        if hook is not None:
+            dissector = hook()
+            found.setdefault(family, dissector)
+            found.setdefault(dissector.protocol, dissector)
+    return found
+
+
+def _chosen(args: argparse.Namespace) -> list[Any]:
+    known = dissectors()
+    if args.protocol == "auto":
+        return list(dict.fromkeys(known.values()))
+    if args.protocol not in known:
+        raise UsageError(
+            f"--protocol {args.protocol}: no such dissector (known: auto, {', '.join(sorted(known))})"
+        )
+    return [known[args.protocol]]
+
+
+def can_decoder(args: argparse.Namespace) -> Any:
+    """The CAN dissectors of the installed families (or the one ``--protocol`` names), one decoder."""
+    from grippers.drivers.dissect import CanDecoder
+
+    options = {"wsg_id": args.wsg_id, "only": args.protocol != "auto"}
+    parts = [d.can(options) for d in _chosen(args) if d.can is not None]
+    if not parts:
+        raise UsageError(f"the {args.protocol} dissector reads no CAN frames")
+    return CanDecoder(parts)
+
+
+def byte_stream(args: argparse.Namespace) -> Any:
+    """The byte stream dissector ``--protocol`` names (by default the one for unnamed byte captures)."""
+    chosen = [d for d in _chosen(args) if d.stream is not None]
+    if args.protocol == "auto":
+        chosen = [d for d in chosen if d.bytes_default] or chosen
+    if not chosen:
+        raise UsageError(
+            f"the {args.protocol} dissector reads CAN frames only: its captures are candump logs"
+        )
+    return chosen[0].stream()
+
+
 class _Clock:
     """The time column as candump's ``-t``: absolute, relative to the first line, or delta to the last."""
 
@@ -378,42 +426,45 @@ class _Clock:
 def apply_url(args: argparse.Namespace) -> None:
     """A connection URL in place of the capture FILE: the URLs every other command takes (issue 22 §2).
 
-    ``can://IF/CH`` and ``stepfoc+can://IF/CH`` or ``wsg+can://IF/CH[?send_id=ID]`` watch that bus (the family
-    picks the decoder when ``--protocol`` is auto; ``?bitrate=`` as ``-b``); ``wsg+tcp://HOST[:PORT]`` relays
-    through the proxy (``--proxy``, default a free loopback port) to that gripper. Flags given beside the URL
-    win over what the URL says, as they do for ``grippers.open``.
+    ``can://IF/CH`` or ``FAMILY+can://IF/CH`` watch that bus (the family picks the decoder when
+    ``--protocol`` is auto; ``?bitrate=`` as ``-b``, a WSG's ``?send_id=`` as ``--wsg-id``);
+    ``FAMILY+tcp://HOST[:PORT]`` relays through the proxy (``--proxy``, default a free loopback port) to that
+    gripper, decoded by the family's byte stream dissector. Flags given beside the URL win over what the URL
+    says, as they do for ``grippers.open``.
     """
     target = args.capture
     if target is None or "://" not in target:
         return
     from grippers.errors import URLError
-    from grippers.profiles import WsgTransport
     from grippers.urls import parse_url
 
     bare = target.lower().startswith("can://")
-    url = parse_url(("stepfoc+" + target) if bare else target)
+    url = parse_url(target, bare_family="can" if bare else None)  # a bare bus: every family's frames
+    dissector = dissectors().get(url.family) if not bare else None
     if url.transport == "can":
         args.interface = args.interface or url.interface
         args.channel = args.channel or url.channel
         if args.bitrate is None and "bitrate" in url.params:
             args.bitrate = int(url.params["bitrate"], 0)
-        if args.protocol == "auto" and not bare:
+        if args.protocol == "auto" and dissector is not None and dissector.can is not None:
             args.protocol = url.family
-        if url.family == "wsg" and "send_id" in url.params:
+        if "send_id" in url.params:
             args.wsg_id = can_id(url.params["send_id"])
         from grippers.drivers.urls import bus_options
 
         if "port" in url.params:  # a udp_multicast bus of its own (issue 33 §3: it watched the default port)
             args.bus_port = bus_options(url)["port"]
-    elif url.family == "wsg" and url.transport == "tcp":
+    elif url.transport == "tcp" and dissector is not None and dissector.stream is not None:
         if args.to is None:
-            args.to = (url.host, url.port or WsgTransport().tcp_port)
+            args.to = (url.host, url.port or dissector.tcp_port)
         if args.proxy is None:
             args.proxy = ("127.0.0.1", 0)
+        if args.protocol == "auto":
+            args.protocol = url.family
     else:
         raise URLError(
-            "monitor watches a CAN bus (can://IF/CH, stepfoc+can://, wsg+can://) or a WSG over TCP through "
-            f"its proxy (wsg+tcp://HOST[:PORT]), not {target}"
+            "monitor watches a CAN bus (can://IF/CH, FAMILY+can://IF/CH) or a gripper over TCP through its "
+            f"proxy (FAMILY+tcp://HOST[:PORT], for a family that dissects a byte stream), not {target}"
         )
     args.capture = None
 
@@ -427,7 +478,7 @@ def run(args: argparse.Namespace) -> int:
     if sources == 0:
         raise UsageError(
             "give a capture FILE (or - for stdin), -i/--interface and -c/--channel for a live CAN bus, "
-            "or --proxy HOST:PORT --to HOST:PORT for a WSG TCP connection"
+            "or --proxy HOST:PORT --to HOST:PORT for a TCP connection"
         )
     if sources > 1:
         raise UsageError("give one source: a capture FILE, -i/-c, or --proxy")

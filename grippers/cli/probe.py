@@ -81,19 +81,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_can_flags(parser)
 
 
-def _wsg_can_ids(given: list[int] | None) -> tuple[tuple[int, int], ...]:
-    if given:
-        return tuple((i, i + 1) for i in dict.fromkeys(given))
-    from grippers.profiles import WsgProfile, list_profiles
-
-    ids = {
-        (p.transport.can_send_id, p.transport.can_recv_id)
-        for p in list_profiles()
-        if isinstance(p, WsgProfile)
-    }
-    return tuple(sorted(ids)) or ((0x000, 0x001),)
-
-
 IDENTITY = ("family", "vendor", "model", "profile", "firmware", "hardware", "serial")
 
 
@@ -164,29 +151,22 @@ def _failed(url: str, location: dict[str, Any], exc: Exception) -> Outcome:
 def garbage_check(url: str, timeout: float) -> str | None:
     """After a timeout on a byte stream (TCP, UDP, serial): ask once more on a raw connection and count what
     comes back. A device that answers with bytes that are not a packet of the family is reported as sending
-    garbage (wrong baud rate, wrong protocol), not as silent. None when nothing came back."""
+    garbage (wrong baud rate, wrong protocol), not as silent. None when nothing came back, or when the family
+    offers no raw probe (its backend's ``raw_probe`` hook)."""
+    from grippers.backends import find_backend
     from grippers.errors import URLError
     from grippers.urls import parse_url, to_int
-
-    from .probe_targets import WSG_TCP_PORT, WSG_UDP_PORT
 
     try:
         u = parse_url(url)
     except URLError:
         return None  # opening it has said why
     family, transport = u.family, u.transport
-    goodbye = b""
-    if family == "wsg":
-        from grippers.drivers.wsg import probe as wsg_probe
-
-        request = wsg_probe.identify_request()
-        goodbye = wsg_probe.goodbye(transport)  # a WSG on TCP must not be left in FAST STOP by this check
-    elif family == "stepfoc" and transport == "serial":
-        from grippers.drivers.stepfoc import probe as stepfoc_probe
-
-        request = stepfoc_probe.identify_request()
-    else:
+    hook = getattr(find_backend(family), "raw_probe", None)
+    raw = hook(transport) if hook is not None else None
+    if raw is None:
         return None
+    request, goodbye = raw.request, raw.goodbye
     received = b""
     try:
         if transport in ("tcp", "udp"):
@@ -196,7 +176,7 @@ def garbage_check(url: str, timeout: float) -> str | None:
             family_ = socket.AF_INET6 if ":" in (u.host or "") else socket.AF_INET
             with socket.socket(family_, kind) as s:
                 s.settimeout(timeout)
-                s.connect((u.host, u.port or (WSG_TCP_PORT if transport == "tcp" else WSG_UDP_PORT)))
+                s.connect((u.host, u.port or raw.port))
                 s.sendall(request)
                 end = time.monotonic() + timeout
                 while time.monotonic() < end and len(received) < 64:
@@ -225,18 +205,12 @@ def garbage_check(url: str, timeout: float) -> str | None:
             return None
     except (OSError, ValueError, ImportError):
         return None
-    if not received or (family == "wsg" and _has_wsg_packet(received)):
-        return None  # silent, or a real WSG that answered late: the timeout stands as the reason
+    if not received or (raw.is_answer is not None and raw.is_answer(received)):
+        return None  # silent, or a real device of the family that answered late: the timeout stands
     return (
         f"sends bytes that are not a {family} answer ({len(received)}+ bytes, starting "
         f"{received[:8].hex(' ')}): a different protocol or baud rate?"
     )
-
-
-def _has_wsg_packet(data: bytes) -> bool:
-    from grippers.drivers.wsg.probe import holds_a_packet
-
-    return holds_a_packet(data)
 
 
 def _reason(exc: BaseException) -> str:
@@ -251,10 +225,11 @@ def _load_backends() -> None:
     also imports the backends and parses every profile, which takes a second on a loaded machine and would
     otherwise count against the first candidates as silence.
     """
-    import grippers.backends.stepfoc  # noqa: F401
-    import grippers.backends.wsg  # noqa: F401
     from grippers.profiles import list_profiles
 
+    from .probe_targets import _backends
+
+    _backends()
     list_profiles()
 
 
@@ -356,13 +331,13 @@ def collect(
         loaded = load_profile(profile)  # an unknown name is a usage error before anything is sent
 
     if target is None:
-        plan = pt.machine_targets(network=network, bitrate=bitrate, wsg_can_ids=_wsg_can_ids(wsg_ids))
+        plan = pt.machine_targets(network=network, bitrate=bitrate, options={"can_ids": wsg_ids})
     elif target.startswith("zenoh://"):  # grippers served over Zenoh: ask who is served (docs/remote.md)
         from grippers.remote import served_urls
 
         plan = pt.Plan([pt.Candidate(u, pt.location_of(u), group=u) for u in served_urls(target, timeout)])
     else:
-        plan = pt.expand(target, bitrate=bitrate, wsg_can_ids=_wsg_can_ids(wsg_ids))
+        plan = pt.expand(target, bitrate=bitrate, options={"can_ids": wsg_ids})
         if plan.sim_all:
             for url in _sim_targets():
                 plan.candidates.append(pt.Candidate(url, pt.location_of(url), group=url))

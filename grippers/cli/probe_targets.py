@@ -1,9 +1,9 @@
 """What ``grippers probe`` tries for a target: the family URLs a bare transport can carry.
 
-Pure string work (no I/O except the machine scan in :func:`machine_targets`), so the expansion rules are
-tested without devices. A bare transport names only where to look; every protocol that can run there is
-tried: WSG on TCP/UDP; WSG binary and STEPFOC UART on a serial port; STEPFOC nodes 0-15 and the WSG's CAN
-ids on a CAN bus.
+No I/O except the machine scan in :func:`machine_targets`, so the expansion rules are tested without
+devices. A bare transport names only where to look; every installed family's backend says what it would try
+there (its ``probe_candidates`` hook, issue 28 §2: a WSG's ports, a STEPFOC's nodes, a Robotiq's Modbus
+slave), and all of them are tried.
 """
 
 from __future__ import annotations
@@ -15,23 +15,11 @@ from typing import Any
 
 from grippers.drivers.urls import BUS_OPTIONS, bus_options, refuse_unknown
 from grippers.errors import URLError
-from grippers.urls import ConnectionURL, format_host, parse_url, to_int
+from grippers.urls import ConnectionURL, parse_url, to_int
 
 from .output import UsageError
 
-# Defaults not in the manuals; docs/protocols.md §1 "Transport defaults" and §2.
-WSG_DEFAULT_HOST = "192.168.1.20"
-WSG_TCP_PORT = 1000
-WSG_UDP_PORT = 1500
-WSG_SERIAL_BAUD = 115200
-STEPFOC_UART_BAUD = 256000
-STEPFOC_NODES = range(16)  # 4-bit node id (MSG manual, "Bits 10 - 7 of CAN ID")
-# The WSG over CAN: commands on a base id, replies on base + 1, base 0x000 (docs/protocols.md §1, one public
-# driver); the probe adds the ids of every WSG profile on the search path.
-WSG_CAN_IDS: tuple[tuple[int, int], ...] = ((0x000, 0x001),)
-
 BARE_SCHEMES = ("tcp", "udp", "serial", "can")
-FAMILY_SCHEMES = ("wsg+tcp", "wsg+udp", "wsg+serial", "wsg+can", "stepfoc+can", "stepfoc+serial")
 
 
 @dataclass(frozen=True)
@@ -41,8 +29,8 @@ class Candidate:
     url: str
     location: dict[str, Any]
     group: str
-    # When set, the candidate is only tried if no STEPFOC device answered at these nodes on the same bus: a
-    # WSG packet on CAN id 0x000/0x001 would be an E-stop frame for STEPFOC node 0 (docs/protocols.md §1, §2).
+    # When set, the candidate is only tried if no device answered at these nodes on the same bus (a WSG packet
+    # on CAN id 0x000/0x001 would be an E-stop frame for STEPFOC node 0, docs/protocols.md §1, §2).
     unless_nodes: tuple[int, ...] = ()
 
 
@@ -71,9 +59,9 @@ class TargetError(UsageError, URLError):
 
 
 def _parse(text: str, bare: bool = False) -> ConnectionURL:
-    """The one grammar (``drivers/urls.py``); a bare ``tcp://`` is read as a WSG's, for its checks."""
+    """The one grammar (``drivers/urls.py``); a bare ``tcp://`` is read as a transport, for its checks."""
     try:
-        return parse_url(text, bare_family="wsg" if bare else None)
+        return parse_url(text, bare_family="bare" if bare else None)
     except URLError as exc:
         raise TargetError(exc.message) from None
 
@@ -95,11 +83,11 @@ def location_of(url: str) -> dict[str, Any]:
     return loc
 
 
-def expand(
-    target: str, bitrate: int | None = None, wsg_can_ids: tuple[tuple[int, int], ...] = WSG_CAN_IDS
-) -> Plan:
+def expand(target: str, bitrate: int | None = None, options: dict[str, Any] | None = None) -> Plan:
     """The candidates for one target given on the command line; raises UsageError for a malformed one
-    (a :class:`TargetError`, also the grammar's URLError, when the URL grammar refuses it)."""
+    (a :class:`TargetError`, also the grammar's URLError, when the URL grammar refuses it).
+
+    ``options``: what the families' ``probe_candidates`` hooks may read (``can_ids``: ``--can-id``)."""
     text = target.strip()
     plan = Plan()
     if text.startswith("/") or (len(text) > 3 and text[:3].upper() == "COM" and text[3:].isdigit()):
@@ -121,59 +109,61 @@ def expand(
         else:
             plan.sim_all = True
         return plan
-    if scheme in FAMILY_SCHEMES or _is_plugin_scheme(scheme):
+    if _is_family_scheme(scheme):
         _parse(text)
         plan.candidates.append(Candidate(text, location_of(text), group=_group_of(text)))
         return plan
     if scheme not in BARE_SCHEMES:
         from .suggest import hint
 
-        known = ", ".join(BARE_SCHEMES + FAMILY_SCHEMES + ("sim", "FAMILY+TRANSPORT of a plugin"))
+        known = ", ".join((*BARE_SCHEMES, "FAMILY+TRANSPORT (e.g. wsg+tcp)", "sim"))
         fix = hint(text)
         raise UsageError(
             f"{target!r}: unknown scheme {raw_scheme!r} (known: {known})" + (f"; {fix}" if fix else "")
         )
     u = _parse(text, bare=True)
-    if scheme in ("tcp", "udp"):
-        assert u.host is not None  # the grammar refuses a tcp/udp URL without a host
-        port = u.port or (WSG_TCP_PORT if scheme == "tcp" else WSG_UDP_PORT)
-        url = f"wsg+{scheme}://{format_host(u.host, port)}"
-        plan.candidates.append(Candidate(url, location_of(url), group=url))
-    elif scheme == "serial":
-        path = u.serial_port
-        group = f"serial:{path}"
-        for url in (
-            f"wsg+serial://{path}?baudrate={WSG_SERIAL_BAUD}",
-            f"stepfoc+serial://{path}?baudrate={STEPFOC_UART_BAUD}",
-        ):
-            plan.candidates.append(Candidate(url, location_of(url), group=group))
-    else:  # can
-        interface, channel = u.interface, u.channel
-        # The bus options the URL carries (?port= of a udp_multicast bus, ?bitrate=) go to every candidate:
-        # dropped, the probe searched python-can's default port and found another process's nodes.
+    given: dict[str, Any] = {"bitrate": bitrate, **(options or {})}
+    if scheme == "can":
+        # The bus options the URL carries (?port= of a udp_multicast bus, ?bitrate=) go to every candidate
+        # (grippers.backends.bus_query): dropped, the probe searched python-can's default port.
         try:
             refuse_unknown(text, u.params, BUS_OPTIONS)
-            options = bus_options(u)
+            bus = bus_options(u)
         except URLError as exc:
             raise TargetError(exc.message) from None
         if bitrate:
-            options["bitrate"] = bitrate  # -b wins over the URL, as flags do everywhere
-        extra = "".join(f"&{k}={v}" for k, v in options.items())
-        for node in STEPFOC_NODES:
-            url = f"stepfoc+can://{interface}/{channel}?node={node}{extra}"
-            # Each node gets its own bus connection, so the nodes are asked in parallel.
-            plan.candidates.append(Candidate(url, location_of(url), group=url))
-        for send_id, recv_id in wsg_can_ids:
-            url = f"wsg+can://{interface}/{channel}?send_id=0x{send_id:03X}&recv_id=0x{recv_id:03X}{extra}"
-            # A STEPFOC node answering on the ids a WSG packet would use must not receive one (an id with
-            # command 0 is that node's E-stop): those WSG candidates wait for the node probe.
-            nodes = tuple({i >> 7 for i in (send_id, recv_id)})
-            plan.candidates.append(Candidate(url, location_of(url), group=url, unless_nodes=nodes))
+            bus["bitrate"] = bitrate  # -b wins over the URL, as flags do everywhere
+        given["bus"] = bus
+    offered = []
+    for backend in _backends():
+        hook = getattr(backend, "probe_candidates", None)
+        if hook is not None:
+            offered += hook(scheme, u, given)
+    for c in sorted(offered, key=lambda c: c.order):  # stable: a family's own order within one rank
+        # Candidates on one serial port share it, tried one after another; the rest each have their own.
+        group = f"serial:{u.serial_port}" if scheme == "serial" else c.url
+        plan.candidates.append(Candidate(c.url, location_of(c.url), group=group, unless_nodes=c.unless_nodes))
     return plan
 
 
-def _is_plugin_scheme(scheme: str) -> bool:
-    """``acme+tcp``: a family installed through the ``grippers.backends`` entry points (docs/backends.md)."""
+def _backends() -> list[Any]:
+    """Every installed family's backend that loads (a missing optional dependency leaves one out)."""
+    from grippers.backends import available_backends, find_backend
+
+    out = []
+    for family in available_backends():
+        try:
+            backend = find_backend(family)
+        except Exception:
+            continue
+        if backend is not None:
+            out.append(backend)
+    return out
+
+
+def _is_family_scheme(scheme: str) -> bool:
+    """``wsg+tcp``, ``acme+tcp``: a family built in or installed through the ``grippers.backends`` entry
+    points (docs/backends.md), on a transport."""
     family, plus, transport = scheme.partition("+")
     if not plus or transport not in BARE_SCHEMES:
         return False
@@ -225,19 +215,25 @@ def serial_ports() -> list[str]:
     return sorted(p.device for p in list_ports.comports())
 
 
-def machine_targets(
-    network: bool, bitrate: int | None = None, wsg_can_ids: tuple[tuple[int, int], ...] = WSG_CAN_IDS
-) -> Plan:
-    """What ``grippers probe`` with no URL looks at: serial ports, SocketCAN interfaces and the WSG's factory
-    address (a TCP connection attempt to 192.168.1.20:1000; ``--no-network`` leaves it out)."""
+def machine_targets(network: bool, bitrate: int | None = None, options: dict[str, Any] | None = None) -> Plan:
+    """What ``grippers probe`` with no URL looks at: serial ports, SocketCAN interfaces and the families'
+    factory addresses (a WSG's 192.168.1.20:1000: a TCP connection attempt; ``--no-network`` leaves them
+    out)."""
     plan = Plan()
     for port in serial_ports():
-        plan.candidates += expand(f"serial://{port}").candidates
+        plan.candidates += expand(f"serial://{port}", bitrate, options).candidates
     for name in socketcan_interfaces():
-        plan.candidates += expand(f"can://socketcan/{name}", bitrate, wsg_can_ids).candidates
-    wsg = f"tcp://{WSG_DEFAULT_HOST}:{WSG_TCP_PORT}"
-    if network:
-        plan.candidates += expand(wsg).candidates
-    else:
-        plan.skipped.append({"target": wsg, "reason": "network addresses are left out with --no-network"})
+        plan.candidates += expand(f"can://socketcan/{name}", bitrate, options).candidates
+    for backend in _backends():
+        address = getattr(backend, "factory_address", None)
+        if address is None:
+            continue
+        if network:
+            plan.candidates += [
+                c for c in expand(address).candidates if c.url.startswith(backend.family + "+")
+            ]
+        else:
+            plan.skipped.append(
+                {"target": address, "reason": "network addresses are left out with --no-network"}
+            )
     return plan

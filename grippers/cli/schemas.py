@@ -171,12 +171,13 @@ class ResultDocument(_Strict):
 
 
 class MonitorRecord(_Strict):
-    """``grippers monitor --json``: one per line, per decoded frame (STEPFOC) or packet (WSG)."""
+    """``grippers monitor --json``: one per line, per decoded frame or packet (the family's dissector's)."""
 
     schema_: Literal["grippers.monitor/1"] = Field(alias="schema")
     time: float | None
-    protocol: Literal["wsg", "stepfoc", "can"] = Field(
-        description="can: a frame neither protocol carries (error, extended, CAN FD) or that did not decode"
+    protocol: str = Field(
+        description="the family dissector's protocol (wsg, stepfoc, modbus, a plugin's); can: a frame no "
+        "family reads (error, extended, CAN FD) or that did not decode"
     )
     direction: str = Field(description="host->gripper, gripper->host or ?")
     id: str | None = Field(description="WSG command id as '21h'; CAN arbitration id in hex for STEPFOC")

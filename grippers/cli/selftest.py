@@ -216,10 +216,12 @@ class _Run:
             self.add(f"faults {when}", "none", "none", "PASS")
 
     def stroke(self) -> None:
+        from grippers.backends import find_backend
+
         profile_mm = self.g.profile.mechanics.stroke_mm
         info = self.g.info()
-        if info.family == "wsg":
-            # The WSG reports its own limits (53h); the backend narrows the profile's with them.
+        if getattr(find_backend(info.family), "reports_stroke", False):
+            # The device reports its own limits (a WSG's 53h); the backend narrows the profile's with them.
             self.stroke_mm = info.limits.stroke * 1000
             ok = abs(self.stroke_mm - profile_mm) <= POSITION_TOLERANCE * profile_mm
             self.add(
@@ -236,7 +238,8 @@ class _Run:
                 "-",
                 f"{profile_mm:g} mm",
                 "INFO",
-                "the MSG cannot report its rail length: check the width at the open stop with a caliper",
+                f"the {info.family} gripper does not report its stroke: check the width at the open stop "
+                "with a caliper",
             )
 
     def home(self, which: str) -> None:
@@ -319,11 +322,16 @@ class _Run:
         self.g.release()
 
     def settings(self) -> None:
-        from .settings_cmd import _msg_read, _wsg_read, has_vendor_driver
+        from grippers.backends import find_backend
+
+        from .settings_cmd import device_settings_of
 
         info = self.g.info()
-        driver = self.g.driver
-        if not has_vendor_driver(self.g):
+        hook = device_settings_of(self.g)
+        if hook is None:
+            self.add("settings", "-", "-", "INFO", f"the {info.family} backend offers no device settings")
+            return
+        if not hook.supports(self.g):
             self.add(
                 "settings",
                 "-",
@@ -332,66 +340,9 @@ class _Run:
                 "not served over the network: run selftest on the serving machine",
             )
             return
-        if info.family == "wsg":
-            values = _wsg_read(driver)
-            accel = values.get("acceleration_mm_s2")
-            mech = self.g.profile.mechanics
-            if (
-                isinstance(accel, float)
-                and mech.min_accel_mm_s2 is not None
-                and mech.max_accel_mm_s2 is not None
-            ):
-                ok = mech.min_accel_mm_s2 <= accel <= mech.max_accel_mm_s2
-                self.add(
-                    "acceleration",
-                    f"{accel:g} mm/s²",
-                    f"{mech.min_accel_mm_s2:g}..{mech.max_accel_mm_s2:g} mm/s²",
-                    "PASS" if ok else "WARN",
-                )
-            force = values.get("force_limit_n")
-            if isinstance(force, float):
-                self.add("force limit", f"{force:g} N", f"<= {self.g.limits.max_force:g} N", "INFO")
-            soft = values.get("soft_limits")
-            if isinstance(soft, dict) and "min_mm" in soft:
-                self.add(
-                    "soft limits",
-                    f"{soft['min_mm']:g}..{soft['max_mm']:g} mm",
-                    "not set",
-                    "WARN",
-                    "the device refuses motion outside them",
-                )
-            else:
-                self.add("soft limits", "not set", "not set", "PASS")
-            return
-        values = _msg_read(driver)
-        if "node_id" in values:
-            self.add("node id", str(values["node_id"]), "-", "INFO")
-        if hasattr(driver, "error_state"):
-            es = driver.error_state()
-            names = [n for n in ("temperature", "encoder", "vbus", "driver", "velocity", "current", "estop")]
-            active = [n for n in names if getattr(es, n, False)]
-            self.add(
-                "driver errors (26)",
-                ", ".join(active) or "none",
-                "none",
-                "WARN" if active else "PASS",
-            )
-            tripped = bool(getattr(es, "watchdog", False))
-            self.add(
-                "watchdog",
-                "tripped" if tripped else "not tripped",
-                "not tripped",
-                "WARN" if tripped else "PASS",
-                "the node cannot report its watchdog period; grippers settings --watchdog 0 --save clears it",
-            )
-            heard = getattr(driver, "last_heartbeat", None) is not None
-            self.add(
-                "heartbeat",
-                "heard" if heard else "not heard",
-                "-",
-                "INFO",
-                "sent only after silence, so a polled node sends none",
-            )
+        checks = getattr(find_backend(info.family), "selftest_checks", None)
+        if checks is not None:
+            checks(self.g, self.add)
 
 
 def _document(run: _Run, args: argparse.Namespace, info: Any, written: str | None) -> dict[str, Any]:

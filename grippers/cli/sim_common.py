@@ -1,4 +1,4 @@
-"""What ``grippers sim wsg`` and ``grippers sim msg`` share: options, and serving until interrupted."""
+"""What every family's ``grippers sim FAMILY`` shares: options, replaying a capture, serving until stopped."""
 
 from __future__ import annotations
 
@@ -13,10 +13,17 @@ from typing import Any
 from .common import non_negative_float, positive_float
 
 
-def add_sim_arguments(parser: argparse.ArgumentParser, default_profile: str, listen_help: str) -> None:
+def add_sim_arguments(
+    parser: argparse.ArgumentParser, default_profile: str | None, listen_help: str, *, replay: bool = True
+) -> None:
     parser.add_argument("--listen", metavar="WHERE", help=listen_help)
     parser.add_argument(
-        "--profile", default=default_profile, help=f"device profile (default {default_profile})"
+        "--profile",
+        "--model",
+        dest="profile",
+        default=default_profile,
+        metavar="NAME",
+        help=f"device profile, by name, alias or file (default {default_profile or 'the family default'})",
     )
     parser.add_argument(
         "--time-scale",
@@ -32,12 +39,13 @@ def add_sim_arguments(parser: argparse.ArgumentParser, default_profile: str, lis
         metavar="MM",
         help="width of a part between the fingers in mm (default: no part)",
     )
-    parser.add_argument(
-        "--replay",
-        metavar="FILE",
-        help="answer as the captured session did (a capture saved by grippers monitor --write); a request "
-        "that differs from the capture is reported on stderr and not answered",
-    )
+    if replay:
+        parser.add_argument(
+            "--replay",
+            metavar="FILE",
+            help="answer as the captured session did (a capture saved by grippers monitor --write); a "
+            "request that differs from the capture is reported on stderr and not answered",
+        )
     parser.add_argument(
         "--json",
         action="store_true",
@@ -157,11 +165,13 @@ def serve_forever(server: Any, what: str, urls: list[str] | None = None, *, as_j
     return 0  # pragma: no cover - the wait above only ends by an exception
 
 
-def serve_replay(args: argparse.Namespace, family: str) -> int:
-    """``--replay FILE``: serve the capture instead of a simulated device; exit 1 if a request mismatched."""
+def serve_replay(args: argparse.Namespace, start: Callable[[bytes], tuple[Any, Any]]) -> int:
+    """``--replay FILE``: serve the capture instead of a simulated device; exit 1 if a request mismatched.
+
+    ``start(blob)`` is the family's: it reads its capture into a script and starts the server that answers
+    from it (a CaptureError or ValueError is the command line's fault)."""
     from grippers.drivers.captures import CaptureError
     from grippers.drivers.replay import summary
-    from grippers.urls import parse_url, to_int
 
     from .output import UsageError
 
@@ -171,38 +181,7 @@ def serve_replay(args: argparse.Namespace, family: str) -> int:
     except OSError as exc:
         raise UsageError(f"--replay {args.replay}: {exc.strerror or exc}") from None
     try:
-        if family == "wsg":
-            from grippers.drivers.wsg.sim.replay import WsgReplayServer, wsg_script
-
-            script = wsg_script(blob, args.replay)
-            listen = args.listen or "tcp://127.0.0.1:1000"
-            if listen.partition("://")[0] != "tcp":
-                raise UsageError(f"--replay serves a WSG on tcp://HOST:PORT, not {listen!r}")
-            where = parse_url(listen, bare_family="wsg", listen=True)  # the one grammar: drivers/urls.py
-            host, port = where.host, where.port
-            if not host or port is None:
-                raise UsageError(f"--replay serves a WSG on tcp://HOST:PORT, not {listen!r}")
-            server: Any = start_server(
-                lambda _: WsgReplayServer(script, host, port, args.time_scale),
-                listen,
-                listen,
-            )
-        else:
-            from grippers.drivers.stepfoc.sim.replay import StepfocReplayServer, stepfoc_script
-
-            script = stepfoc_script(blob, args.replay)
-            listen = args.listen or ""
-            if not listen.startswith("can://"):
-                raise UsageError(
-                    "--replay serves STEPFOC nodes on a CAN bus: --listen can://INTERFACE/CHANNEL"
-                )
-            where = parse_url(listen, bare_family="stepfoc")
-            interface, channel = where.interface or "", where.channel or ""
-            bus = {k: to_int(v, k, listen) for k, v in where.params.items() if k in ("port", "bitrate")}
-            if interface in ("virtual", "udp_multicast"):
-                bus.pop("bitrate", None)
-            warn_private_bus(listen)
-            server = StepfocReplayServer(script, interface, channel, args.time_scale, **bus)
+        server, script = start(blob)
     except (CaptureError, ValueError) as exc:
         raise UsageError(f"--replay {args.replay}: {exc}") from None
     try:

@@ -9,18 +9,28 @@ from __future__ import annotations
 import difflib
 import ipaddress
 import re
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping, Sequence
 
 TRANSPORTS = ("tcp", "udp", "serial", "can")
 # The suffixes grippers.profiles reads (PROFILE_SUFFIXES; not imported: this module must not load pydantic).
 PROFILE_FILES = (".toml", ".yaml", ".yml", ".json")
-# What a bare transport carries (docs/protocols.md §1 "Transport defaults", §2): the family URLs to try.
-BARE = {
-    "tcp": ("wsg+tcp://{rest}",),
-    "udp": ("wsg+udp://{rest}",),
-    "serial": ("wsg+serial://{rest}", "stepfoc+serial://{rest}"),
-    "can": ("stepfoc+can://{rest}?node=0", "wsg+can://{rest}"),
-}
+Forms = Mapping[str, Sequence[str]]  # bare transport -> the family URL forms to offer ("wsg+tcp://{rest}")
+
+
+def bare_forms() -> dict[str, list[str]]:
+    """What a bare transport carries, from every installed family's backend (its ``bare_forms``: transport ->
+    (rank, form)), best-ranked first: the family URLs to suggest for ``tcp://HOST`` and the like."""
+    from grippers.backends import available_backends, find_backend
+
+    ranked: dict[str, list[tuple[int, str]]] = {}
+    for family in available_backends():
+        try:
+            forms = getattr(find_backend(family), "bare_forms", None) or {}
+        except Exception:  # a family whose optional dependency is missing: no hint from it
+            continue
+        for transport, (rank, form) in forms.items():
+            ranked.setdefault(transport, []).append((rank, form))
+    return {t: [form for _rank, form in sorted(items)] for t, items in ranked.items()}
 
 
 def _looks_like_host(text: str) -> bool:
@@ -34,8 +44,12 @@ def _looks_like_host(text: str) -> bool:
         return bool(re.fullmatch(r"[A-Za-z0-9-]+(\.[A-Za-z0-9-]+)+", host))
 
 
-def suggest(target: str, families: Iterable[str], profiles: Iterable[str]) -> str | None:
-    """A corrected target for ``target``, or None when nothing close is known."""
+def suggest(
+    target: str, families: Iterable[str], profiles: Iterable[str], bare: Forms | None = None
+) -> str | None:
+    """A corrected target for ``target``, or None when nothing close is known; ``bare``: the family URL
+    forms each bare transport carries (:func:`bare_forms`)."""
+    bare = bare or {}
     families = list(families)
     profiles = list(profiles)
     text = target.strip()
@@ -43,11 +57,13 @@ def suggest(target: str, families: Iterable[str], profiles: Iterable[str]) -> st
     if not sep:
         m = re.fullmatch(r"([A-Za-z][A-Za-z0-9+]*):/*(.+)", text)
         if m and (m[1].lower() in TRANSPORTS or "+" in m[1] or m[1].lower() == "sim"):
-            return suggest(f"{m[1]}://{m[2]}", families, profiles) or f"{m[1]}://{m[2]}"  # wsg+tcp:/host
+            return (
+                suggest(f"{m[1]}://{m[2]}", families, profiles, bare) or f"{m[1]}://{m[2]}"
+            )  # wsg+tcp:/host
         if text.lower().endswith(PROFILE_FILES):
             return None  # a profile file's name (nope.toml): its own error says "not found", not a host
-        if _looks_like_host(text):
-            return f"wsg+tcp://{text}"  # a bare address: the WSG is the family on Ethernet
+        if _looks_like_host(text) and bare.get("tcp"):
+            return bare["tcp"][0].format(rest=text)  # a bare address: the first family on Ethernet
         if text in profiles:
             return None
         close = difflib.get_close_matches(text, profiles, n=1, cutoff=0.6)
@@ -60,8 +76,8 @@ def suggest(target: str, families: Iterable[str], profiles: Iterable[str]) -> st
             if close:
                 return f"sim://{close[0]}" + (f"?{rest.split('?', 1)[1]}" if "?" in rest else "")
         return None
-    if scheme in BARE:
-        return " or ".join(form.format(rest=rest) for form in BARE[scheme])
+    if scheme in TRANSPORTS:
+        return " or ".join(form.format(rest=rest) for form in bare.get(scheme, ())) or None
     family, plus, transport = scheme.partition("+")
     if plus:
         fixed_family = (
@@ -89,7 +105,7 @@ def hint(target: str) -> str | None:
         for profile in list_profiles():
             names.append(profile.name)
             names.extend(profile.aliases)
-        fixed = suggest(target, available_backends(), names)
+        fixed = suggest(target, available_backends(), names, bare_forms())
     except Exception:  # a hint must never replace the error it decorates
         return None
     return None if fixed is None or fixed == target else f"did you mean {fixed}?"

@@ -112,7 +112,8 @@ class RemoteGripper(Gripper):
             live = self._session.liveliness()
             self._entities.append(live.declare_token(protocol.client_key(name, self.client_id)))
             doc = self._query(protocol.info_key(name), b"", "info", timeout, device=url)
-            served = parse_profile(doc["profile_data"], f"{url} (served profile)")
+            # Read with the family's model if installed, else as the generic profile (no vendor code needed).
+            served = parse_profile(doc["profile_data"], f"{url} (served profile)", generic=True)
             if profile is not None and profile.name != served.name:
                 raise URLError(f"{url}: serves {served.name!r}, not the profile {profile.name!r} asked for")
             super().__init__(served, url, timeout=timeout)

@@ -89,7 +89,20 @@ def test_unknown_profile_lists_known_names() -> None:
         p.load_profile("wsg99")
 
 
-def test_json_schema_covers_both_families() -> None:
+def test_json_schema_covers_every_installed_family() -> None:
     schema = p.json_schema()
     text = json.dumps(schema)
-    assert "WsgProfile" in text and "MsgProfile" in text
+    assert "WsgProfile" in text and "MsgProfile" in text and "RobotiqProfile" in text
+
+
+def test_the_backend_declares_the_profile_model() -> None:
+    """Issue 28 §2: no table in profiles.py; the family's backend says which model validates its profiles, and
+    ``profile_model = None`` means the generic ProfileBase (it used to raise "unknown family")."""
+    from grippers.backends import find_backend
+
+    assert not hasattr(p, "BUILTIN_PROFILE_MODELS")
+    for family in ("wsg", "stepfoc", "robotiq"):
+        assert p._profile_model(family) is find_backend(family).profile_model
+    assert p._profile_model("zenoh") is p.ProfileBase  # the zenoh backend declares None
+    with pytest.raises(ValueError, match="unknown family 'acme'"):
+        p._profile_model("acme")

@@ -25,8 +25,9 @@ def _open(kind: str, profile: str, sim_process) -> grippers.Gripper:
     part = _part_mm(profile)
     if kind == "in-process":
         return grippers.open(f"sim://{profile}?time_scale={TIME_SCALE}&part_width_mm={part}")
-    family = "wsg" if profile.startswith("wsg") else "msg"
-    listen = "tcp://127.0.0.1:0" if family == "wsg" else "pty"
+    # `grippers sim FAMILY` for every family (issue 28 §2): the profile's own family names the command.
+    family = grippers.load_profile(profile).family
+    listen = "tcp://127.0.0.1:0" if family == "wsg" else "pty"  # the WSG's default port needs root
     sim = sim_process(
         family,
         "--listen",

@@ -93,3 +93,129 @@ def test_plugin_gripper_moves_with_limit_checks(plugin_site: Path) -> None:
     assert '"grasped": true' in r.stdout
     over = _grippers(plugin_site, "move", "acme+tcp://10.0.0.5", "500", "--home")
     assert over.returncode == 2 and "outside" in over.stderr
+
+
+# -- issue 28 §2: a plugin's own profile folder and profile model, found once it is installed ----------------
+#
+# An installed-like plugin without pip: a package and a ``*.dist-info`` with its entry points, on sys.path (a
+# subprocess's PYTHONPATH, or this process's sys.path), which is all importlib.metadata reads. Its family
+# ``acme`` reuses the Robotiq driver and simulator (a lab's rebadged 2F-85), and declares its own profile
+# model and its profile folder in the entry-point group ``grippers.profiles``.
+
+ACME_PLUGIN = """
+from typing import Literal
+
+from grippers.backends.robotiq import RobotiqBackend, RobotiqProfile
+
+
+class AcmeProfile(RobotiqProfile):
+    family: Literal["acme"] = "acme"  # type: ignore[assignment]
+
+
+class AcmeBackend(RobotiqBackend):
+    family = "acme"
+    profile_model = AcmeProfile
+    default_profile = None  # `grippers sim acme`: the first acme profile on the search path
+
+    def simulator(self, profile, settings, listen=None):
+        server = super().simulator(profile, settings, listen)
+        server.url = server.url.replace("robotiq+", "acme+", 1)
+        return server
+
+    def simulate(self, profile, settings):
+        return self.simulator(profile, settings)
+"""
+
+ACME_PROFILE = """
+name = "acme-a1"
+aliases = ["Acme A1"]
+family = "acme"
+vendor = "Acme"
+model = "A1"
+url = "acme+tcp://127.0.0.1:5020"
+
+[mechanics]
+stroke_mm = 85.0
+min_speed_mm_s = 20.0
+max_speed_mm_s = 150.0
+default_speed_mm_s = 100.0
+min_force_n = 20.0
+max_force_n = 235.0
+default_force_n = 100.0
+
+[robotiq]
+open_count = 3
+closed_count = 230
+open_width_mm = 85.0
+closed_width_mm = 0.0
+"""
+
+
+@pytest.fixture(scope="module")
+def acme_site(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    site = tmp_path_factory.mktemp("acme-plugin-site")
+    package = site / "acme_lab"
+    (package / "profiles").mkdir(parents=True)
+    (package / "__init__.py").write_text(ACME_PLUGIN)
+    (package / "profiles" / "__init__.py").write_text("")
+    (package / "profiles" / "acme-a1.toml").write_text(ACME_PROFILE)
+    dist = site / "acme_lab-1.0.dist-info"
+    dist.mkdir()
+    (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: acme-lab\nVersion: 1.0\n")
+    (dist / "entry_points.txt").write_text(
+        "[grippers.backends]\nacme = acme_lab:AcmeBackend\n\n[grippers.profiles]\nacme = acme_lab.profiles\n"
+    )
+    return site
+
+
+def test_a_plugin_profile_is_found_by_name_without_the_profile_path(acme_site: Path) -> None:
+    env_path = os.environ.get("GRIPPERS_PROFILE_PATH")
+    assert not env_path, "the test must not lean on GRIPPERS_PROFILE_PATH"
+    listed = _grippers(acme_site, "profiles", "list")
+    assert listed.returncode == 0, listed.stderr
+    assert "acme-a1" in listed.stdout and "wsg50" in listed.stdout
+    path = _grippers(acme_site, "profiles", "path")
+    assert str(acme_site / "acme_lab" / "profiles") in path.stdout
+    state = _grippers(acme_site, "state", "sim://acme-a1?activated=true", "--json")
+    assert state.returncode == 0, state.stderr
+    assert '"width_mm": 85.0' in state.stdout
+    probe = _grippers(acme_site, "probe", "sim://acme-a1?activated=true")
+    assert probe.returncode == 0, probe.stdout + probe.stderr
+    assert "acme-a1" in probe.stdout
+    schema = _grippers(acme_site, "profiles", "schema")
+    assert schema.returncode == 0 and "AcmeProfile" in schema.stdout  # the union of the installed families
+
+
+def test_gripper_sim_starts_a_plugin_profile_by_name(
+    acme_site: Path, monkeypatch: pytest.MonkeyPatch, gripper_sim
+) -> None:
+    import grippers
+
+    monkeypatch.syspath_prepend(str(acme_site))
+    url = gripper_sim("acme-a1", activated=True)
+    assert url.startswith("acme+tcp://")
+    with grippers.open(url) as g:
+        assert g.profile.name == "acme-a1" and type(g.profile).__name__ == "AcmeProfile"
+        assert g.limits.max_width == pytest.approx(0.085)
+
+
+def test_grippers_sim_serves_a_plugin_family_by_its_hooks(acme_site: Path) -> None:
+    """``grippers sim acme``: the plugin declares no sim command of its own, so its ``simulator`` gets the
+    common options, and its default profile is the first of its family on the search path."""
+    import json
+
+    env = {**os.environ, "PYTHONPATH": str(acme_site), "PYTHONUNBUFFERED": "1"}
+    cmd = [sys.executable, "-m", "grippers", "sim", "acme", "--listen", "tcp://127.0.0.1:0", "--json"]
+    proc = subprocess.Popen(cmd, cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert proc.stdout is not None
+        line = proc.stdout.readline()
+        assert line, proc.stderr.read() if proc.stderr else ""
+        doc = json.loads(line)
+        assert doc["urls"][0].startswith("acme+tcp://127.0.0.1:") and doc["what"] == "simulated A1"
+    finally:
+        proc.terminate()
+        proc.wait(10)
+        for stream in (proc.stdout, proc.stderr):
+            if stream:
+                stream.close()

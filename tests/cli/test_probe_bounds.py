@@ -44,13 +44,14 @@ def test_garbage_tcp_device(garbage_tcp, probe_nothing) -> None:
     probe_nothing(f"tcp://127.0.0.1:{garbage_tcp.port}", 1)
 
 
-def test_silent_serial_port_tries_both_protocols(silent_pty, probe_nothing) -> None:
-    doc = probe_nothing(f"serial://{silent_pty.path}", 2)
-    assert sorted(m["url"].split("+")[0] for m in doc["silent"] + doc["others"]) == ["stepfoc", "wsg"]
+def test_silent_serial_port_tries_every_family(silent_pty, probe_nothing) -> None:
+    doc = probe_nothing(f"serial://{silent_pty.path}", 3)
+    found = sorted(m["url"].split("+")[0] for m in doc["silent"] + doc["others"])
+    assert found == ["robotiq", "stepfoc", "wsg"]
 
 
 def test_garbage_serial_device(garbage_pty, probe_nothing) -> None:
-    probe_nothing(garbage_pty.path, 2)  # a bare device path is a serial port
+    probe_nothing(garbage_pty.path, 3)  # a bare device path is a serial port
 
 
 @pytest.mark.udp_multicast

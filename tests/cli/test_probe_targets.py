@@ -14,19 +14,20 @@ def test_bare_tcp_defaults_to_the_wsg_port() -> None:
     assert plan.candidates[0].location["port"] == 1000
 
 
-def test_bare_serial_tries_both_protocols_one_after_another() -> None:
+def test_bare_serial_tries_every_family_one_after_another() -> None:
     plan = expand("/dev/ttyUSB0")
     urls = [c.url for c in plan.candidates]
-    assert urls == [
+    assert urls == [  # each family's backend offers its own (probe_candidates), in the order they declare
         "wsg+serial:///dev/ttyUSB0?baudrate=115200",
         "stepfoc+serial:///dev/ttyUSB0?baudrate=256000",
+        "robotiq+serial:///dev/ttyUSB0?baudrate=115200",
     ]
     assert len({c.group for c in plan.candidates}) == 1
     assert plan.candidates[0].location["serial_port"] == "/dev/ttyUSB0"
 
 
 def test_bare_can_tries_sixteen_nodes_and_the_wsg_ids() -> None:
-    plan = expand("can://udp_multicast/239.74.163.1", wsg_can_ids=((0x000, 0x001), (0x7E8, 0x7E9)))
+    plan = expand("can://udp_multicast/239.74.163.1", options={"can_ids": [0x000, 0x7E8]})
     nodes = [c.location["node"] for c in plan.candidates if c.url.startswith("stepfoc")]
     assert nodes == list(range(16))
     wsg = [c for c in plan.candidates if c.url.startswith("wsg+can")]

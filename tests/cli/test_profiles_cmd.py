@@ -57,4 +57,7 @@ def test_schema_export(cli) -> None:
     r = cli("profiles", "schema")
     assert r.returncode == 0
     schema = json.loads(r.stdout)
-    assert "WsgProfile" in json.dumps(schema) and "MsgProfile" in json.dumps(schema)
+    text = json.dumps(schema)
+    # The union of the installed families' models, each told apart by its family (issue 28 §2).
+    assert "WsgProfile" in text and "MsgProfile" in text and "RobotiqProfile" in text
+    assert schema["discriminator"]["propertyName"] == "family"

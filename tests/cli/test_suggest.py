@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import pytest
 
-from grippers.cli.suggest import suggest
+from grippers.cli.suggest import bare_forms, suggest
 
 FAMILIES = ["stepfoc", "wsg"]
 PROFILES = ["wsg25", "wsg32", "wsg50", "wsg70", "msg-100", "msg-150", "msg-200"]
@@ -16,7 +16,10 @@ PROFILES = ["wsg25", "wsg32", "wsg50", "wsg70", "msg-100", "msg-150", "msg-200"]
     [
         ("tcp://192.168.1.20", "wsg+tcp://192.168.1.20"),
         ("udp://10.0.0.2:1500", "wsg+udp://10.0.0.2:1500"),
-        ("serial:///dev/ttyUSB0", "wsg+serial:///dev/ttyUSB0 or stepfoc+serial:///dev/ttyUSB0"),
+        (
+            "serial:///dev/ttyUSB0",
+            "wsg+serial:///dev/ttyUSB0 or stepfoc+serial:///dev/ttyUSB0 or robotiq+serial:///dev/ttyUSB0",
+        ),
         ("can://socketcan/can0", "stepfoc+can://socketcan/can0?node=0 or wsg+can://socketcan/can0"),
         ("wsg+tcp:/192.168.1.20", "wsg+tcp://192.168.1.20"),
         ("wsg+tcp:192.168.1.20", "wsg+tcp://192.168.1.20"),
@@ -30,12 +33,13 @@ PROFILES = ["wsg25", "wsg32", "wsg50", "wsg70", "msg-100", "msg-150", "msg-200"]
     ],
 )
 def test_suggestions(typed: str, expected: str) -> None:
-    assert suggest(typed, FAMILIES, PROFILES) == expected
+    # What a bare transport carries is each installed family's to say (its backend's bare_forms).
+    assert suggest(typed, FAMILIES, PROFILES, bare_forms()) == expected
 
 
 @pytest.mark.parametrize("typed", ["wsg+tcp://192.168.1.20", "sim://wsg50", "wsg50", "zzzzzz"])
 def test_nothing_to_suggest(typed: str) -> None:
-    assert suggest(typed, FAMILIES, PROFILES) is None
+    assert suggest(typed, FAMILIES, PROFILES, bare_forms()) is None
 
 
 @pytest.mark.parametrize(

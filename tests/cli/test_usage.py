@@ -16,9 +16,10 @@ def test_every_command_has_help_with_an_example() -> None:
         sp = sub.choices[name]
         text = sp.format_help()
         assert "Example: grippers " in text, name
-    sim = next(a for a in sub.choices["sim"]._actions if a.dest == "family")
-    for family in ("wsg", "msg"):
-        assert "Example: grippers sim " + family in sim.choices[family].format_help()
+    from grippers.cli.sim import family_parser
+
+    for family in ("wsg", "msg", "robotiq"):
+        assert "Example: grippers sim " + family in family_parser(family)[0].format_help()
 
 
 def test_the_can_flags_are_python_cans() -> None:

@@ -102,7 +102,7 @@ def test_raw_client_homes_moves_grips_releases(raw_tcp_address) -> None:
     _session(raw_tcp_address)
 
 
-@pytest.mark.skipif(importlib.util.find_spec("grippers.cli.sim_wsg") is None, reason="CLI not landed")
+@pytest.mark.skipif(importlib.util.find_spec("grippers.backends.wsg_cli") is None, reason="CLI not landed")
 def test_raw_client_against_the_command_line_simulator() -> None:
     cmd = [
         sys.executable,

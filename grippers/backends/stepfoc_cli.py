@@ -1,10 +1,15 @@
-"""``grippers sim msg``: MSG grippers on STEPFOC drivers, as CAN nodes or on a UART pseudo-terminal."""
+"""The STEPFOC family's command-line hooks: ``grippers sim msg`` (MSG grippers on STEPFOC drivers, as CAN
+nodes or on a UART pseudo-terminal, or the replay of a candump log). The backend offers it as
+its ``cli_sim``."""
 
 from __future__ import annotations
 
 import argparse
+from typing import Any
 
-from .sim_common import add_sim_arguments, serve_forever, serve_replay, settings_for, warn_private_bus
+from ..cli.sim_common import add_sim_arguments, serve_forever, serve_replay, settings_for, warn_private_bus
+
+NAMES = ("msg", "stepfoc")  # `grippers sim msg` (the gripper's name) or the family's
 
 HELP = "simulate MSG grippers (STEPFOC) as CAN nodes (can://IF/CH?node=N) or a UART device (pty)"
 EXAMPLE = (
@@ -27,19 +32,38 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def run(args: argparse.Namespace) -> int:
-    from grippers.backends import get_backend
-    from grippers.profiles import MsgProfile, load_profile
+def _replay(args: argparse.Namespace, blob: bytes) -> tuple[Any, Any]:
+    from grippers.drivers.stepfoc.sim.replay import StepfocReplayServer, stepfoc_script
+    from grippers.urls import parse_url, to_int
+
+    from ..cli.output import UsageError
+
+    script = stepfoc_script(blob, args.replay)
+    listen = args.listen or ""
+    if not listen.startswith("can://"):
+        raise UsageError("--replay serves STEPFOC nodes on a CAN bus: --listen can://INTERFACE/CHANNEL")
+    where = parse_url(listen, bare_family="stepfoc")
+    interface, channel = where.interface or "", where.channel or ""
+    bus = {k: to_int(v, k, listen) for k, v in where.params.items() if k in BUS_PARAMETERS}
+    if interface in ("virtual", "udp_multicast"):
+        bus.pop("bitrate", None)
+    warn_private_bus(listen)
+    return StepfocReplayServer(script, interface, channel, args.time_scale, **bus), script
+
+
+def run(args: argparse.Namespace, backend: Any) -> int:
+    from grippers.profiles import load_profile
+
+    from .stepfoc_profile import MsgProfile
 
     if args.replay:
-        return serve_replay(args, "stepfoc")
+        return serve_replay(args, lambda blob: _replay(args, blob))
 
-    from .output import UsageError
+    from ..cli.output import UsageError
 
     profile = load_profile(args.profile)
     if not isinstance(profile, MsgProfile):
         raise UsageError(f"profile {profile.name} is a {profile.family} profile, not an MSG one")
-    backend = get_backend("stepfoc")
     listen = args.listen or "pty"
     nodes = [0]
     bus_query = ""

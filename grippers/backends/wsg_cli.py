@@ -1,0 +1,152 @@
+"""The WSG family's command-line hooks: ``grippers sim wsg`` (a WSG simulator on TCP, UDP, a pseudo-terminal
+or a CAN bus, or the replay of a capture). The backend offers this module as its ``cli_sim``."""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any
+
+from ..cli.sim_common import (
+    add_sim_arguments,
+    serve_forever,
+    serve_replay,
+    settings_for,
+    start_server,
+    warn_private_bus,
+)
+
+# The WSG's own port (docs/protocols.md §1): scripts written for the device work unchanged against the
+# simulator. A user without root gets a free port instead, and is told (sim_common.start_server).
+DEFAULT_LISTEN = "tcp://127.0.0.1:1000"
+
+NAMES = ("wsg",)  # `grippers sim wsg`
+HELP = "simulate a WSG gripper (binary protocol) on tcp://, udp://, pty or can://"
+EXAMPLE = (
+    "grippers sim wsg --listen tcp://127.0.0.1:1000\n"
+    "         grippers sim wsg --listen pty --firmware 2.2.0 --part-width 40\n"
+    "         grippers sim wsg --listen 'can://udp_multicast/239.74.163.2?send_id=0x7E8&recv_id=0x7E9'\n"
+    "         grippers sim wsg --replay session.hex --listen tcp://127.0.0.1:1000   (monitor --write)"
+)
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    add_sim_arguments(
+        parser,
+        "wsg50",
+        "tcp://HOST:PORT, udp://HOST:PORT, pty or can://INTERFACE/CHANNEL[?send_id=ID&recv_id=ID] (default "
+        "tcp://127.0.0.1:1000, the device's port, or a free port for a user without root; port 0 picks a "
+        "free port; binds to loopback unless a host is named)",
+    )
+    parser.add_argument(
+        "--firmware",
+        metavar="X.Y.Z",
+        help="firmware to simulate, e.g. 4.0.1 or 2.2.0 (2.x lacks 46h and the finger commands; default: "
+        "the profile's)",
+    )
+
+
+def _replay(args: argparse.Namespace, blob: bytes) -> tuple[Any, Any]:
+    from grippers.drivers.wsg.sim.replay import WsgReplayServer, wsg_script
+    from grippers.urls import parse_url
+
+    from ..cli.output import UsageError
+
+    script = wsg_script(blob, args.replay)
+    listen = args.listen or DEFAULT_LISTEN
+    if listen.partition("://")[0] != "tcp":
+        raise UsageError(f"--replay serves a WSG on tcp://HOST:PORT, not {listen!r}")
+    where = parse_url(listen, bare_family="wsg", listen=True)  # the one grammar: drivers/urls.py
+    host, port = where.host, where.port
+    if not host or port is None:
+        raise UsageError(f"--replay serves a WSG on tcp://HOST:PORT, not {listen!r}")
+    server = start_server(lambda _: WsgReplayServer(script, host, port, args.time_scale), listen, listen)
+    return server, script
+
+
+def run(args: argparse.Namespace, backend: Any) -> int:
+    from grippers.profiles import load_profile
+
+    if args.replay:
+        return serve_replay(args, lambda blob: _replay(args, blob))
+
+    from ..cli.output import UsageError
+
+    profile = load_profile(args.profile)
+    if profile.family != backend.family:
+        raise UsageError(f"profile {profile.name} is a {profile.family} profile, not a WSG one")
+    warn_private_bus(args.listen or "")
+    settings = settings_for(profile, args, firmware=args.firmware)
+    try:
+        server = start_server(
+            lambda where: backend.simulator(profile, settings, listen=where), args.listen, DEFAULT_LISTEN
+        )
+    except ValueError as exc:  # a malformed --listen or --firmware: the command line's fault
+        raise UsageError(str(exc)) from None
+    settings.finish()
+    what = f"simulated {profile.model} (firmware {server.model.firmware})"
+    return serve_forever(server, what, as_json=args.json)
+
+
+# --- grippers probe ----------------------------------------------------------------------------------------
+# Defaults not in the manuals; docs/protocols.md §1 "Transport defaults".
+TCP_PORT = 1000
+UDP_PORT = 1500
+SERIAL_BAUD = 115200
+# The WSG over CAN: commands on a base id, replies on base + 1, base 0x000 (docs/protocols.md §1, one public
+# driver); the probe adds the ids of every WSG profile on the search path.
+CAN_IDS: tuple[tuple[int, int], ...] = ((0x000, 0x001),)
+
+
+def can_ids(given: list[int] | None) -> tuple[tuple[int, int], ...]:
+    """``--can-id`` as id pairs, or those of every WSG profile on the search path."""
+    if given:
+        return tuple((i, i + 1) for i in dict.fromkeys(given))
+    from grippers.profiles import list_profiles
+
+    from .wsg_profile import WsgProfile
+
+    ids = {
+        (p.transport.can_send_id, p.transport.can_recv_id)
+        for p in list_profiles()
+        if isinstance(p, WsgProfile)
+    }
+    return tuple(sorted(ids)) or CAN_IDS
+
+
+def probe_candidates(transport: str, where: Any, options: dict[str, Any]) -> list[Any]:
+    from grippers.urls import format_host
+
+    from . import ProbeCandidate, bus_query
+
+    if transport in ("tcp", "udp"):
+        port = where.port or (TCP_PORT if transport == "tcp" else UDP_PORT)
+        return [ProbeCandidate(f"wsg+{transport}://{format_host(where.host, port)}", order=10)]
+    if transport == "serial":
+        return [ProbeCandidate(f"wsg+serial://{where.serial_port}?baudrate={SERIAL_BAUD}", order=10)]
+    if transport == "can":
+        ids = options.get("wsg_can_ids") or can_ids(options.get("can_ids"))
+        extra = bus_query(options)
+        out = []
+        for send_id, recv_id in ids:
+            url = (
+                f"wsg+can://{where.interface}/{where.channel}?send_id=0x{send_id:03X}&recv_id=0x{recv_id:03X}"
+            )
+            # A STEPFOC node answering on the ids a WSG packet would use must not receive one (an id with
+            # command 0 is that node's E-stop): those WSG candidates wait for the node probe.
+            nodes = tuple({i >> 7 for i in (send_id, recv_id)})
+            out.append(ProbeCandidate(url + extra, order=20, unless_nodes=nodes))
+        return out
+    return []
+
+
+def raw_probe(transport: str) -> Any:
+    from grippers.drivers.wsg import probe as wsg_probe
+
+    from . import RawProbe
+
+    return RawProbe(
+        wsg_probe.identify_request(),
+        goodbye=wsg_probe.goodbye(transport),  # a WSG on TCP must not be left in FAST STOP by this check
+        is_answer=wsg_probe.holds_a_packet,
+        port=TCP_PORT if transport == "tcp" else UDP_PORT,
+    )
