@@ -26,7 +26,6 @@ The semantics on the common interface (docs/getting-started-robotiq.md says the 
 from __future__ import annotations
 
 import logging
-import threading
 import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Annotated, Any, Literal
@@ -55,6 +54,7 @@ from grippers.drivers.robotiq.urcap import UrcapClient
 from ..errors import MotionBlocked, NotReferenced, URLError
 from ..gripper import Capability, DeviceInfo, GraspResult, GraspState, Gripper, GripperState, MotionResult
 from ..profiles import Length, ProfileBase, Timeout, TimeScale
+from .motion_epochs import MotionEpochs
 
 if TYPE_CHECKING:
     from ..servo import ServoTarget
@@ -155,9 +155,7 @@ class RobotiqGripper(Gripper):
         super().__init__(profile, url, timeout=timeout)
         self._client = client
         self._maps = profile.robotiq
-        self._motion_lock = threading.Lock()
-        self._motion_id = 0
-        self._motion_cause = ""
+        self._epochs = MotionEpochs()  # a newer motion or a stop ends older waits
         self._last = Command()  # the request block as last written (its speed and force persist)
         self._mode = "idle"
         self._held = False
@@ -195,17 +193,10 @@ class RobotiqGripper(Gripper):
     # -- motion bookkeeping (as the MSG backend: a newer motion or a stop ends older waits) ----------------
 
     def _begin(self, cause: str) -> int:
-        with self._motion_lock:
-            self._motion_id += 1
-            self._motion_cause = cause
-            return self._motion_id
+        return self._epochs.begin(cause)
 
     def _check_current(self, motion: int, command: str) -> None:
-        with self._motion_lock:
-            if motion == self._motion_id:
-                return
-            cause = self._motion_cause
-        raise CommandFailed(f"{command} {cause}", status_name="aborted", device=self.name, command=command)
+        self._epochs.check(motion, command=command, device=self.name)
 
     def _supersede(self) -> None:
         # The gripper takes a new target mid-motion (rPR rewritten with rGTO set): no stop in between.

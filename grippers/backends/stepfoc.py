@@ -42,6 +42,7 @@ from ..gripper import (
 from ..profiles import ProfileBase, load_profile
 from ..settings import Settings
 from ..urls import ConnectionURL
+from .motion_epochs import MotionEpochs
 from .stepfoc_profile import MsgProfile
 
 if TYPE_CHECKING:
@@ -408,10 +409,8 @@ class MsgGripper(Gripper):
         self._profile_assumed = profile_assumed
         # Motion bookkeeping at the device level: every motion this backend starts (and every stop) takes a
         # new number; a wait whose number is no longer the current one ends with the recorded cause.
-        self._motion_lock = threading.Lock()
+        self._epochs = MotionEpochs()
         self._send_lock = threading.RLock()  # a motion's number and its frames go out together
-        self._motion_id = 0
-        self._motion_cause = ""
         if link.has_temperature:
             self.capabilities = self.capabilities | {Capability.TEMPERATURE}
         self._maps = profile.maps
@@ -467,17 +466,10 @@ class MsgGripper(Gripper):
 
     def _begin(self, cause: str) -> int:
         """A new motion (or stop) from this backend: the waits of older ones end with ``cause``."""
-        with self._motion_lock:
-            self._motion_id += 1
-            self._motion_cause = cause
-            return self._motion_id
+        return self._epochs.begin(cause)
 
     def _check_current(self, motion: int, command: str) -> None:
-        with self._motion_lock:
-            if motion == self._motion_id:
-                return
-            cause = self._motion_cause
-        raise CommandFailed(f"{command} {cause}", status_name="aborted", device=self.name, command=command)
+        self._epochs.check(motion, command=command, device=self.name)
 
     def _check_device(self, st: _Status, command: str) -> None:
         if st.estop:
