@@ -1,0 +1,85 @@
+"""The ACME R1's frames, sans-IO: bytes in, requests and replies out; no socket here, so the gripper and its
+simulator share one codec.
+
+A frame is ``op addr count data... checksum``: ``op`` one ASCII byte (``R`` read, ``W`` write; the reply's op
+is lower case, ``E`` an error whose ``addr`` is the code), ``addr`` and ``count`` one byte each, ``data``
+``count`` big-endian 16-bit registers (a read request and a write reply carry none), ``checksum`` the sum of
+the bytes before it, modulo 256.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import IntEnum, IntFlag
+
+
+class Reg(IntEnum):
+    """The holding registers (units: 0.1 mm, mm/s, N)."""
+
+    TARGET = 0
+    SPEED = 1
+    FORCE = 2
+    CONTROL = 3  # write-only: a Control code
+    STATUS = 4  # read-only: Status bits
+    POSITION = 5  # read-only
+
+
+class Control(IntEnum):
+    GO = 1  # move to TARGET at SPEED, pressing with FORCE on a part
+    STOP = 2
+    HOME = 3  # reference: a slow opening to the end stop
+    RESET = 4  # clear a fault
+
+
+class Status(IntFlag):
+    MOVING = 1
+    AT_TARGET = 2
+    OBJECT = 4
+    FAULT = 8
+    HOMED = 16
+
+
+ERR_ADDRESS, ERR_VALUE, ERR_CHECKSUM = 1, 2, 3
+
+
+@dataclass(frozen=True)
+class Frame:
+    op: str
+    addr: int
+    values: tuple[int, ...] = ()
+    count: int | None = None  # a read request's count (it carries no values)
+
+    def encode(self) -> bytes:
+        n = len(self.values) if self.count is None else self.count
+        body = bytes([ord(self.op), self.addr, n]) + b"".join(v.to_bytes(2, "big") for v in self.values)
+        return body + bytes([sum(body) & 0xFF])
+
+
+class FrameError(ValueError):
+    """Bytes that are not a frame (a bad checksum, an unknown op)."""
+
+
+class Decoder:
+    """Feed bytes, take whole frames: ``expect_values(op)`` says which ops carry data."""
+
+    def __init__(self) -> None:
+        self._buf = bytearray()
+
+    def feed(self, data: bytes) -> list[Frame]:
+        self._buf += data
+        frames = []
+        while len(self._buf) >= 4:
+            op, addr, n = chr(self._buf[0]), self._buf[1], self._buf[2]
+            if op not in "RWrwE":
+                self._buf.clear()
+                raise FrameError(f"unknown op byte 0x{ord(op):02X}")
+            size = 3 + (2 * n if op in "Wr" else 0)
+            if len(self._buf) < size + 1:
+                break
+            body, check = bytes(self._buf[:size]), self._buf[size]
+            del self._buf[: size + 1]
+            if sum(body) & 0xFF != check:
+                raise FrameError("bad checksum")
+            values = tuple(int.from_bytes(body[i : i + 2], "big") for i in range(3, size, 2))
+            frames.append(Frame(op, addr, values, None if values else n))
+        return frames
