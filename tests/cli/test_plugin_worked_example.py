@@ -32,14 +32,20 @@ pytestmark = pytest.mark.timeout(120)
 
 def _install(site: Path) -> Path:
     """The example package and a dist-info with the entry points of its pyproject.toml, in ``site``."""
-    shutil.copytree(EXAMPLE / "acme_grippers", site / "acme_grippers", ignore=shutil.ignore_patterns("__pycache__"))
+    shutil.copytree(
+        EXAMPLE / "acme_grippers", site / "acme_grippers", ignore=shutil.ignore_patterns("__pycache__")
+    )
     project = tomllib.loads((EXAMPLE / "pyproject.toml").read_text())["project"]
     dist = site / f"acme_grippers-{project['version']}.dist-info"
     dist.mkdir()
-    (dist / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {project['name']}\nVersion: {project['version']}\n")
+    (dist / "METADATA").write_text(
+        f"Metadata-Version: 2.1\nName: {project['name']}\nVersion: {project['version']}\n"
+    )
     groups = project["entry-points"]
     (dist / "entry_points.txt").write_text(
-        "\n".join(f"[{group}]\n" + "".join(f"{k} = {v}\n" for k, v in eps.items()) for group, eps in groups.items())
+        "\n".join(
+            f"[{group}]\n" + "".join(f"{k} = {v}\n" for k, v in eps.items()) for group, eps in groups.items()
+        )
     )
     return site
 
@@ -63,7 +69,12 @@ def _grippers(site: Path, *args: str, timeout: float = 60) -> subprocess.Complet
     env = {**os.environ, "PYTHONPATH": str(site)}
     env.pop("GRIPPERS_PROFILE_PATH", None)
     return subprocess.run(
-        [sys.executable, "-m", "grippers", *args], capture_output=True, text=True, timeout=timeout, cwd=ROOT, env=env
+        [sys.executable, "-m", "grippers", *args],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        cwd=ROOT,
+        env=env,
     )
 
 
@@ -119,7 +130,9 @@ def test_grippers_sim_serves_it_and_probe_finds_it_on_a_bare_tcp_host(acme_site:
         assert url.startswith("acme+tcp://127.0.0.1:"), url
         port = url.rsplit(":", 1)[1]
         state = _grippers(acme_site, "state", url, "--json")
-        assert state.returncode == 0 and json.loads(state.stdout)["state"]["referenced"] is False, state.stderr
+        assert state.returncode == 0 and json.loads(state.stdout)["state"]["referenced"] is False, (
+            state.stderr
+        )
         probe = _grippers(acme_site, "probe", f"tcp://127.0.0.1:{port}")
         assert probe.returncode == 0, probe.stdout + probe.stderr
         assert f"acme+tcp://127.0.0.1:{port}" in probe.stdout and "R1" in probe.stdout

@@ -61,20 +61,26 @@ class AcmeLink:
                     self._sock.settimeout(max(deadline - time.monotonic(), 1e-3))
                     data = self._sock.recv(256)
                     if not data:
-                        raise ConnectionLost("the device closed the link", device=self.device, command=command)
+                        raise ConnectionLost(
+                            "the device closed the link", device=self.device, command=command
+                        )
                     frames = self._decoder.feed(data)
                     if frames:
                         reply = frames[0]
                         break
             except TimeoutError as exc:
                 self._decoder = Decoder()  # a late reply must not answer the next request
-                raise GripperTimeout(f"no reply within {self.timeout:g} s", device=self.device, command=command) from exc
+                raise GripperTimeout(
+                    f"no reply within {self.timeout:g} s", device=self.device, command=command
+                ) from exc
             except FrameError as exc:
                 raise CommandFailed(f"garbled reply: {exc}", device=self.device, command=command) from exc
             except OSError as exc:
                 raise ConnectionLost(str(exc), device=self.device, command=command) from exc
         if reply.op == "E":
-            raise CommandFailed(f"device error {reply.addr}", status=reply.addr, device=self.device, command=command)
+            raise CommandFailed(
+                f"device error {reply.addr}", status=reply.addr, device=self.device, command=command
+            )
         return reply
 
     def read(self, reg: Reg, count: int, command: str) -> tuple[int, ...]:
@@ -108,10 +114,14 @@ class AcmeGripper(Gripper):
         status, position = self._link.read(Reg.STATUS, 2, command)
         return Status(status), position / 10_000  # 0.1 mm -> m
 
-    def _go(self, command: str, width: float, speed: float, force: float, timeout: float) -> tuple[Status, float]:
+    def _go(
+        self, command: str, width: float, speed: float, force: float, timeout: float
+    ) -> tuple[Status, float]:
         """Write the target and GO, then poll until the jaws rest; never reported done when superseded."""
         motion = self._epochs.begin(f"superseded by a newer motion before it ended ({command})")
-        self._link.write(Reg.TARGET, round(width * 10_000), round(speed * 1000), round(force), command=command)
+        self._link.write(
+            Reg.TARGET, round(width * 10_000), round(speed * 1000), round(force), command=command
+        )
         self._link.write(Reg.CONTROL, Control.GO if command != "home" else Control.HOME, command=command)
         deadline = time.monotonic() + timeout
         while True:
