@@ -144,6 +144,28 @@ def test_grippers_sim_serves_it_and_probe_finds_it_on_a_bare_tcp_host(acme_site:
                 stream.close()
 
 
+def test_selftest_runs_on_it(acme_site: Path) -> None:
+    r = _grippers(acme_site, "selftest", "sim://acme-r1?time_scale=20", "--yes", timeout=120)
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert "all PASS" in r.stdout and "the acme backend offers no device settings" in r.stdout
+
+
+def test_monitor_reads_a_capture_with_the_plugin_dissector(acme_site: Path, tmp_path: Path) -> None:
+    """A hex capture of one status read and one GO, decoded by the ``dissector()`` hook's stream reader."""
+    capture = tmp_path / "acme.hex"
+    capture.write_text("> 52 04 02 58\n< 72 04 02 00 12 03 20 ad\n> 57 03 01 00 01 5c\n< 77 03 01 7b\n")
+    r = _grippers(acme_site, "monitor", str(capture), "--protocol", "acme", "--json")
+    assert r.returncode == 0, r.stderr
+    records = [json.loads(line) for line in r.stdout.splitlines()]
+    assert [x["text"] for x in records] == [
+        "read STATUS x2",
+        "read STATUS 18 800",
+        "write CONTROL 1",
+        "write CONTROL x1",
+    ]
+    assert {x["protocol"] for x in records} == {"acme"}
+
+
 class TestAcmeConformance(ConformanceSuite):
     """The conformance suite on the plugin, as a plugin's own test suite would run it."""
 

@@ -254,6 +254,14 @@ class AcmeBackend:
     def simulate(self, profile: ProfileBase, settings: Any) -> Any:
         return self.simulator(profile, settings)
 
+    def dissector(self) -> Any:
+        """``grippers monitor``: the R1's frames in a byte capture or through the TCP proxy."""
+        from grippers.backends import Dissector
+
+        from .codec import AcmeDissector
+
+        return Dissector("acme", stream=AcmeDissector, tcp_port=AcmeSection().tcp_port)
+
     def probe_candidates(self, transport: str, where: Any, options: dict[str, Any]) -> list[ProbeCandidate]:
         """``grippers probe tcp://HOST``: try the R1's port there too."""
         if transport != "tcp" or not where.host:

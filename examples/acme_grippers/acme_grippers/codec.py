@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from enum import IntEnum, IntFlag
+from typing import Any
 
 
 class Reg(IntEnum):
@@ -83,3 +84,43 @@ class Decoder:
             values = tuple(int.from_bytes(body[i : i + 2], "big") for i in range(3, size, 2))
             frames.append(Frame(op, addr, values, None if values else n))
         return frames
+
+
+class AcmeDissector:
+    """``grippers monitor --protocol acme``: each direction of a byte stream (a capture, the TCP proxy) read
+    into the monitor's records with this codec (``feed(direction, data, stamp)``, as the monitor calls it)."""
+
+    protocol = "acme"
+
+    def __init__(self) -> None:
+        self._decoders: dict[str, Decoder] = {}
+
+    def feed(self, direction: str, data: bytes, stamp: float | None) -> list[dict[str, Any]]:
+        from grippers.drivers.dissect import record
+
+        decoder = self._decoders.setdefault(direction, Decoder())
+        try:
+            frames = decoder.feed(data)
+        except FrameError as exc:
+            return [record(time=stamp, protocol=self.protocol, direction=direction, text=str(exc), raw=data)]
+        out = []
+        for f in frames:
+            name = Reg(f.addr).name if f.op in "RWrw" and f.addr in iter(Reg) else str(f.addr)
+            command = {"R": "read", "W": "write", "r": "read", "w": "write", "E": "error"}[f.op]
+            fields = {"register": name, "count": f.count, "values": list(f.values)}
+            text = f"{command} {name} " + (" ".join(map(str, f.values)) if f.values else f"x{f.count}")
+            out.append(
+                record(
+                    time=stamp,
+                    protocol=self.protocol,
+                    direction=direction,
+                    command=command,
+                    fields=fields,
+                    text=text,
+                    raw=f.encode(),
+                )
+            )
+        return out
+
+    def flush(self) -> list[dict[str, Any]]:
+        return []
