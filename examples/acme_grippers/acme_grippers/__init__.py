@@ -12,7 +12,7 @@ import socket
 import threading
 import time
 from collections.abc import Callable
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 from pydantic import BaseModel, ConfigDict
 
@@ -24,6 +24,12 @@ from grippers.gripper import DeviceInfo, GraspResult, GraspState, GripperState, 
 from grippers.profiles import ProfileBase
 
 from .codec import Control, Decoder, Frame, FrameError, Reg, Status
+
+if TYPE_CHECKING:
+    from grippers.settings import Settings
+    from grippers.urls import ConnectionURL
+
+    from .sim import AcmeServer
 
 POLL_S = 0.005  # between status reads while a motion runs
 
@@ -227,7 +233,7 @@ class AcmeBackend:
     profile_model = AcmeProfile
     default_profile = "acme-r1"  # `grippers sim acme` without --model
 
-    def open(self, url: Any, profile: ProfileBase | None, settings: Any) -> AcmeGripper:
+    def open(self, url: ConnectionURL, profile: ProfileBase | None, settings: Settings) -> AcmeGripper:
         from grippers.profiles import load_profile
 
         profile = profile or load_profile(self.default_profile)
@@ -237,11 +243,12 @@ class AcmeBackend:
             raise URLError(f"{url.url}: an ACME gripper speaks TCP (acme+tcp://HOST[:PORT])")
         host, port = url.host, url.port or profile.acme.tcp_port
         timeout = settings.positive("timeout", profile.acme.timeout_s)
+        settings.check()  # a misspelt ?timout= is a URLError now, before anything is opened
         return AcmeGripper(lambda: AcmeLink(host, port, timeout=timeout, device=url.url), profile, url.url)
 
-    def simulator(self, profile: ProfileBase, settings: Any, listen: str | None = None) -> Any:
+    def simulator(self, profile: ProfileBase, settings: Settings, listen: str | None = None) -> AcmeServer:
         """A simulated R1 on loopback TCP (``listen``: tcp://127.0.0.1:PORT, default a free port)."""
-        from .sim import AcmeModel, AcmeServer
+        from .sim import AcmeModel, AcmeServer  # imported when a simulator is started
 
         assert isinstance(profile, AcmeProfile)
         host, _, port = (listen or "tcp://127.0.0.1:0").removeprefix("tcp://").rpartition(":")
@@ -251,7 +258,7 @@ class AcmeBackend:
         model = AcmeModel(profile.mechanics.stroke_mm, part)
         return AcmeServer(model, host, int(port), time_scale=settings.positive("time_scale", 1.0))
 
-    def simulate(self, profile: ProfileBase, settings: Any) -> Any:
+    def simulate(self, profile: ProfileBase, settings: Settings) -> AcmeServer:
         return self.simulator(profile, settings)
 
     def dissector(self) -> Any:
@@ -262,7 +269,9 @@ class AcmeBackend:
 
         return Dissector("acme", stream=AcmeDissector, tcp_port=AcmeSection().tcp_port)
 
-    def probe_candidates(self, transport: str, where: Any, options: dict[str, Any]) -> list[ProbeCandidate]:
+    def probe_candidates(
+        self, transport: str, where: ConnectionURL, options: dict[str, Any]
+    ) -> list[ProbeCandidate]:
         """``grippers probe tcp://HOST``: try the R1's port there too."""
         if transport != "tcp" or not where.host:
             return []

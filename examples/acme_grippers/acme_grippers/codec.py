@@ -105,7 +105,7 @@ class AcmeDissector:
             return [record(time=stamp, protocol=self.protocol, direction=direction, text=str(exc), raw=data)]
         out = []
         for f in frames:
-            name = Reg(f.addr).name if f.op in "RWrw" and f.addr in iter(Reg) else str(f.addr)
+            name = Reg(f.addr).name if f.op != "E" and f.addr < len(Reg) else str(f.addr)
             command = {"R": "read", "W": "write", "r": "read", "w": "write", "E": "error"}[f.op]
             fields = {"register": name, "count": f.count, "values": list(f.values)}
             text = f"{command} {name} " + (" ".join(map(str, f.values)) if f.values else f"x{f.count}")
