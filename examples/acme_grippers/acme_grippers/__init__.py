@@ -232,6 +232,8 @@ class AcmeBackend:
     family = "acme"
     profile_model = AcmeProfile
     default_profile = "acme-r1"  # `grippers sim acme` without --model
+    sim_help = "simulate an ACME R1 gripper on loopback TCP"
+    sim_example = "grippers sim acme --listen tcp://127.0.0.1:5500 --part-width 30"
 
     def open(self, url: ConnectionURL, profile: ProfileBase | None, settings: Settings) -> AcmeGripper:
         from grippers.profiles import load_profile
