@@ -1,0 +1,154 @@
+"""A simulated ACME R1: a pure register model in simulated time, served on loopback TCP with the shared codec.
+
+The model moves at the commanded speed and stops on a part (``part_width_mm``); the server advances it to the
+clock's ``now()`` before each answer. ``faults.silent`` makes it read requests and answer nothing (a device
+that fell silent: the client's timeout, reconnection).
+"""
+
+from __future__ import annotations
+
+import socket
+import threading
+from dataclasses import dataclass
+
+from grippers.drivers.simkit import SimClock
+
+from .codec import ERR_ADDRESS, ERR_VALUE, Control, Decoder, Frame, FrameError, Reg, Status
+
+
+class AcmeModel:
+    """The registers and the jaws (mm, mm/s); time is passed in, so the model has no clock of its own."""
+
+    def __init__(self, stroke_mm: float, part_width_mm: float | None = None) -> None:
+        self.stroke, self.part = stroke_mm, part_width_mm
+        self.position = self.target = 0.0  # powers up closed and not homed
+        self.speed, self.force = 50.0, 10.0
+        self.status = Status(0)
+        self.t = 0.0
+
+    def advance(self, now: float) -> None:
+        dt, self.t = max(0.0, now - self.t), now
+        if not self.status & Status.MOVING:
+            return
+        step = self.speed * dt
+        goal = self.target
+        if self.part is not None and self.position >= self.part > goal:  # closing onto the part
+            goal = self.part
+        if abs(goal - self.position) <= step:
+            self.position = goal
+            self.status &= ~Status.MOVING
+            self.status |= Status.OBJECT if goal != self.target else Status.AT_TARGET
+            if self._homing:
+                self.status |= Status.HOMED
+                self._homing = False
+        else:
+            self.position += step if goal > self.position else -step
+
+    _homing = False
+
+    def read(self, addr: int, count: int) -> tuple[int, ...]:
+        regs = [round(self.target * 10), round(self.speed), round(self.force), 0, int(self.status)]
+        regs.append(round(self.position * 10))
+        if addr + count > len(regs) or count == 0:
+            raise LookupError(addr)
+        return tuple(regs[addr : addr + count])
+
+    def write(self, addr: int, values: tuple[int, ...]) -> None:
+        for a, v in enumerate(values, addr):
+            if a == Reg.TARGET and 0 <= v <= self.stroke * 10:
+                self.target = v / 10
+            elif a == Reg.SPEED and v > 0:
+                self.speed = float(v)
+            elif a == Reg.FORCE:
+                self.force = float(v)
+            elif a == Reg.CONTROL and v in tuple(Control):
+                self.control(Control(v))
+            else:
+                raise ValueError(a)
+
+    def control(self, code: Control) -> None:
+        if code is Control.STOP:
+            self.status &= ~Status.MOVING
+        elif code is Control.RESET:
+            self.status &= ~Status.FAULT
+        elif code is Control.HOME:
+            self.target, self._homing = self.stroke, True
+            self.status = (self.status & Status.HOMED) | Status.MOVING
+        elif self.status & Status.HOMED:  # GO
+            self.status = Status.HOMED | Status.MOVING
+        else:
+            self.status |= Status.FAULT  # a motion before home(): the device refuses it
+
+    def answer(self, request: Frame, now: float) -> Frame:
+        self.advance(now)
+        try:
+            if request.op == "R":
+                return Frame("r", request.addr, self.read(request.addr, request.count or 0))
+            self.write(request.addr, request.values)
+            return Frame("w", request.addr, count=len(request.values))
+        except LookupError:
+            return Frame("E", ERR_ADDRESS, count=0)
+        except ValueError:
+            return Frame("E", ERR_VALUE, count=0)
+
+
+@dataclass
+class Faults:
+    silent: bool = False
+
+
+class AcmeServer:
+    """Serves one model on a loopback TCP port, one client at a time, each on its own thread."""
+
+    def __init__(self, model: AcmeModel, host: str = "127.0.0.1", port: int = 0, time_scale: float = 1.0):
+        self.model, self.clock, self.faults = model, SimClock(time_scale), Faults()
+        self.error: BaseException | None = None
+        self._lock = threading.Lock()
+        self._listener = socket.create_server((host, port))
+        self._listener.settimeout(0.1)
+        self.url = f"acme+tcp://{host}:{self._listener.getsockname()[1]}"
+        self._closed = False
+        self._threads = [threading.Thread(target=self._accept, name="acme-sim", daemon=True)]
+        self._threads[0].start()
+
+    def _accept(self) -> None:
+        while not self._closed:
+            try:
+                conn, _ = self._listener.accept()
+            except TimeoutError:
+                continue
+            except OSError:
+                return
+            t = threading.Thread(target=self._serve, args=(conn,), name="acme-sim-client", daemon=True)
+            self._threads.append(t)
+            t.start()
+
+    def _serve(self, conn: socket.socket) -> None:
+        decoder = Decoder()
+        conn.settimeout(0.1)
+        with conn:
+            while not self._closed:
+                try:
+                    data = conn.recv(256)
+                except TimeoutError:
+                    continue
+                except OSError:
+                    return
+                if not data:
+                    return
+                try:
+                    frames = decoder.feed(data)
+                except FrameError:
+                    continue  # the real device drops a bad frame; the client times out
+                for frame in frames:
+                    if self.faults.silent:
+                        continue
+                    with self._lock:
+                        reply = self.model.answer(frame, self.clock.now())
+                    conn.sendall(reply.encode())
+
+    def close(self) -> None:
+        self._closed = True
+        self._listener.close()
+        for t in self._threads:
+            t.join(2.0)
