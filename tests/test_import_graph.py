@@ -43,7 +43,7 @@ Graph = dict[str, list[list[object]]]
 # Modules that do I/O, wait or keep time: a sans-IO core imports none of them (time is passed in).
 IO_MODULES = {"socket", "serial", "can", "threading", "selectors", "asyncio", "subprocess", "time", "zenoh"}
 
-# The sans-IO cores: bytes and times in, events and bytes out (docs/DEVELOPING.md "Layers").
+# The sans-IO cores: bytes and times in, events and bytes out (docs/DEVELOPING.md "The shape in one picture").
 SANS_IO = [
     "grippers.drivers.wsg.protocol",
     "grippers.drivers.wsg.commands",
