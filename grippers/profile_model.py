@@ -22,6 +22,7 @@ MAX_ACCEL_MM_S2 = 10_000_000.0
 MAX_FORCE_N = 100_000.0
 MAX_TIMEOUT_S = 3600.0  # an exchange that takes longer than an hour is not an exchange
 MAX_TIME_SCALE = 1_000_000.0
+
 NonNegative = Annotated[float, Field(ge=0, allow_inf_nan=False)]
 Positive = Annotated[float, Field(gt=0, allow_inf_nan=False)]
 Length = Annotated[float, Field(ge=0, le=MAX_LENGTH_MM, allow_inf_nan=False)]
