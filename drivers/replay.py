@@ -16,8 +16,7 @@ dumps with directions as ``grippers monitor --proxy --write`` saves them) and
 from __future__ import annotations
 
 import sys
-import threading
-from collections.abc import Callable, Hashable
+from collections.abc import Hashable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -85,39 +84,6 @@ def relative(steps: list[Step]) -> list[Step]:
         t0 = step.answers[0][0]
         step.answers = [(max(0.0, t - t0), a) for t, a in step.answers[1:]]
     return steps
-
-
-class Sender:
-    """Sends each answer at its recorded delay (divided by the time scale), on timers that close() cancels."""
-
-    def __init__(self, time_scale: float) -> None:
-        self.time_scale = time_scale
-        self._timers: list[threading.Timer] = []
-        self._lock = threading.Lock()
-
-    def schedule(self, answers: list[tuple[float, Any]], send: Callable[[Any], None]) -> None:
-        for delay, answer in answers:
-            timer = threading.Timer(delay / self.time_scale, _quiet(send), args=(answer,))
-            timer.daemon = True
-            with self._lock:
-                self._timers = [t for t in self._timers if t.is_alive()]
-                self._timers.append(timer)
-            timer.start()
-
-    def close(self) -> None:
-        with self._lock:
-            for timer in self._timers:
-                timer.cancel()
-
-
-def _quiet(send: Callable[[Any], None]) -> Callable[[Any], None]:
-    def run(answer: Any) -> None:
-        try:
-            send(answer)
-        except (OSError, ValueError):  # the client went away meanwhile
-            pass
-
-    return run
 
 
 def report(mismatch: Mismatch, stream: Any = None) -> None:

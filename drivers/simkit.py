@@ -14,7 +14,7 @@ from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 from enum import Enum
-from typing import TypeVar
+from typing import Any, TypeVar
 
 R = TypeVar("R")
 
@@ -205,3 +205,38 @@ class FaultHooks:
             data = bytes(self._garbage)
             self._garbage.clear()
             return data
+
+
+# The replay servers' timers (grippers sim --replay): the one part of a replay that waits, kept out of the
+# sans-IO drivers/replay.py (issue 32: the test of the import graph checks that core does no I/O).
+class Sender:
+    """Sends each answer at its recorded delay (divided by the time scale), on timers that close() cancels."""
+
+    def __init__(self, time_scale: float) -> None:
+        self.time_scale = time_scale
+        self._timers: list[threading.Timer] = []
+        self._lock = threading.Lock()
+
+    def schedule(self, answers: list[tuple[float, Any]], send: Callable[[Any], None]) -> None:
+        for delay, answer in answers:
+            timer = threading.Timer(delay / self.time_scale, _quiet(send), args=(answer,))
+            timer.daemon = True
+            with self._lock:
+                self._timers = [t for t in self._timers if t.is_alive()]
+                self._timers.append(timer)
+            timer.start()
+
+    def close(self) -> None:
+        with self._lock:
+            for timer in self._timers:
+                timer.cancel()
+
+
+def _quiet(send: Callable[[Any], None]) -> Callable[[Any], None]:
+    def run(answer: Any) -> None:
+        try:
+            send(answer)
+        except (OSError, ValueError):  # the client went away meanwhile
+            pass
+
+    return run

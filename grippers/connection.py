@@ -6,13 +6,34 @@ the core of :class:`~grippers.gripper.Gripper`, which it is a mixin of.
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 from .errors import DeviceMismatch, NotSupported
 from .parts import GripperPart
 
 if TYPE_CHECKING:
-    from .reconnect import LinkWatch
+    from .states import GripperState
+
+
+class Watch(Protocol):
+    """What the gripper asks of its link watch (grippers/reconnect.py's LinkWatch, set with reconnect=true).
+
+    Declared here, not imported from reconnect.py: the watch builds on the Gripper, so the Gripper names only
+    this face of it (issue 32: no import circle between the core and reconnection).
+    """
+
+    @property
+    def connected(self) -> bool: ...
+
+    def check(self, command: str) -> None: ...
+
+    def add_listener(self, callback: Callable[[bool], Any]) -> Callable[[], None]: ...
+
+    def stream_reader(
+        self, read: Callable[[], GripperState], stopped: Callable[[], bool]
+    ) -> Callable[[], Any]: ...
+
+    def close(self) -> None: ...
 
 
 class ConnectionHooks(GripperPart):
@@ -21,7 +42,7 @@ class ConnectionHooks(GripperPart):
     # Set by Gripper.__init__ (and by grippers/reconnect.py's attach for the last two).
     _closed: bool
     _on_close: list[Callable[[], None]]
-    _watch: LinkWatch | None
+    _watch: Watch | None
     _opened_identity: dict[str, str]
 
     @property

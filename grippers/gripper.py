@@ -15,11 +15,11 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, TypeVar
 
-from .connection import ConnectionHooks
+from .connection import ConnectionHooks, Watch
 from .errors import FastStopActive, GripperError, MotionBlocked, NotReferenced
 from .features import OptionalFeatures
 from .motions import MotionHandle, MotionSupervisor, wait_seconds
-from .profiles import ProfileBase
+from .profile_model import ProfileBase
 from .servo_face import ServoFace
 
 # Re-exported: these lived here before they moved to their own modules; ``from grippers.gripper import
@@ -30,7 +30,6 @@ from .streams import StateStream, put_dropping_oldest
 if TYPE_CHECKING:
     import asyncio
 
-    from .reconnect import LinkWatch
     from .servo import ServoLoop
 
 __all__ = [
@@ -116,7 +115,7 @@ class Gripper(ServoFace, OptionalFeatures, ConnectionHooks, ABC):
         self.simulator: Any = None
         self._servo_loop: ServoLoop | None = None  # while servoing (grippers/servo.py)
         self._last_servo_loop: ServoLoop | None = None  # its counters stay readable after it ended
-        self._watch: LinkWatch | None = None  # when opened with reconnect=true (grippers/reconnect.py)
+        self._watch: Watch | None = None  # when opened with reconnect=true (grippers/reconnect.py)
         self._opened_identity: dict[str, str] = {}  # _identity() when reconnection was switched on
 
     # -- what a backend provides (device units are its business) -------------------------------------------

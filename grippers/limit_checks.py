@@ -11,7 +11,7 @@ from grippers.drivers.numbers import finite
 
 from .errors import LimitError
 from .parts import GripperPart
-from .profiles import Limits, ProfileBase
+from .profile_model import Limits, ProfileBase
 
 
 class LimitChecks(GripperPart):

@@ -23,11 +23,13 @@ import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
+from .connection import ConnectionHooks
 from .errors import ConnectionLost, GripperError, GripperTimeout
 
 if TYPE_CHECKING:
-    from .gripper import Gripper, GripperState
+    from .gripper import Gripper
     from .settings import Settings
+    from .states import GripperState
 
 log = logging.getLogger(__name__)
 
@@ -267,6 +269,4 @@ def attach(gripper: Gripper, settings: Settings) -> None:
 
 
 def _base_reconnect() -> Any:
-    from .gripper import Gripper
-
-    return Gripper._reconnect
+    return ConnectionHooks._reconnect  # the default a backend that cannot reconnect keeps

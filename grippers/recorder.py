@@ -28,6 +28,7 @@ from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from .cli.output import state_dict  # the one state-to-row conversion (mm, mm/s, N, A)
 from .recording import DEFAULT_NAME, RecordingError, Sink, open_sink
 
 if TYPE_CHECKING:
@@ -116,8 +117,6 @@ class Recorder:
 
     def _sampler(self, name: str) -> Any:
         def sample(state: GripperState) -> None:
-            from .cli.common import state_dict  # the one state-to-row conversion (mm, mm/s, N, A)
-
             row = {"t_s": round(state.timestamp - self.start, 6), "gripper": name, "kind": "state"}
             self._put({**row, **state_dict(state)}, state=True)
 

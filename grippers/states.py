@@ -10,7 +10,7 @@ import enum
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
-from .profiles import Limits
+from .profile_model import Limits
 
 __all__ = ["Capability", "DeviceInfo", "GraspResult", "GraspState", "GripperState", "MotionResult"]
 

@@ -756,6 +756,8 @@ class StepfocNode(NodeSetup, Closing):
     """One MSG gripper (node 0..15) on a :class:`StepfocBus`. Values are the device's: bytes 0..255 and mA.
     Its identity, watchdog and heartbeat settings are :class:`~.node_setup.NodeSetup`'s."""
 
+    bus: StepfocBus  # NodeSetup needs only its Heartbeats side
+
     def __init__(
         self,
         bus: StepfocBus,

@@ -8,19 +8,28 @@ the node's class is about status and motion; each is one frame with nothing to m
 from __future__ import annotations
 
 from abc import abstractmethod
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 from ..errors import GripperTimeout, LimitError
 from .can_protocol import MAX_NODE, Cmd, GripperCommand, Watchdog, WatchdogAction
 
 if TYPE_CHECKING:
-    from .can_client import StepfocBus
+    import threading
+
+
+class Heartbeats(Protocol):
+    """What the setup asks of the bus a node is on (:class:`~.can_client.StepfocBus` provides it): declared
+    here so this mixin does not import the client module that mixes it in (issue 32: no import circles)."""
+
+    def last_heartbeat(self, node: int) -> float | None: ...
+
+    def heartbeat_condition(self, node: int) -> threading.Condition: ...
 
 
 class NodeSetup:
     """What a node handle offers beyond status and motion (mixed into StepfocNode, which provides these)."""
 
-    bus: StepfocBus
+    bus: Heartbeats
     _node: int
     last_command: GripperCommand | None
 

@@ -10,14 +10,31 @@ here, next to the verdicts drawn from it. The CAN side's counterpart is
 from __future__ import annotations
 
 import time
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 from ..errors import CommandFailed, GripperTimeout, NotSupported
 from .motion import Verdict
-from .uart_protocol import MODE_CALIBRATE, MODE_IDLE
+from .uart_protocol import MODE_CALIBRATE, MODE_IDLE, Answer, GripInfo
 
-if TYPE_CHECKING:
-    from .uart_client import StepfocUart
+
+class UartQueries(Protocol):
+    """What a calibration asks of its UART client (:class:`~.uart_client.StepfocUart` provides it).
+
+    Declared here so this module does not import the client that owns it (issue 32: no import circles).
+    """
+
+    device: str
+
+    def query(self, name: str, value: int | None = None, *, timeout: float | None = None) -> Answer: ...
+
+    def errors(self, *, timeout: float | None = None) -> list[str]: ...
+
+    def mode(self, *, timeout: float | None = None) -> int | None: ...
+
+    def position(self, setpoint: int | None = None, *, timeout: float | None = None) -> int: ...
+
+    def gripinfo(self, *, timeout: float | None = None) -> GripInfo: ...
+
 
 # a calibration ends with the jaws at the closed stop (position 255, docs/protocols.md §2)
 CAL_AT_CLOSED = 250
@@ -27,7 +44,7 @@ class UartCalibration:
     """One :class:`~.uart_client.StepfocUart`'s calibration: its start, what ``#Mode`` showed of it since the
     last ``#Gripcal``, and the verdicts (the client's calibrate and calibration_* methods are these)."""
 
-    def __init__(self, uart: StepfocUart) -> None:
+    def __init__(self, uart: UartQueries) -> None:
         self._uart = uart
         self.seen = False  # #Mode showed calibration mode since the last Gripcal
 

@@ -23,48 +23,19 @@ from __future__ import annotations
 
 import time
 from collections import deque
-from collections.abc import Callable
-from dataclasses import dataclass, field
 from threading import get_ident
 
 from ..errors import ConnectionLost, GripperError, GripperTimeout
 from .commands import Cmd, command_name
 from .exchanges import ExchangeEngine
 from .protocol import Packet
-from .session import Exchange
+from .reading import Submitted
 
 __all__ = ["CallbackEngine", "Submitted"]
-
-Done = Callable[[Packet | None, GripperError | None], None]
 
 
 def _ignore(_packet: Packet | None, _error: GripperError | None) -> None:
     pass
-
-
-@dataclass(eq=False)
-class Submitted:
-    """One request whose final reply goes to ``done(packet, None)``, or its error to ``done(None, error)``:
-    once, unless it was withdrawn first. Made by the caller, so it is known before a fast reply can come."""
-
-    command: int
-    payload: bytes
-    done: Done
-    timeout: float | None = None  # GripperTimeout this long after the send (kept by the reader thread)
-    deadline: float | None = field(default=None, repr=False)
-    exchange: Exchange | None = field(default=None, repr=False)  # once its slot was taken
-    barrier: Submitted | None = field(default=None, repr=False)  # the LOOP proving a stale reply lost
-    over: bool = False  # answered, failed or withdrawn: ``done`` is not called (again)
-
-    def reply(self, packet: Packet) -> None:
-        if not self.over:
-            self.over = True
-            self.done(packet, None)
-
-    def fail(self, error: GripperError) -> None:
-        if not self.over:
-            self.over = True
-            self.done(None, error)
 
 
 class CallbackEngine(ExchangeEngine):

@@ -20,11 +20,12 @@ from can import BusABC
 
 from ..errors import ConnectionLost, GripperError, LimitError, NotSupported
 from ..urls import TRANSPORTS, parse_url, refuse_unknown, shown, to_bool, to_float, to_int
-from .callbacks import CallbackEngine, Submitted
+from .callbacks import CallbackEngine
 from .commands import AUTO_UPDATE_COMMANDS, Cmd, command_name, encode_request
 from .exchanges import POLL, SILENT_GAP
 from .handles import Subscription
 from .motion_exchanges import MotionExchanges
+from .reading import Submitted
 from .transports import (
     DEFAULT_BAUDRATE,
     DEFAULT_CAN_RECV_ID,

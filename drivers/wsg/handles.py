@@ -8,20 +8,58 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable, Iterator, Sequence
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 from ..closing import Closing
 from ..errors import ConnectionLost, GripperError, GripperTimeout
-from .callbacks import Submitted
 from .commands import command_name
 from .exchanges import POLL
 from .interrupts import Waiters
 from .protocol import Packet
+from .reading import Submitted
 from .session import Exchange
 
-if TYPE_CHECKING:
-    from .client import WsgClient
-    from .connection import WsgConnection
+# What each handle asks of the client that made it (WsgClient / WsgConnection provide these). Declared here,
+# not imported from client.py and connection.py, which import this module (issue 32: no import circles).
+
+
+class MotionOwner(Protocol):
+    """What a :class:`Pending` motion needs: its timeouts, STOP, and the wait for the final reply."""
+
+    @property
+    def timeout(self) -> float: ...
+
+    @property
+    def motion_timeout(self) -> float: ...
+
+    def stop(self, *, timeout: float | None = None) -> None: ...
+
+    def _finish(self, exchange: Exchange, deadline: float, waited: float, abandon: bool = True) -> None: ...
+
+
+class QueryOwner(Protocol):
+    """What :class:`Queries` needs: requests answered by callback, and the query table's payloads/values."""
+
+    @property
+    def timeout(self) -> float: ...
+
+    def submit(self, sub: Submitted) -> None: ...
+
+    def withdraw(self, sub: Submitted, error: GripperError | None = None) -> None: ...
+
+    def _query_payload(self, cmd: int) -> bytes: ...
+
+    def _query_value(self, cmd: int, packet: Packet) -> Any: ...
+
+
+class SubscriptionOwner(Protocol):
+    """What a :class:`Subscription` needs: the device's name and a way to end the auto update."""
+
+    @property
+    def device(self) -> str: ...
+
+    def _unsubscribe(self, sub: Subscription, timeout: float | None) -> None: ...
+
 
 __all__ = ["Pending", "Queries", "Subscription"]
 
@@ -31,7 +69,7 @@ log = logging.getLogger(__name__)
 class Pending:
     """A motion command that was accepted (E_CMD_PENDING) and whose final reply is still to come."""
 
-    def __init__(self, client: WsgClient, exchange: Exchange) -> None:
+    def __init__(self, client: MotionOwner, exchange: Exchange) -> None:
         self._client = client
         self._exchange = exchange
         self.command = exchange.command
@@ -77,7 +115,7 @@ class Queries:
 
     def __init__(
         self,
-        client: WsgClient,
+        client: QueryOwner,
         cmds: Sequence[int],
         done: Callable[[list[Any] | None, GripperError | None], None],
     ) -> None:
@@ -141,7 +179,7 @@ class Subscription(Closing):
 
     def __init__(
         self,
-        client: WsgConnection,
+        client: SubscriptionOwner,
         command: int,
         period_ms: int,
         changes_only: bool,

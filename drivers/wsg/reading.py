@@ -13,14 +13,15 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable
+from dataclasses import dataclass, field
 from threading import get_ident
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from ..errors import ConnectionLost, GripperError, GripperTimeout, ProtocolError
 from .commands import command_name, decode_reply
 from .dissect import wire_tap
 from .interrupts import Waiters, hold
-from .protocol import BadLength, ChecksumError, Discarded
+from .protocol import BadLength, ChecksumError, Discarded, Packet
 from .session import (
     AutoUpdate,
     Completed,
@@ -33,16 +34,43 @@ from .session import (
 )
 from .transports import Transport
 
-if TYPE_CHECKING:
-    from .callbacks import Submitted
-
-__all__ = ["POLL", "SILENT_GAP", "LineReader"]
+__all__ = ["POLL", "SILENT_GAP", "LineReader", "Submitted"]
 
 log = logging.getLogger(__name__)
 
 POLL = 0.05  # one receive's longest wait: bounds how long close() waits for a reader to notice
 # docs/protocols.md §1: a half-received packet is dropped after a silent gap of tens of milliseconds.
 SILENT_GAP = 0.05
+
+
+# A request answered by callback; held in the reader's queues, so it lives here (not in callbacks.py, which
+# builds on this module: issue 32, no import circles).
+Done = Callable[[Packet | None, GripperError | None], None]
+
+
+@dataclass(eq=False)
+class Submitted:
+    """One request whose final reply goes to ``done(packet, None)``, or its error to ``done(None, error)``:
+    once, unless it was withdrawn first. Made by the caller, so it is known before a fast reply can come."""
+
+    command: int
+    payload: bytes
+    done: Done
+    timeout: float | None = None  # GripperTimeout this long after the send (kept by the reader thread)
+    deadline: float | None = field(default=None, repr=False)
+    exchange: Exchange | None = field(default=None, repr=False)  # once its slot was taken
+    barrier: Submitted | None = field(default=None, repr=False)  # the LOOP proving a stale reply lost
+    over: bool = False  # answered, failed or withdrawn: ``done`` is not called (again)
+
+    def reply(self, packet: Packet) -> None:
+        if not self.over:
+            self.over = True
+            self.done(packet, None)
+
+    def fail(self, error: GripperError) -> None:
+        if not self.over:
+            self.over = True
+            self.done(None, error)
 
 
 def _never(_timeout: float) -> bool:

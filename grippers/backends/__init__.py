@@ -25,7 +25,7 @@ from ..errors import URLError
 
 if TYPE_CHECKING:
     from ..gripper import Gripper
-    from ..profiles import ProfileBase
+    from ..profile_model import ProfileBase
     from ..settings import Settings
     from ..urls import ConnectionURL
 

@@ -1,10 +1,8 @@
-"""Arguments shared by the subcommands, and the one place the CLI turns API objects into its documents.
+"""Arguments shared by the subcommands, and opening the gripper they name.
 
-Everything the CLI prints about a gripper goes through :func:`state_dict`, :func:`info_dict` and
-:func:`limits_dict`, so the JSON schemas in docs/cli.md are produced in one place and the unit change (the
-API's SI to the command line's mm, mm/s and N) happens here and nowhere else in the CLI. This module is
-imported by ``grippers --help``: the API is imported inside the functions only (type names under
-TYPE_CHECKING), so start-up stays fast.
+The API objects become the CLI's documents in grippers/cli/output.py (:func:`~grippers.cli.output.state_dict`
+and friends), which the recorder uses too. This module is imported by ``grippers --help``: the API is
+imported inside the functions only (type names under TYPE_CHECKING), so start-up stays fast.
 """
 
 from __future__ import annotations
@@ -15,11 +13,8 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import TYPE_CHECKING, Any
 
-from .output import m_to_mm, to_plain
-
 if TYPE_CHECKING:
-    from grippers.gripper import DeviceInfo, Gripper, GripperState
-    from grippers.profiles import Limits
+    from grippers.gripper import Gripper
 
 DEFAULT_TIMEOUT = 2.0  # seconds; per device for probe, per exchange otherwise
 
@@ -169,56 +164,3 @@ def opened_gripper(args: argparse.Namespace) -> Iterator[Gripper]:
             yield gripper
     finally:
         gripper.close()
-
-
-# --- API objects to the CLI's plain documents ---------------------------------------------------------------
-
-
-def _mm(value: float | None) -> float | None:
-    return None if value is None else round(float(m_to_mm(value) or 0.0), 3)
-
-
-def _num(value: float | None) -> float | None:
-    return None if value is None else round(float(value), 3)
-
-
-def state_dict(state: GripperState) -> dict[str, Any]:
-    """The ``state`` object of the CLI's schemas: width in mm, speed in mm/s, force in N, current in A."""
-    return {
-        "width_mm": _mm(state.width),
-        "speed_mm_s": _mm(state.speed),
-        "force_n": _num(state.force),
-        "current_a": _num(state.current),
-        "grasp_state": state.grasp.value,
-        "moving": state.moving,
-        "referenced": state.referenced,
-        "faults": list(state.faults),
-    }
-
-
-def limits_dict(limits: Limits) -> dict[str, Any]:
-    return {
-        "min_width_mm": _mm(limits.min_width),
-        "max_width_mm": _mm(limits.max_width),
-        "min_speed_mm_s": _mm(limits.min_speed),
-        "max_speed_mm_s": _mm(limits.max_speed),
-        "min_force_n": _num(limits.min_force),
-        "max_force_n": _num(limits.max_force),
-        "max_current_a": _num(limits.max_current),
-    }
-
-
-def info_dict(info: DeviceInfo) -> dict[str, Any]:
-    extra = to_plain(info.extra) or {}
-    return {
-        "family": info.family,
-        "vendor": info.vendor,
-        "model": info.model,
-        "profile": info.profile,
-        # As the API says it, nothing added or cut (issue 22 §1: the MSG's '12' read '12.0.0' here before).
-        "firmware": info.firmware,
-        "hardware": info.hardware,
-        "serial": info.serial,
-        "limits": limits_dict(info.limits),
-        "extra": extra,
-    }

@@ -5,9 +5,9 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from .common import add_common, add_target, info_dict, open_gripper
+from .common import add_common, add_target, open_gripper
 from .logs import issued_warnings
-from .output import EXIT_OK, INFO_SCHEMA_ID, fmt_num, key_values, write_json
+from .output import EXIT_OK, INFO_SCHEMA_ID, fmt_num, info_dict, key_values, write_json
 
 HELP = "show vendor, model, firmware, serial number and limits of a gripper"
 EXAMPLE = "grippers info wsg+tcp://127.0.0.1:1000 --json"

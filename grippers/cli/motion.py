@@ -12,7 +12,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
-from .common import add_common, add_target, non_negative_float, open_gripper, positive_float, state_dict
+from .common import add_common, add_target, non_negative_float, open_gripper, positive_float
 from .logs import issued_warnings
 from .output import (
     EXIT_FAILED,
@@ -22,6 +22,7 @@ from .output import (
     fmt_num,
     key_values,
     mm_to_m,
+    state_dict,
     write_json,
 )
 

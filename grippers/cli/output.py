@@ -13,7 +13,11 @@ import math
 import re
 import sys
 from collections.abc import Iterable, Mapping, Sequence
-from typing import Any, TextIO
+from typing import TYPE_CHECKING, Any, TextIO
+
+if TYPE_CHECKING:
+    from grippers.profile_model import Limits
+    from grippers.states import DeviceInfo, GripperState
 
 # Exit codes (docs/cli.md): 0 success / a gripper found, 1 nothing answered, not a gripper or the device
 # failed the command, 2 usage errors (argparse uses 2 as well), 130 interrupted.
@@ -175,3 +179,61 @@ class Progress:
             self._stream.write("\r" + " " * self._width + "\r")
             self._stream.flush()
             self._width = 0
+
+
+# --- API objects to the CLI's plain documents --------------------------------------------------------------
+#
+# Everything the CLI prints about a gripper, and every row grippers.recorder writes, goes through
+# state_dict(), info_dict() and limits_dict(): the JSON schemas in docs/cli.md are produced in one place and
+# the API's SI becomes mm, mm/s and N here and nowhere else. Here, not in common.py, so the recorder (API
+# layer) does not import the module that opens grippers (issue 32: that was an import circle).
+
+
+def _mm(value: float | None) -> float | None:
+    return None if value is None else round(float(m_to_mm(value) or 0.0), 3)
+
+
+def _num(value: float | None) -> float | None:
+    return None if value is None else round(float(value), 3)
+
+
+def state_dict(state: GripperState) -> dict[str, Any]:
+    """The ``state`` object of the CLI's schemas: width in mm, speed in mm/s, force in N, current in A."""
+    return {
+        "width_mm": _mm(state.width),
+        "speed_mm_s": _mm(state.speed),
+        "force_n": _num(state.force),
+        "current_a": _num(state.current),
+        "grasp_state": state.grasp.value,
+        "moving": state.moving,
+        "referenced": state.referenced,
+        "faults": list(state.faults),
+    }
+
+
+def limits_dict(limits: Limits) -> dict[str, Any]:
+    return {
+        "min_width_mm": _mm(limits.min_width),
+        "max_width_mm": _mm(limits.max_width),
+        "min_speed_mm_s": _mm(limits.min_speed),
+        "max_speed_mm_s": _mm(limits.max_speed),
+        "min_force_n": _num(limits.min_force),
+        "max_force_n": _num(limits.max_force),
+        "max_current_a": _num(limits.max_current),
+    }
+
+
+def info_dict(info: DeviceInfo) -> dict[str, Any]:
+    extra = to_plain(info.extra) or {}
+    return {
+        "family": info.family,
+        "vendor": info.vendor,
+        "model": info.model,
+        "profile": info.profile,
+        # As the API says it, nothing added or cut (issue 22 §1: the MSG's '12' read '12.0.0' here before).
+        "firmware": info.firmware,
+        "hardware": info.hardware,
+        "serial": info.serial,
+        "limits": limits_dict(info.limits),
+        "extra": extra,
+    }

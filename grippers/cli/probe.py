@@ -15,7 +15,7 @@ import time
 from dataclasses import dataclass
 from typing import Any
 
-from .common import DEFAULT_TIMEOUT, add_can_flags, can_id, info_dict, positive_float, state_dict
+from .common import DEFAULT_TIMEOUT, add_can_flags, can_id, positive_float
 from .output import (
     EXIT_FAILED,
     EXIT_OK,
@@ -23,6 +23,8 @@ from .output import (
     Progress,
     UsageError,
     fmt_num,
+    info_dict,
+    state_dict,
     table,
     write_json,
 )

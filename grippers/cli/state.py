@@ -9,9 +9,9 @@ import argparse
 import time
 from typing import TYPE_CHECKING, Any
 
-from .common import add_common, add_target, open_gripper, positive_float, state_dict
+from .common import add_common, add_target, open_gripper, positive_float
 from .logs import issued_warnings
-from .output import EXIT_OK, STATE_SCHEMA_ID, fmt_num, key_values, write_json
+from .output import EXIT_OK, STATE_SCHEMA_ID, fmt_num, key_values, state_dict, write_json
 
 if TYPE_CHECKING:
     from grippers.gripper import GripperState

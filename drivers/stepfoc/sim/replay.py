@@ -7,7 +7,8 @@ import threading
 from typing import Any
 
 from ...captures import parse_candump
-from ...replay import Mismatch, Script, Sender, Step, relative, report
+from ...replay import Mismatch, Script, Step, relative, report
+from ...simkit import Sender
 from .. import can_protocol as cp
 
 

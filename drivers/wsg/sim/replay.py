@@ -7,7 +7,8 @@ import socket
 import threading
 
 from ...captures import FROM_DEVICE, TO_DEVICE, parse_hex_dump
-from ...replay import Mismatch, Script, Sender, Step, relative, report
+from ...replay import Mismatch, Script, Step, relative, report
+from ...simkit import Sender
 from .. import commands
 from ..protocol import Packet, PacketParser
 
