@@ -227,3 +227,16 @@ def mcast_channel() -> str:
     CAN hardware"), so the tests also use node ids and WSG CAN ids no other test uses."""
     pytest.importorskip("msgpack", reason="python-can's udp_multicast interface needs msgpack")
     return f"239.74.{150 + os.getpid() % 50}.{next(_groups)}"
+
+
+@pytest.fixture(autouse=True)
+def _forget_the_example_plugins() -> Iterator[None]:
+    """The example plugins (tests/cli/test_plugin_example.py, test_plugin_worked_example.py) both install a
+    family ``acme`` from a module ``acme_grippers``: after each test the backend found and the module are
+    forgotten, so neither example (nor a later test in the same worker) meets the other's classes."""
+    yield
+    import grippers.backends
+
+    grippers.backends._cache.pop("acme", None)
+    for name in [m for m in sys.modules if m == "acme_grippers" or m.startswith("acme_grippers.")]:
+        del sys.modules[name]

@@ -38,11 +38,11 @@ def test_a_client_without_the_family_reads_the_served_profile_as_generic(
 
 def test_generic_reading_drops_the_family_sections_and_still_checks_the_rest() -> None:
     data = {
-        "name": "acme-x",
-        "family": "acme",
+        "name": "nosuchvendor-x",
+        "family": "nosuchvendor",
         "vendor": "Acme",
         "model": "X",
-        "url": "acme+tcp://127.0.0.1",
+        "url": "nosuchvendor+tcp://127.0.0.1",
         "mechanics": {
             "stroke_mm": 40,
             "min_speed_mm_s": 1,
@@ -52,7 +52,7 @@ def test_generic_reading_drops_the_family_sections_and_still_checks_the_rest() -
             "max_force_n": 40,
             "default_force_n": 20,
         },
-        "acme": {"registers": 12},
+        "nosuchvendor": {"registers": 12},
     }
     with pytest.raises(grippers.ProfileError, match="unknown family"):
         profiles.parse_profile(data)  # a profile file of an uninstalled family is still refused
