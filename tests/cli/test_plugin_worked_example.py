@@ -1,10 +1,10 @@
-"""Issue 28 §6: the worked plugin of docs/backends.md (examples/acme_grippers, a register-based gripper with
+"""Issue 28 §6: the worked plugin of docs/backends.md (examples/acme_r1, a register-based gripper with
 its simulator and profile folder) takes part in the commands and faces once installed, by its entry points
 alone: no GRIPPERS_PROFILE_PATH, no private names.
 
 Installed as tests/cli/test_plugin_example.py installs its plugin, without pip: the package and a
 ``*.dist-info`` holding its entry points on sys.path (this process) or PYTHONPATH (a subprocess), which is all
-importlib.metadata reads. The entry points are the ones examples/acme_grippers/pyproject.toml declares.
+importlib.metadata reads. The entry points are the ones examples/acme_r1/pyproject.toml declares.
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ import grippers.backends
 from grippers.testing.conformance import ConformanceSuite
 
 ROOT = Path(__file__).resolve().parents[2]
-EXAMPLE = ROOT / "examples" / "acme_grippers"
+EXAMPLE = ROOT / "examples" / "acme_r1"
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -33,10 +33,10 @@ pytestmark = pytest.mark.timeout(120)
 def _install(site: Path) -> Path:
     """The example package and a dist-info with the entry points of its pyproject.toml, in ``site``."""
     shutil.copytree(
-        EXAMPLE / "acme_grippers", site / "acme_grippers", ignore=shutil.ignore_patterns("__pycache__")
+        EXAMPLE / "acme_r1", site / "acme_r1", ignore=shutil.ignore_patterns("__pycache__")
     )
     project = tomllib.loads((EXAMPLE / "pyproject.toml").read_text())["project"]
-    dist = site / f"acme_grippers-{project['version']}.dist-info"
+    dist = site / f"acme_r1-{project['version']}.dist-info"
     dist.mkdir()
     (dist / "METADATA").write_text(
         f"Metadata-Version: 2.1\nName: {project['name']}\nVersion: {project['version']}\n"
@@ -83,7 +83,7 @@ def test_the_profile_folder_is_found_by_its_entry_point(acme_site: Path) -> None
     assert listed.returncode == 0, listed.stderr
     line = next(line for line in listed.stdout.splitlines() if line.startswith("acme-r1 "))
     assert "ACME" in line and "R1" in line and "80 mm" in line
-    assert str(acme_site / "acme_grippers" / "profiles") in _grippers(acme_site, "profiles", "path").stdout
+    assert str(acme_site / "acme_r1" / "profiles") in _grippers(acme_site, "profiles", "path").stdout
     schema = _grippers(acme_site, "profiles", "schema")
     assert schema.returncode == 0 and "AcmeProfile" in schema.stdout
 
