@@ -32,9 +32,7 @@ pytestmark = pytest.mark.timeout(120)
 
 def _install(site: Path) -> Path:
     """The example package and a dist-info with the entry points of its pyproject.toml, in ``site``."""
-    shutil.copytree(
-        EXAMPLE / "acme_r1", site / "acme_r1", ignore=shutil.ignore_patterns("__pycache__")
-    )
+    shutil.copytree(EXAMPLE / "acme_r1", site / "acme_r1", ignore=shutil.ignore_patterns("__pycache__"))
     project = tomllib.loads((EXAMPLE / "pyproject.toml").read_text())["project"]
     dist = site / f"acme_r1-{project['version']}.dist-info"
     dist.mkdir()
