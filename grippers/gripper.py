@@ -12,10 +12,10 @@ import logging
 import threading
 from abc import ABC, abstractmethod
 from collections.abc import Callable
-from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, TypeVar
 
 from .connection import ConnectionHooks, Watch
+from .device import StartedRead, StateCallback
 from .errors import FastStopActive, GripperError, MotionBlocked, NotReferenced
 from .features import OptionalFeatures
 from .motions import MotionHandle, MotionSupervisor, wait_seconds
@@ -41,6 +41,8 @@ __all__ = [
     "Gripper",
     "GripperState",
     "MotionResult",
+    "StartedRead",
+    "StateCallback",
     "StateStream",
     "put_dropping_oldest",
 ]
@@ -48,23 +50,6 @@ __all__ = [
 T = TypeVar("T")
 
 log = logging.getLogger(__name__)
-
-StateCallback = Callable[["GripperState | None", "BaseException | None"], None]
-
-
-@dataclass(frozen=True)
-class StartedRead:
-    """A read a backend started without blocking (:meth:`Gripper._start_state`)."""
-
-    cancel: Callable[[], None]
-    """Give the read up (task cancelled, or :attr:`timeout` passed): its exchanges are abandoned as Ctrl-C
-    abandons them; ``done`` may still be called once, and is then ignored. Idempotent; never blocks."""
-    timeout: float | None
-    """Seconds after which the caller gives up with GripperTimeout; None: the driver times the read out
-    itself (``done`` gets its GripperTimeout), and the caller arms no timer of its own."""
-    command: str = "state"
-    """The device command named in that timeout's message."""
-
 
 def _named(name: str, call: Callable[[], T]) -> T:
     """``call()``, with a refusal for an unreferenced axis or an obstacle named after the command the user
