@@ -6,12 +6,14 @@ on-demand long mode (see docs/reliability.md).
 
 from __future__ import annotations
 
+import contextlib
 import os
 import re
 import select
 import signal
 import subprocess
 import sys
+import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
@@ -122,6 +124,35 @@ class SimProcess:
         self.close()
         err = self.proc.stderr.read() if self.proc.stderr else ""
         raise RuntimeError(f"simulator {self.args} printed no URL: {seen!r} {err[-2000:]!r}")
+
+    @contextlib.contextmanager
+    def held(self) -> Iterator[None]:
+        """The simulated clock held still for the body (SIGUSR1, SIGUSR2 after; grippers/cli/sim_common.py),
+        each confirmed by the simulator before this goes on: the device stands still, and answers."""
+        self._signal(signal.SIGUSR1, "clock held")
+        try:
+            yield
+        finally:
+            self._signal(signal.SIGUSR2, "clock running")
+
+    def _signal(self, sig: int, confirmation: str) -> None:
+        """Send ``sig`` and read stderr (raw, unbuffered: a buffered reader would hide a second line from
+        ``select``) until the simulator confirms."""
+        assert self.proc.stderr is not None
+        self.proc.send_signal(sig)
+        fd = self.proc.stderr.fileno()
+        seen = b""
+        deadline = time.monotonic() + START_TIMEOUT
+        while time.monotonic() < deadline:
+            ready, _, _ = select.select([fd], [], [], 0.2)
+            if ready:
+                chunk = os.read(fd, 4096)
+                if not chunk:
+                    break
+                seen += chunk
+                if confirmation.encode() in seen:
+                    return
+        raise AssertionError(f"simulator {self.args}: no {confirmation!r} after signal {sig}: {seen!r}")
 
     def close(self) -> None:
         if self.proc.poll() is None:

@@ -137,6 +137,35 @@ def _wait_for_a_signal() -> None:
         os.close(write_fd)
 
 
+HOLD_SIGNAL = signal.SIGUSR1
+"""``kill -USR1`` holds a running ``grippers sim``'s simulated clock still (the jaws stop where they are, the
+device goes on answering); ``kill -USR2`` (:data:`RUN_SIGNAL`) lets it run again. Each is confirmed by a line
+on stderr ("grippers sim: clock held" / "... running") once it took effect, so a test in another process can
+act on a device it knows is still (the rule of docs/reliability.md: never race the simulator's clock)."""
+RUN_SIGNAL = signal.SIGUSR2
+HOLD_CREEP_S = 0.001
+"""Simulated seconds each reading of a held clock moves it on: frames reach a real device apart in time, and
+the MSG's firmware tells a poll within one control tick (160-200 us) of a new command apart from a later one
+(drivers/simkit.py, ``SimClock.pause``); 1 ms per reading moves a 20 mm/s jaw 0.02 mm."""
+
+
+def _hold_on_signals(server: Any) -> list[tuple[int, Any]]:
+    """Install the hold/run handlers where the server has one scaled clock; returns what to restore."""
+    clock = getattr(server, "clock", None)
+    if clock is None or not hasattr(clock, "pause"):
+        return []
+
+    def hold(*_: object) -> None:
+        clock.pause(creep=HOLD_CREEP_S)
+        print("grippers sim: clock held", file=sys.stderr, flush=True)
+
+    def run(*_: object) -> None:
+        clock.resume()
+        print("grippers sim: clock running", file=sys.stderr, flush=True)
+
+    return [(HOLD_SIGNAL, signal.signal(HOLD_SIGNAL, hold)), (RUN_SIGNAL, signal.signal(RUN_SIGNAL, run))]
+
+
 def serve_forever(server: Any, what: str, urls: list[str] | None = None, *, as_json: bool = False) -> int:
     """Print where to connect (first line, for people and for scripts; one line per extra node; with --json
     one document ``{"schema": "grippers.sim/1", "what": ..., "urls": [...]}``), then serve until Ctrl-C (exit
@@ -146,6 +175,7 @@ def serve_forever(server: Any, what: str, urls: list[str] | None = None, *, as_j
         raise _Terminated
 
     previous = signal.signal(signal.SIGTERM, _terminate)
+    held = _hold_on_signals(server)
     urls = urls or [server.url]
     try:
         if as_json:
@@ -161,6 +191,8 @@ def serve_forever(server: Any, what: str, urls: list[str] | None = None, *, as_j
         return 0
     finally:
         signal.signal(signal.SIGTERM, previous)
+        for sig, handler in held:
+            signal.signal(sig, handler)
         server.close()
     return 0  # pragma: no cover - the wait above only ends by an exception
 

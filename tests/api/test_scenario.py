@@ -7,11 +7,15 @@ the WSG, the UART pseudo-terminal for the MSG), the way a user would reach hardw
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from contextlib import AbstractContextManager
+
 import pytest
 
 import grippers
 
 from ..scenario import run_scenario
+from ..simhold import MSG_CREEP_S, held
 from .conftest import SHIPPED, TIME_SCALE
 
 PART_SHARE = 0.3  # the part's width as a share of the stroke: the moves stay above it
@@ -21,10 +25,15 @@ def _part_mm(profile: str) -> float:
     return round(grippers.load_profile(profile).mechanics.stroke_mm * PART_SHARE, 1)
 
 
-def _open(kind: str, profile: str, sim_process) -> grippers.Gripper:
+def _open(
+    kind: str, profile: str, sim_process
+) -> tuple[grippers.Gripper, Callable[[], AbstractContextManager[object]]]:
+    """The gripper, and what holds its simulated device still (tests/simhold.py in-process; the subprocess's
+    hold signal otherwise)."""
     part = _part_mm(profile)
     if kind == "in-process":
-        return grippers.open(f"sim://{profile}?time_scale={TIME_SCALE}&part_width_mm={part}")
+        g = grippers.open(f"sim://{profile}?time_scale={TIME_SCALE}&part_width_mm={part}")
+        return g, lambda: held(g, creep=MSG_CREEP_S)
     # `grippers sim FAMILY` for every family (issue 28 §2): the profile's own family names the command.
     family = grippers.load_profile(profile).family
     listen = "tcp://127.0.0.1:0" if family == "wsg" else "pty"  # the WSG's default port needs root
@@ -39,14 +48,15 @@ def _open(kind: str, profile: str, sim_process) -> grippers.Gripper:
         "--part-width",
         str(part),
     )
-    return grippers.open(sim.url, profile=profile)
+    return grippers.open(sim.url, profile=profile), sim.held
 
 
 @pytest.mark.parametrize("kind", ["in-process", "subprocess"])
 @pytest.mark.parametrize("profile", SHIPPED)
 def test_scenario(profile: str, kind: str, sim_process) -> None:
-    with _open(kind, profile, sim_process) as g:
-        run_scenario(g, profile, _part_mm(profile) / 1000)
+    g, hold = _open(kind, profile, sim_process)
+    with g:
+        run_scenario(g, profile, _part_mm(profile) / 1000, hold)
 
 
 @pytest.mark.parametrize("profile", ["wsg50", "msg-150"])

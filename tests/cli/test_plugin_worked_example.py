@@ -143,9 +143,21 @@ def test_grippers_sim_serves_it_and_probe_finds_it_on_a_bare_tcp_host(acme_site:
 
 
 def test_selftest_runs_on_it(acme_site: Path) -> None:
-    r = _grippers(acme_site, "selftest", "sim://acme-r1?time_scale=20", "--yes", timeout=120)
-    assert r.returncode == 0, r.stdout + r.stderr
-    assert "all PASS" in r.stdout and "the acme backend offers no device settings" in r.stdout
+    """Every check of the self-test runs on the plugin and passes, but for the speed measurements: those
+    time a move of the simulator in wall time, and a machine busy enough to delay the polls beside a scaled
+    clock measures a slower move (CI measured 0.68x once, with both cores busy). They may WARN, never FAIL;
+    every other line must PASS or be INFO."""
+    r = _grippers(acme_site, "selftest", "sim://acme-r1?time_scale=5", "--yes", "--json", timeout=120)
+    assert r.returncode in (0, 3), r.stdout + r.stderr
+    doc = json.loads(r.stdout)
+    lines = {ln["check"]: ln for ln in doc["lines"]}
+    assert "home (1st)" in lines and "close without a part" in lines, sorted(lines)
+    timed = [c for c in lines if c.startswith("speed ")]
+    assert len(timed) == 3, sorted(lines)
+    for check, ln in lines.items():
+        allowed = {"PASS", "INFO", "WARN"} if check in timed else {"PASS", "INFO"}
+        assert ln["verdict"] in allowed, ln
+    assert lines["settings"]["note"] == "the acme backend offers no device settings", lines["settings"]
 
 
 def test_monitor_reads_a_capture_with_the_plugin_dissector(acme_site: Path, tmp_path: Path) -> None:

@@ -16,6 +16,7 @@ import pytest
 import grippers
 from grippers import ConnectionLost
 
+from ..freeze import freeze
 from .conftest import ServeProcess, sim
 
 pytestmark = pytest.mark.timeout(120)
@@ -55,7 +56,7 @@ def test_a_lost_link_is_final_without_reconnect(serve) -> None:
         g.on_connection(events.append)
         g.home()
         g.servo(0.05)
-        server.proc.send_signal(signal.SIGSTOP)
+        freeze(server.proc)
         try:
             _servo_until_lost(g, 10.0)
             assert _until(lambda: not g.connected, 5.0)  # before: True throughout
@@ -82,7 +83,7 @@ def test_no_answer_says_how_long_it_waited(serve) -> None:
     g = grippers.open(server.urls["g"] + "&timeout=0.5")
     try:
         g.state()
-        server.proc.send_signal(signal.SIGSTOP)
+        freeze(server.proc)
         started = time.monotonic()
         with pytest.raises(ConnectionLost) as lost:
             g.state()
@@ -120,7 +121,7 @@ def test_with_reconnect_the_gap_is_reported_and_motion_resumes_by_a_new_command(
         g.on_connection(events.append)
         g.home()
         g.servo(0.05)
-        server.proc.send_signal(signal.SIGSTOP)
+        freeze(server.proc)
         try:
             _servo_until_lost(g, 10.0)
             assert _until(lambda: events[:1] == [False], 5.0), events
