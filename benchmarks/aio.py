@@ -333,8 +333,14 @@ def run(quick: bool) -> list[Result]:
             f"{SESSIONS} sessions, each a fresh simulator process; each session's median pair ratio: "
             + ", ".join(f"{r:.2f}x" for r in sessions),
         ]
+        goal = f"<= {RATIO_LIMIT}x threaded"
+        ok = ratio <= RATIO_LIMIT
         if label.startswith("WSG"):
             floor_ratio = bare_async / bare
+            # The same-run baseline of what asyncio itself costs: on a loaded machine a bare asyncio.Protocol
+            # is itself 1.3-1.4x a blocking socket (issue 33 §5), and no library can be faster than that.
+            goal = f"<= {RATIO_LIMIT}x threaded, or <= {RATIO_LIMIT}x asyncio's own floor (same run)"
+            ok = ratio <= RATIO_LIMIT or ratio / floor_ratio <= RATIO_LIMIT
             details += [
                 f"asyncio's own floor, same run: the five queries over a bare asyncio.Protocol "
                 f"{us(bare_async)} against a bare blocking socket {us(bare)} = {floor_ratio:.2f}x",
@@ -356,8 +362,8 @@ def run(quick: bool) -> list[Result]:
                 us(awaited),
                 us(threaded) + " (threaded g.state())",
                 f"{ratio:.2f}x (IQR {low:.2f}-{high:.2f})",
-                f"<= {RATIO_LIMIT}x threaded",
-                ratio <= RATIO_LIMIT,
+                goal,
+                ok,
                 details,
             )
         )
