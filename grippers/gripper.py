@@ -51,6 +51,7 @@ T = TypeVar("T")
 
 log = logging.getLogger(__name__)
 
+
 def _named(name: str, call: Callable[[], T]) -> T:
     """``call()``, with a refusal for an unreferenced axis or an obstacle named after the command the user
     called: a backend raises them from the primitive it was in (a grasp's opening move is ``_move``), and
