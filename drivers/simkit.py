@@ -243,6 +243,20 @@ class FaultHooks:
             self._garbage.clear()
             return data
 
+    def outgoing(
+        self,
+        reply: bytes,
+        *,
+        corrupt: Callable[[bytes], bytes] = flip_last_byte,
+        truncate: Callable[[bytes], bytes] = first_half,
+    ) -> tuple[list[bytes], float]:
+        """What a byte server puts on the wire for ``reply``: nothing while :attr:`silent`, else any garbage
+        queued, then the next queued fault applied (:func:`apply_fault`); with the wall seconds to wait
+        before sending (a delay). The whole rule in one call, so every byte server applies it alike."""
+        if self.silent:
+            return [], 0.0
+        return apply_fault(self.take_garbage() + reply, self.take(), corrupt=corrupt, truncate=truncate)
+
 
 class DeviceSession(Protocol):
     """One client's conversation with a simulated device: the bytes it sent at simulated time ``now`` in,
@@ -415,10 +429,7 @@ class SimServer(Closing):
         with self.lock:
             replies = list(peer.session.feed(data, self.clock.now()))
         for reply in replies:
-            if self.faults.silent:
-                continue
-            reply = self.faults.take_garbage() + reply
-            out, delay = apply_fault(reply, self.faults.take(), corrupt=flip_last_byte, truncate=first_half)
+            out, delay = self.faults.outgoing(reply)
             for frame in out:
                 if delay:
                     self._delayed.append((time.monotonic() + delay, peer, frame))
