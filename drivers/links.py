@@ -494,7 +494,8 @@ class LinkHolder(Closing, Generic[L]):
         (the broken one is closed first: a serial port must be free before it is opened again)."""
         with self._lock:
             if self._closed:
-                raise ConnectionLost("closed", command="reconnect")
+                device = getattr(self._link, "device", None)
+                raise ConnectionLost("the holder is closed", device=device, command="reconnect")
             old = self._link
             if self.reuse_alive and old.alive:
                 if self._check is not None:
