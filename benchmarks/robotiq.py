@@ -25,6 +25,7 @@ if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from benchmarks.common import REPO, Result
+from grippers.drivers.links import ByteLink
 from grippers.drivers.robotiq import modbus
 from grippers.drivers.robotiq.client import RobotiqClient
 from grippers.drivers.robotiq.registers import (
@@ -52,25 +53,27 @@ def poll_wire_seconds(baudrate: int = BAUD) -> tuple[int, int, float]:
     )
 
 
-class _AnsweringLink:
-    """A link that answers every status read at once with a moving gripper's status (no I/O, no thread)."""
+class _AnsweringLink(ByteLink):
+    """A link that answers every status read at once with a moving gripper's status (no I/O, no thread): a
+    transport of the backend kit filling its three methods."""
 
     def __init__(self) -> None:
+        super().__init__("bench")
         self._reply = b""
         self._n = 0
 
-    def write(self, data: bytes) -> None:
+    def _send(self, data: bytes) -> None:
         self._n += 1
         st = Status(
             True, True, ActivationState.COMPLETE, ObjectDetection.MOVING, 0, 0, 200, self._n % 230, 16
         )
         self._reply = modbus.read_response(data[0], data[1], list(st.registers()))
 
-    def read(self, timeout: float) -> bytes:
+    def _recv(self, timeout: float) -> bytes:
         reply, self._reply = self._reply, b""
         return reply
 
-    def close(self) -> None:
+    def _close(self) -> None:
         pass
 
 

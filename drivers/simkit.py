@@ -1,20 +1,40 @@
-"""Pieces both simulators share: a scaled clock and the fault-injection hooks tests use.
+"""The simulator kit: a scaled clock, fault hooks, and pty/TCP servers around a byte-level device model.
 
-The device models are pure (time is passed in); a server owns a :class:`SimClock` and asks the model to
-advance to ``clock.now()`` before it answers. :class:`FaultHooks` is the one knob tests turn to make a
-simulated device misbehave: the server asks :meth:`FaultHooks.take` what to do with each reply it is about to
-send, so every transport applies faults the same way.
+Every simulator of the library is built the same way (docs/backend-kit.md):
+
+- a **device model**, pure: requests in, replies out, time passed in (``now``, simulated seconds), nothing
+  here; it reuses the driver's sans-IO codec;
+- a :class:`SimClock`: wall time scaled by ``time_scale``, which a test holds still (:meth:`SimClock.pause`)
+  and moves on (:meth:`SimClock.step`) instead of racing the clock against the scheduler;
+- :class:`FaultHooks`, the one knob a test turns to make a device misbehave: drop, delay, corrupt, truncate
+  or duplicate replies, send garbage, fall silent, stall for a while, close the connection. A server asks
+  :meth:`FaultHooks.take` what to do with each reply it is about to send and applies it with
+  :func:`apply_fault`, so a fault means the same on every simulator and transport;
+- a :class:`SimServer` that serves the model on a pseudo-terminal (``pty``: what a USB-serial adapter's
+  ``/dev/ttyUSB0`` is to a client) or on TCP (``tcp://HOST:PORT``; port 0 picks a free one), one
+  :class:`DeviceSession` per connection, on one thread, with the clock and the hooks above.
+
+A plugin's simulator is the model, a session that feeds its codec, and a :class:`SimServer` (the ACME R1's,
+examples/acme_r1/acme_r1/sim.py, is the worked example).
 """
 
 from __future__ import annotations
 
+import contextlib
+import functools
+import os
+import selectors
+import socket
 import threading
 import time
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from enum import Enum
-from typing import Any, TypeVar
+from typing import Any, Protocol, TypeVar
+
+from .closing import Closing
+from .errors import URLError
 
 R = TypeVar("R")
 
@@ -148,16 +168,32 @@ class FaultHooks:
     """Faults queued by a test and consumed by a simulator server, one per outgoing reply.
 
     Thread-safe: a test thread queues, the server thread takes. ``silent`` makes the device answer nothing
-    until cleared; ``garbage`` is sent before the next reply; ``request_close()`` asks the server to drop the
-    connection (TCP: without the client's 07h, so the WSG model enters FAST STOP).
+    until cleared; :meth:`stall` makes it answer nothing for a while (a device busy or rebooting: requests
+    meanwhile are lost, later ones answered); ``garbage`` is sent before the next reply; ``request_close()``
+    asks the server to drop its TCP connections (the WSG model: without the client's 07h, so it enters FAST
+    STOP). A queued fault applies to the next reply sent, whichever connection it goes to.
     """
 
     def __init__(self) -> None:
         self._lock = threading.Lock()
         self._queue: deque[Fault] = deque()
         self._garbage = bytearray()
-        self.silent = False
+        self._silent = False
+        self._stalled_until = 0.0  # time.monotonic() until which the device answers nothing
         self.close_requested = threading.Event()
+
+    @property
+    def silent(self) -> bool:
+        """True while the device answers nothing: set by a test, or during a :meth:`stall`."""
+        return self._silent or (self._stalled_until > 0.0 and time.monotonic() < self._stalled_until)
+
+    @silent.setter
+    def silent(self, value: bool) -> None:
+        self._silent = bool(value)
+
+    def stall(self, seconds: float) -> None:
+        """Answer nothing for ``seconds`` (wall time) from now, then answer again by itself."""
+        self._stalled_until = time.monotonic() + max(0.0, seconds)
 
     def _push(self, fault: Fault, count: int) -> None:
         with self._lock:
@@ -192,7 +228,8 @@ class FaultHooks:
         with self._lock:
             self._queue.clear()
             self._garbage.clear()
-        self.silent = False
+        self._silent = False
+        self._stalled_until = 0.0
         self.close_requested.clear()
 
     def take(self) -> Fault | None:
@@ -205,6 +242,256 @@ class FaultHooks:
             data = bytes(self._garbage)
             self._garbage.clear()
             return data
+
+    def outgoing(
+        self,
+        reply: bytes,
+        *,
+        corrupt: Callable[[bytes], bytes] = flip_last_byte,
+        truncate: Callable[[bytes], bytes] = first_half,
+    ) -> tuple[list[bytes], float]:
+        """What a byte server puts on the wire for ``reply``: nothing while :attr:`silent`, else any garbage
+        queued, then the next queued fault applied (:func:`apply_fault`); with the wall seconds to wait
+        before sending (a delay). The whole rule in one call, so every byte server applies it alike."""
+        if self.silent:
+            return [], 0.0
+        return apply_fault(self.take_garbage() + reply, self.take(), corrupt=corrupt, truncate=truncate)
+
+
+class DeviceSession(Protocol):
+    """One client's conversation with a simulated device: the bytes it sent at simulated time ``now`` in,
+    the replies to send back out (each one reply, so a fault applies to it whole). A session keeps what
+    belongs to one connection (a codec's partial frame); the device's state lives in the model it calls.
+    It may also have ``closed(now)``, called when its connection drops."""
+
+    def feed(self, data: bytes, now: float) -> Iterable[bytes]: ...
+
+
+class _Peer:
+    """One connection of a :class:`SimServer`: how to write to it, its session, and its name."""
+
+    def __init__(self, write: Callable[[bytes], None], session: DeviceSession, name: str) -> None:
+        self.write, self.session, self.name = write, session, name
+
+
+class SimServer(Closing):
+    """Serves a byte-level device model on a pty or TCP: ``.url``, ``.clock``, ``.faults``, ``.lock``,
+    ``.error``; ``.path`` (pty) or ``.port`` (TCP); ``close()`` stops it.
+
+    ``listen``: ``pty`` (or ``serial``) for a pseudo-terminal in raw mode, its URL ``FAMILY+serial://PATH``;
+    ``tcp://HOST:PORT`` (or ``FAMILY+tcp://``; port 0: a free one), its URL ``FAMILY+tcp://HOST:PORT``.
+    ``session()`` makes the :class:`DeviceSession` of each connection; ``advance(now)``, if given, moves the
+    model on to simulated time ``now`` between requests too (a motion runs while nobody asks). The model is
+    only called under ``.lock`` (an RLock): a test that changes it (a part in the way) holds the lock too.
+    An exception in the model ends the server's thread and is kept in ``.error`` (the ``gripper_sim``
+    fixture reports it).
+    """
+
+    tick_s = 0.05  # the longest the thread sleeps between two ``advance`` calls
+
+    def __init__(
+        self,
+        listen: str,
+        session: Callable[[], DeviceSession],
+        *,
+        family: str,
+        time_scale: float = 1.0,
+        advance: Callable[[float], None] | None = None,
+    ) -> None:
+        self.clock = SimClock(time_scale)
+        self.faults = FaultHooks()
+        self.lock = threading.RLock()
+        self.error: BaseException | None = None
+        self.path: str | None = None
+        self.port: int | None = None
+        self._session, self._advance = session, advance
+        self._selector = selectors.DefaultSelector()
+        self._wake_r, self._wake_w = socket.socketpair()
+        self._wake_r.setblocking(False)
+        self._selector.register(self._wake_r, selectors.EVENT_READ, None)
+        self._peers: dict[Any, _Peer] = {}
+        self._delayed: list[tuple[float, _Peer, bytes]] = []
+        self._closed = threading.Event()
+        self._listener: socket.socket | None = None
+        self._master = self._slave = -1
+        try:
+            if listen in ("pty", "serial"):
+                self._open_pty(family)
+            else:
+                self._open_tcp(listen, family)
+        except BaseException:
+            self._release()
+            raise
+        self._thread = threading.Thread(target=self._run, name=f"sim {self.url}", daemon=True)
+        self._thread.start()
+
+    # -- clock ---------------------------------------------------------------------------------------------
+
+    def now(self) -> float:
+        """Simulated seconds (the clock's, held while paused)."""
+        return self.clock.now()
+
+    def pause(self) -> None:
+        """Hold the device still: simulated time stops until :meth:`resume` (or moves by :meth:`step`)."""
+        self.clock.pause()
+
+    def step(self, seconds: float) -> None:
+        """Move a paused clock on by ``seconds`` simulated seconds, and the model with it."""
+        self.clock.step(seconds)
+        if self._advance is not None:
+            with self.lock:
+                self._advance(self.clock.now())
+
+    def resume(self) -> None:
+        self.clock.resume()
+
+    # -- transports ----------------------------------------------------------------------------------------
+
+    def _open_pty(self, family: str) -> None:
+        import tty
+
+        self._master, self._slave = os.openpty()
+        tty.setraw(self._slave)  # binary frames: no echo, no CR/LF translation
+        os.set_blocking(self._master, False)
+        self.path = os.ttyname(self._slave)
+        self.url = f"{family}+serial://{self.path}"
+        self._peers[self._master] = _Peer(self._write_pty, self._session(), f"pty {self.path}")
+        self._selector.register(self._master, selectors.EVENT_READ, self._read_pty)
+
+    def _write_pty(self, data: bytes) -> None:
+        view = memoryview(data)
+        while view:
+            try:
+                n = os.write(self._master, view)
+            except OSError:  # full (nobody reading) or closed: a UART loses bytes instead of blocking
+                return
+            view = view[n:]
+
+    def _read_pty(self) -> None:
+        try:
+            data = os.read(self._master, 65536)
+        except OSError:
+            return
+        if data:
+            self._received(self._peers[self._master], data)
+
+    def _open_tcp(self, listen: str, family: str) -> None:
+        from .urls import format_host, parse_url
+
+        url = parse_url(listen, bare_family=family, listen=True)
+        if url.transport != "tcp":
+            raise URLError(f"{listen}: a simulator listens on pty or tcp://HOST:PORT")
+        host = url.host or "127.0.0.1"
+        self._listener = socket.create_server((host, url.port or 0))
+        self._listener.setblocking(False)
+        self.port = self._listener.getsockname()[1]
+        self.url = f"{family}+tcp://{format_host(host, self.port)}"
+        self._selector.register(self._listener, selectors.EVENT_READ, self._accept)
+
+    def _accept(self) -> None:
+        assert self._listener is not None
+        try:
+            sock, peer = self._listener.accept()
+        except OSError:
+            return
+        sock.settimeout(2.0)  # a client that stopped reading fails a send instead of blocking the device
+        sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        self._peers[sock] = _Peer(functools.partial(_send_quietly, sock), self._session(), f"tcp {peer}")
+        self._selector.register(sock, selectors.EVENT_READ, functools.partial(self._read_tcp, sock))
+
+    def _read_tcp(self, sock: socket.socket) -> None:
+        try:
+            data = sock.recv(65536)
+        except OSError:
+            data = b""
+        if not data:
+            self._drop(sock)
+            return
+        self._received(self._peers[sock], data)
+
+    def _drop(self, sock: socket.socket) -> None:
+        peer = self._peers.pop(sock, None)
+        with contextlib.suppress(KeyError, ValueError):
+            self._selector.unregister(sock)
+        with contextlib.suppress(OSError):
+            sock.close()
+        closed = getattr(peer.session, "closed", None) if peer is not None else None
+        if closed is not None:
+            with self.lock:
+                closed(self.clock.now())
+
+    def _sockets(self) -> list[socket.socket]:
+        return [s for s in self._peers if isinstance(s, socket.socket)]
+
+    # -- the loop ------------------------------------------------------------------------------------------
+
+    def _received(self, peer: _Peer, data: bytes) -> None:
+        with self.lock:
+            replies = list(peer.session.feed(data, self.clock.now()))
+        for reply in replies:
+            out, delay = self.faults.outgoing(reply)
+            for frame in out:
+                if delay:
+                    self._delayed.append((time.monotonic() + delay, peer, frame))
+                else:
+                    peer.write(frame)
+
+    def _run(self) -> None:
+        try:
+            while not self._closed.is_set():
+                wait = self.tick_s
+                if self._delayed:
+                    wait = max(0.0, min(wait, min(d[0] for d in self._delayed) - time.monotonic()))
+                for key, _ in self._selector.select(wait):
+                    if key.fileobj is self._wake_r:
+                        with contextlib.suppress(OSError):
+                            self._wake_r.recv(4096)
+                    elif not self._closed.is_set():
+                        key.data()
+                now = time.monotonic()
+                due = [d for d in self._delayed if d[0] <= now]
+                self._delayed = [d for d in self._delayed if d[0] > now]
+                for _, peer, frame in due:
+                    peer.write(frame)
+                if self.faults.close_requested.is_set():
+                    self.faults.close_requested.clear()
+                    for sock in self._sockets():
+                        self._drop(sock)
+                if self._advance is not None:
+                    with self.lock:
+                        self._advance(self.clock.now())
+        except BaseException as exc:  # noqa: BLE001 - reported by close() and the gripper_sim fixture
+            self.error = exc
+
+    def close(self) -> None:
+        """Stop the thread, close every connection and the pty or listener; idempotent."""
+        if self._closed.is_set():
+            return
+        self._closed.set()
+        with contextlib.suppress(OSError):
+            self._wake_w.send(b"\0")
+        if self._thread is not threading.current_thread():
+            self._thread.join(timeout=5.0)
+        self._release()
+
+    def _release(self) -> None:
+        for sock in self._sockets():
+            self._drop(sock)
+        if self._listener is not None:
+            self._listener.close()
+        for fd in (self._master, self._slave):
+            if fd >= 0:
+                with contextlib.suppress(OSError):
+                    os.close(fd)
+        self._master = self._slave = -1
+        self._selector.close()
+        self._wake_r.close()
+        self._wake_w.close()
+
+
+def _send_quietly(sock: socket.socket, data: bytes) -> None:
+    with contextlib.suppress(OSError):  # the client went away: the next read of it drops the connection
+        sock.sendall(data)
 
 
 # The replay servers' timers (grippers sim --replay): the one part of a replay that waits, kept out of the

@@ -58,6 +58,7 @@ SANS_IO = [
     "grippers.drivers.robotiq.modbus",
     "grippers.drivers.robotiq.registers",
     "grippers.drivers.robotiq.session",
+    "grippers.drivers.robotiq.urcap_protocol",
     "grippers.drivers.robotiq.sim.model",
     "grippers.drivers.replay",
 ]

@@ -1,24 +1,24 @@
 """The Robotiq device client: register exchanges over an RS-485 line (pyserial) or raw RTU over TCP (a UR
 robot's tool-communication forwarder), thread-safe, every wait bounded.
 
-Modbus is strictly request/response with one master, so no reader thread is needed: an exchange writes a
-request and reads until the parser returns the one answer it expects, under a lock that serialises callers
-(a state stream and a motion wait share one line). Errors name the device, the command and the cause:
+The bytes move over a link of the backend kit (:mod:`grippers.drivers.links`: :class:`SerialLink`,
+:class:`TcpLink`), which bounds every read and keeps the lost flag; this module adds Modbus's rules. Modbus is
+strictly request/response with one master, so no reader thread is needed: an exchange writes a request and
+reads until the parser returns the one answer it expects, under a lock that serialises callers (a state
+stream and a motion wait share one line). Errors name the device, the command and the cause:
 :class:`GripperTimeout` (no answer), :class:`ConnectionLost` (the link failed), :class:`CommandFailed`
 (a Modbus exception), all from drivers/errors.py.
 """
 
 from __future__ import annotations
 
-import contextlib
-import socket
 import threading
 import time
-from collections.abc import Callable
-from typing import Any, Protocol
+from typing import Any
 
 from ..dissect import FROM_GRIPPER, TO_GRIPPER
 from ..errors import CommandFailed, ConnectionLost, GripperTimeout
+from ..links import ByteLink, SerialLink, TcpLink, TraceFn
 from . import modbus
 from .dissect import log_frame, wire_debug
 from .modbus import READ_HOLDING, READ_INPUT, READ_WRITE, ExceptionCode, ResponseParser
@@ -33,93 +33,7 @@ from .registers import (
     Status,
 )
 
-TraceFn = Callable[[str, bytes], None]  # ("tx" | "rx", bytes): for -vv and the monitor
-
-
-class ByteLink(Protocol):
-    """What the client needs of a transport: write, read what arrived (bounded wait), close."""
-
-    def write(self, data: bytes) -> None: ...
-
-    def read(self, timeout: float) -> bytes: ...
-
-    def close(self) -> None: ...
-
-
-class SerialLink:
-    """An RS-485 adapter (or any pyserial URL: ``socket://``, ``loop://``) at 115200 8N1 by default."""
-
-    def __init__(self, port: str, baudrate: int = BAUDRATE, *, device: str) -> None:
-        import serial
-
-        self.device = device
-        self.baudrate = baudrate
-        try:
-            self._port = serial.serial_for_url(
-                port, baudrate=baudrate, bytesize=8, parity="N", stopbits=1, timeout=0.0
-            )
-        except (OSError, ValueError, serial.SerialException) as exc:
-            raise ConnectionLost(f"cannot open {port}: {exc}", device=device, command="open") from exc
-        self._timeout_set = 0.0
-
-    def write(self, data: bytes) -> None:
-        try:
-            self._port.write(data)
-        except Exception as exc:  # noqa: BLE001 - pyserial raises SerialException, OSError, TypeError
-            raise ConnectionLost(f"serial write failed: {exc}", device=self.device) from exc
-
-    def read(self, timeout: float) -> bytes:
-        try:
-            if timeout != self._timeout_set:
-                self._port.timeout = timeout
-                self._timeout_set = timeout
-            first = self._port.read(1)  # blocks up to timeout for the first byte
-            if not first:
-                return b""
-            waiting = self._port.in_waiting
-            return first + (self._port.read(waiting) if waiting else b"")
-        except Exception as exc:  # noqa: BLE001
-            raise ConnectionLost(f"serial read failed: {exc}", device=self.device) from exc
-
-    def close(self) -> None:
-        with contextlib.suppress(Exception):
-            self._port.close()
-
-
-class TcpLink:
-    """Raw RTU frames over TCP (a forwarder of the tool connector's RS-485; not Modbus TCP's MBAP framing)."""
-
-    def __init__(self, host: str, port: int = FORWARDER_PORT, *, device: str, timeout: float) -> None:
-        self.device = device
-        try:
-            self._sock = socket.create_connection((host, port), timeout=timeout)
-        except OSError as exc:
-            raise ConnectionLost(
-                f"cannot connect to {host}:{port}: {exc}", device=device, command="open"
-            ) from exc
-        self._sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-
-    def write(self, data: bytes) -> None:
-        try:
-            self._sock.sendall(data)
-        except OSError as exc:
-            raise ConnectionLost(f"TCP send failed: {exc}", device=self.device) from exc
-
-    def read(self, timeout: float) -> bytes:
-        try:
-            self._sock.settimeout(max(timeout, 1e-4))
-            data = self._sock.recv(4096)
-        except TimeoutError:
-            return b""
-        except OSError as exc:
-            raise ConnectionLost(f"TCP receive failed: {exc}", device=self.device) from exc
-        if not data:
-            raise ConnectionLost("the forwarder closed the connection", device=self.device)
-        return data
-
-    def close(self) -> None:
-        with contextlib.suppress(OSError):
-            self._sock.close()
+__all__ = ["ByteLink", "RobotiqClient", "TraceFn"]
 
 
 class RobotiqClient:
@@ -148,11 +62,10 @@ class RobotiqClient:
         self.timeout = timeout
         self.read_function = read_function
         self.inter_frame_s = inter_frame_s
-        self.trace = trace
+        if trace is not None:
+            link.trace = trace
         self._parser = ResponseParser(slave)
         self._lock = threading.Lock()
-        self._last_rx = 0.0
-        self._lost: BaseException | None = None
         self.exchanges = 0
 
     @classmethod
@@ -161,7 +74,7 @@ class RobotiqClient:
     ) -> RobotiqClient:
         name = device or port
         kw.setdefault("inter_frame_s", modbus.silent_interval(baudrate))
-        return cls(SerialLink(port, baudrate, device=name), device=name, **kw)
+        return cls(SerialLink(port, baudrate, device=name, timeout=kw.get("timeout", 0.5)), device=name, **kw)
 
     @classmethod
     def tcp(
@@ -172,31 +85,49 @@ class RobotiqClient:
 
     @property
     def alive(self) -> bool:
-        return self._lost is None
+        """Neither closed nor lost (the kit's link keeps the flag)."""
+        return self.link.alive
+
+    @property
+    def lost(self) -> bool:
+        return self.link.lost
+
+    @property
+    def trace(self) -> TraceFn | None:
+        return self.link.trace
 
     # -- exchanges ----------------------------------------------------------------------------------------
 
     def exchange(self, request: bytes, function: int, count: int, *, command: str) -> modbus.Response:
         """Send ``request`` and return its answer (``count`` registers read, or written for 16)."""
         with self._lock:
-            if self._lost is not None:
-                raise ConnectionLost(f"the link is down ({self._lost})", device=self.device, command=command)
+            if not self.link.alive:
+                raise ConnectionLost(
+                    f"the link is down ({self.link.lost_reason or 'closed'})",
+                    device=self.device,
+                    command=command,
+                )
             self._parser.reset()
             self._parser.expect(function, count)
-            if self.inter_frame_s:
-                wait = self._last_rx + self.inter_frame_s - time.monotonic()
+            if self.inter_frame_s:  # a serial line's t3.5: the device ends a frame on this silence
+                wait = self.link.last_rx + self.inter_frame_s - time.monotonic()
                 if wait > 0:
                     time.sleep(wait)
+            self.link.write(request, command=command)
+            if wire_debug():
+                log_frame(self.device, TO_GRIPPER, request)
             try:
-                self.link.write(request)
-                if self.trace:
-                    self.trace("tx", request)
-                if wire_debug():
-                    log_frame(self.device, TO_GRIPPER, request)
-                reply = self._read_reply(command)
-            except ConnectionLost as exc:
-                self._lost = exc
-                raise ConnectionLost(exc.message, device=self.device, command=command) from exc
+                reply = self.link.read_decoded(
+                    self._parser.feed, time.monotonic() + self.timeout, command=command
+                )[0]
+            except GripperTimeout:
+                raise GripperTimeout(
+                    f"no answer from slave {self.slave} within {self.timeout:g} s",
+                    device=self.device,
+                    command=command,
+                ) from None
+            if wire_debug():
+                log_frame(self.device, FROM_GRIPPER, reply.raw)
             self.exchanges += 1
         if reply.exception is not None:
             try:
@@ -211,28 +142,6 @@ class RobotiqClient:
                 command=command,
             )
         return reply
-
-    def _read_reply(self, command: str) -> modbus.Response:
-        deadline = time.monotonic() + self.timeout
-        while True:
-            left = deadline - time.monotonic()
-            if left <= 0:
-                raise GripperTimeout(
-                    f"no answer from slave {self.slave} within {self.timeout:g} s",
-                    device=self.device,
-                    command=command,
-                )
-            data = self.link.read(left)
-            if not data:
-                continue
-            self._last_rx = time.monotonic()
-            if self.trace:
-                self.trace("rx", data)
-            replies = self._parser.feed(data)
-            if replies:
-                if wire_debug():
-                    log_frame(self.device, FROM_GRIPPER, replies[0].raw)
-                return replies[0]
 
     def read_status(self, *, command: str = "status") -> Status:
         req = modbus.read_request(self.slave, STATUS_ADDRESS, BLOCK_REGISTERS, self.read_function)
@@ -252,7 +161,4 @@ class RobotiqClient:
         return Status.from_registers(reply.values)
 
     def close(self) -> None:
-        with self._lock:
-            if self._lost is None:
-                self._lost = ConnectionLost("closed", device=self.device)
         self.link.close()

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from grippers.drivers.robotiq.urcap import LineParser, get_line, set_line
+from grippers.drivers.robotiq.urcap_protocol import LineParser, get_line, set_line
 
 
 def test_set_and_get_lines() -> None:

@@ -1,17 +1,15 @@
-"""A simulated ACME R1: a pure register model in simulated time, served on loopback TCP with the shared codec.
+"""A simulated ACME R1: a pure register model in simulated time, served on TCP by the backend kit.
 
-The model moves at the commanded speed and stops on a part (``part_width_mm``); the server advances it to the
-clock's ``now()`` before each answer. ``faults.silent`` makes it read requests and answer nothing (a device
-that fell silent: the client's timeout, reconnection).
+The model moves at the commanded speed and stops on a part (``part_width_mm``); it is advanced to the
+clock's ``now()`` before each answer. The rest is :class:`grippers.kit.SimServer`'s: the scaled clock
+(``clock.pause()``/``step()``), the fault hooks (``faults.silent``, ``faults.drop_replies()``,
+``faults.stall()``, ``faults.request_close()``...), the server thread (docs/backend-kit.md).
 """
 
 from __future__ import annotations
 
-import socket
-import threading
-from dataclasses import dataclass
-
-from grippers.drivers.simkit import SimClock
+from grippers.kit import SimServer
+from grippers.urls import format_host
 
 from .codec import ERR_ADDRESS, ERR_VALUE, Control, Decoder, Frame, FrameError, Reg, Status
 
@@ -92,63 +90,24 @@ class AcmeModel:
             return Frame("E", ERR_VALUE, count=0)
 
 
-@dataclass
-class Faults:
-    silent: bool = False
+class AcmeSession:
+    """One client's bytes through the codec to the model: a request in, its reply out."""
+
+    def __init__(self, model: AcmeModel) -> None:
+        self.model, self.decoder = model, Decoder()
+
+    def feed(self, data: bytes, now: float) -> list[bytes]:
+        try:
+            frames = self.decoder.feed(data)
+        except FrameError:
+            return []  # the real device drops a bad frame; the client times out
+        return [self.model.answer(frame, now).encode() for frame in frames]
 
 
-class AcmeServer:
-    """Serves one model on a loopback TCP port, one client at a time, each on its own thread."""
+class AcmeServer(SimServer):
+    """Serves one model on a TCP port (the kit's server: ``.url``, ``.clock``, ``.faults``, ``close()``)."""
 
     def __init__(self, model: AcmeModel, host: str = "127.0.0.1", port: int = 0, time_scale: float = 1.0):
-        self.model, self.clock, self.faults = model, SimClock(time_scale), Faults()
-        self.error: BaseException | None = None
-        self._lock = threading.Lock()
-        self._listener = socket.create_server((host, port))
-        self._listener.settimeout(0.1)
-        self.url = f"acme+tcp://{host}:{self._listener.getsockname()[1]}"
-        self._closed = False
-        self._threads = [threading.Thread(target=self._accept, name="acme-sim", daemon=True)]
-        self._threads[0].start()
-
-    def _accept(self) -> None:
-        while not self._closed:
-            try:
-                conn, _ = self._listener.accept()
-            except TimeoutError:
-                continue
-            except OSError:
-                return
-            t = threading.Thread(target=self._serve, args=(conn,), name="acme-sim-client", daemon=True)
-            self._threads.append(t)
-            t.start()
-
-    def _serve(self, conn: socket.socket) -> None:
-        decoder = Decoder()
-        conn.settimeout(0.1)
-        with conn:
-            while not self._closed:
-                try:
-                    data = conn.recv(256)
-                except TimeoutError:
-                    continue
-                except OSError:
-                    return
-                if not data:
-                    return
-                try:
-                    frames = decoder.feed(data)
-                except FrameError:
-                    continue  # the real device drops a bad frame; the client times out
-                for frame in frames:
-                    if self.faults.silent:
-                        continue
-                    with self._lock:
-                        reply = self.model.answer(frame, self.clock.now())
-                    conn.sendall(reply.encode())
-
-    def close(self) -> None:
-        self._closed = True
-        self._listener.close()
-        for t in self._threads:
-            t.join(2.0)
+        self.model = model
+        listen = f"tcp://{format_host(host, port)}"
+        super().__init__(listen, lambda: AcmeSession(model), family="acme", time_scale=time_scale)

@@ -1,0 +1,62 @@
+"""The backend kit: what every gripper family needs and a plugin should not rewrite (docs/backend-kit.md).
+
+Three parts, each usable alone:
+
+- **Byte links** (from :mod:`grippers.drivers.links`): :class:`ByteLink` over a serial line
+  (:class:`SerialLink`, pyserial) or TCP (:class:`TcpLink`), opened from an address by :func:`open_link`.
+  Every read has a finite deadline (:class:`~grippers.GripperTimeout`), a broken line raises
+  :class:`~grippers.ConnectionLost` and sets :attr:`ByteLink.lost`, both naming the device and the command;
+  :meth:`ByteLink.exchange` writes a request and feeds the reply to your sans-IO codec until it yields.
+  :class:`LinkHolder` swaps a broken link for a fresh one on reconnection.
+- **The simulator kit** (from :mod:`grippers.drivers.simkit`): :class:`SimServer` serves your device model
+  on a pty or TCP, one :class:`DeviceSession` per connection; :class:`SimClock` is its scaled clock (pause,
+  step, resume); :class:`FaultHooks` makes it misbehave on request (drop, delay, corrupt, truncate or
+  duplicate a reply, garbage, silence, stall, close the connection).
+- **The polled-motion helper**: :mod:`grippers.kit.motion` (import it by that name) waits for a motion's end
+  by polling the device, ends the wait when a stop or a newer motion comes, and maps the device's faults.
+
+Everything here is public and stable for plugin authors; the drivers layer underneath imports nothing of
+:mod:`grippers`, so a family's driver may use the same classes from ``grippers.drivers``.
+"""
+
+from __future__ import annotations
+
+from grippers.drivers.links import (
+    ByteLink,
+    LinkHolder,
+    Reconnectable,
+    SerialLink,
+    TcpLink,
+    TraceFn,
+    open_link,
+)
+from grippers.drivers.simkit import (
+    DeviceSession,
+    Fault,
+    FaultHooks,
+    FaultKind,
+    SimClock,
+    SimServer,
+    apply_fault,
+    first_half,
+    flip_last_byte,
+)
+
+__all__ = [
+    "ByteLink",
+    "DeviceSession",
+    "Fault",
+    "FaultHooks",
+    "FaultKind",
+    "LinkHolder",
+    "Reconnectable",
+    "SerialLink",
+    "SimClock",
+    "SimServer",
+    "TcpLink",
+    "TraceFn",
+    "apply_fault",
+    "first_half",
+    "flip_last_byte",
+    "open_link",
+]
