@@ -12,6 +12,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
+from grippers.commands import motions
+
 from .common import add_common, add_target, non_negative_float, open_gripper, positive_float
 from .logs import issued_warnings
 from .output import (
@@ -96,7 +98,7 @@ class MotionCommand:
         return EXIT_OK
 
 
-MOTIONS = ("home", "move", "grasp", "release")
+MOTIONS = motions()  # the table's motions (grippers/commands.py): each gets --motion-timeout and a preflight
 
 
 def _preflight(gripper: Gripper, command: str, args: argparse.Namespace) -> None:
