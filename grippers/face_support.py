@@ -16,15 +16,38 @@ the threaded call applies (``took_state``: the fast-stop latch and the fault log
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
 if TYPE_CHECKING:
     import asyncio
 
+    from .connection import Watch
     from .device import StartedRead, StateCallback
-    from .gripper import Gripper
-    from .motions import Spawn
+    from .motions import MotionSupervisor, Spawn
+    from .servo import ServoLoop
     from .states import GripperState
+
+
+class GripperCore(Protocol):
+    """The members of :class:`~grippers.gripper.Gripper` this seam wraps; declared here, not imported from
+    gripper.py, which imports this module (no import circle: docs/DEVELOPING.md, rule 1)."""
+
+    _closed: bool
+    _motions: MotionSupervisor
+    _servo_loop: ServoLoop | None
+    _watch: Watch | None
+
+    def _check_open(self, command: str) -> None: ...
+
+    def _start_state(self, done: StateCallback) -> StartedRead | None: ...
+
+    def _took_state(self, st: GripperState) -> GripperState: ...
+
+    def _abandon(self, thread_ident: int) -> None: ...
+
+    def _resume(self, thread_ident: int) -> None: ...
+
+    def _read_on(self, loop: asyncio.AbstractEventLoop) -> Callable[[], None] | None: ...
 
 
 class AsyncSupport:
@@ -32,7 +55,7 @@ class AsyncSupport:
 
     __slots__ = ("_g",)
 
-    def __init__(self, gripper: Gripper) -> None:
+    def __init__(self, gripper: GripperCore) -> None:
         self._g = gripper
 
     # -- the state read -------------------------------------------------------------------------------------

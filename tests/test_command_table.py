@@ -199,3 +199,38 @@ def test_the_flags_the_table_names_exist() -> None:
             cli[word].add_arguments(parser)
             options = {o for a in parser._actions for o in a.option_strings}
             assert set(flags) <= options, line
+
+
+# -- the documentation ------------------------------------------------------------------------------------
+
+_LEASE_WORDS = {
+    "takes": "take",
+    "never refused": "free",
+    "free": "free",
+    "refused if another client holds it": "check",
+}
+
+
+def test_docs_remote_md_lists_the_served_verbs_as_the_table_does() -> None:
+    """docs/remote.md's command table (for programs in other languages) says what the table says."""
+    import re
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[1] / "docs" / "remote.md").read_text()
+    documented: dict[str, tuple[dict[str, str], str]] = {}
+    for line in text.splitlines():
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        if len(cells) != 4 or not cells[0].startswith("`") or cells[0].startswith("`grippers/"):
+            continue
+        args = {m.group(1): "number?" if m.group(2) else "?" for m in re.finditer(r"`(\w+)(\?)?`", cells[1])}
+        for name in re.findall(r"`(\w+)`", cells[0]):
+            documented[name] = (args, cells[2])
+    documented.pop("control", None)
+    assert set(documented) == set(commands.served())
+    for verb, (args, lease) in documented.items():
+        spec = protocol.COMMANDS[verb]
+        assert set(args) == set(spec.args), verb
+        assert {a for a, k in args.items() if k == "number?"} == {
+            a for a, k in spec.args.items() if k == "number?"
+        }, verb
+        assert _LEASE_WORDS[lease] == spec.lease, verb
