@@ -9,17 +9,18 @@ calls it. From this table:
 - ``grippers.remote.protocol.COMMANDS`` (what each verb takes on the wire, its lease rule) is derived;
 - the server's dispatch calls the Gripper method the verb names, with the arguments the table lists;
 - the remote client's stubs send exactly the arguments the table lists (``RemoteGripper._command``);
-- the asyncio face's forwarding methods take the Gripper method's own signature and lane;
-- ``grippers.cli.motion`` takes its motions from here.
+- the asyncio face's forwarding methods take the Gripper method's own signature and lane.
 
 tests/test_command_table.py checks the rest against it: every public Gripper method is here with the
 parameters it really has, every one has an asyncio twin with the same parameters, the remote client sends
-what the table says is served, and the CLI's motion commands match the table's motions.
+what the table says is served, the CLI's motion commands (and their options) match the table's motions and
+``cli`` entries, and docs/remote.md's verb table says what this one says.
 
 Adding a command: declare it here, write the Gripper method (and the backend hook it needs), add its
 asyncio twin (one line when it forwards); the remote protocol, server and CLI checks follow.
 
-Pure data, no imports from the rest of the library: the CLI reads it while ``grippers --help`` stays fast.
+Pure data, no imports from the rest of the library. The CLI does not import it (``grippers --help`` stays
+fast); its motion list is checked against it instead.
 """
 
 from __future__ import annotations

@@ -12,8 +12,6 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
-from grippers.commands import motions
-
 from .common import add_common, add_target, non_negative_float, open_gripper, positive_float
 from .logs import issued_warnings
 from .output import (
@@ -98,7 +96,9 @@ class MotionCommand:
         return EXIT_OK
 
 
-MOTIONS = motions()  # the table's motions (grippers/commands.py): each gets --motion-timeout and a preflight
+# The motions of grippers/commands.py's table, each with --motion-timeout and a preflight: written out, not
+# imported, so `grippers --help` does not load the table; tests/test_command_table.py checks they agree.
+MOTIONS = ("home", "move", "grasp", "release")
 
 
 def _preflight(gripper: Gripper, command: str, args: argparse.Namespace) -> None:
