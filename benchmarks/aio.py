@@ -219,7 +219,7 @@ def _pair_latencies(url: str, pairs: int, batch: int) -> list[tuple[float, float
         ag = AsyncGripper(g, _Workers(g.name), read_on_loop=False)  # attached around its batches below
 
         async def awaited_batch() -> float:
-            detach = g._read_on(loop)
+            detach = g.async_support().read_on(loop)
             try:
                 if detach is not None:
                     deadline = loop.time() + 5.0

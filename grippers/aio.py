@@ -2,7 +2,7 @@
 
 Which way, and why: the awaitables sit on the same backends and sans-IO cores as the threaded
 :class:`grippers.Gripper`, never on a copy of them. ``state()``, the call a control loop makes most, is
-native: the backend starts the read (:meth:`grippers.Gripper._start_state`), the driver's reader completes it,
+native: the backend starts the read (``AsyncSupport.start_state``), the driver's reader completes it,
 and the reply reaches the event loop through one ``call_soon_threadsafe``: no worker thread and no thread hop
 on the way out (issue 20 §2; the WSG's exchange engine and the STEPFOC bus complete a callback from the reader
 that already owns the transport, as python-can's notifier does for a bus without a file descriptor). Where the
@@ -17,35 +17,43 @@ count where it was. Streams are plain coroutines (no thread), and cancelling a t
 the motion on the device before ``CancelledError`` propagates.
 
 Cancelling a task that awaits any other call (``wait_for(g.state(), 0.01)`` on a silent device) gives the call
-up in the driver (a native read's ``cancel``; :meth:`grippers.Gripper._abandon` on the worker thread that runs
+up in the driver (a native read's ``cancel``; ``AsyncSupport.abandon`` on the worker thread that runs
 any other call), as Ctrl-C gives up a threaded call: its wait ends at once, so the worker is free and the
 command's slot with it, and the next call goes out at once instead of queueing behind the old exchange's
 timeout (issue 23 §3). The abandoned exchange is treated as a timed-out one (a late reply swallowed). What
 that costs the next call of the same command is the driver's business: on the WSG one LOOP barrier first over
 TCP, serial and CAN, which keep replies in order, but ``stale_ttl`` over UDP, which may reorder them
 (drivers/wsg/exchanges.py); on the MSG nothing (drivers/stepfoc/can_client.py, uart_client.py).
+
+What this face may touch of the gripper: its public methods and the one declared hook,
+:meth:`grippers.Gripper.async_support` (grippers/face_support.py), nothing private. Which methods it has,
+with which parameters, is grippers/commands.py's table (tests/test_command_table.py checks the twins); the
+ones that only run the threaded call on a worker are made by :func:`_forwarded` from the Gripper method.
 """
 
 from __future__ import annotations
 
 import asyncio
 import dataclasses
+import inspect
 import logging
 import os
 import queue
 import threading
-from collections.abc import AsyncIterator, Callable, Generator
-from typing import Any, Generic, TypeVar
+from collections.abc import AsyncIterator, Callable, Coroutine, Generator
+from typing import Any, Concatenate, Generic, ParamSpec, TypeVar
 
 from grippers.drivers.numbers import finite
 
+from . import commands
 from .errors import CommandFailed, ConnectionLost, GripperError, GripperTimeout, LimitError
-from .gripper import DeviceInfo, GraspResult, Gripper, GripperState, MotionResult, StartedRead
+from .gripper import Capability, GraspResult, Gripper, GripperState, MotionResult, StartedRead
 from .motions import MotionHandle, wait_seconds
 
 __all__ = ["AsyncGripper", "AsyncMotionHandle", "open"]
 
 T = TypeVar("T")
+P = ParamSpec("P")
 
 log = logging.getLogger(__name__)
 
@@ -296,6 +304,27 @@ def _motion_handle(started: object) -> MotionHandle[Any]:
     return started
 
 
+def _forwarded(
+    method: Callable[Concatenate[Gripper, P], T],
+) -> Callable[Concatenate[AsyncGripper, P], Coroutine[Any, Any, T]]:
+    """The awaitable twin of a Gripper method that only runs the threaded call on a worker: the same name,
+    parameters and docstring, the instance's own method (a subclass's override included), and the lane
+    grippers/commands.py gives it (the control worker for an ``urgent`` command)."""
+    name = method.__name__
+    control = commands.COMMANDS[name].urgent
+
+    async def twin(self: AsyncGripper, /, *args: P.args, **kwargs: P.kwargs) -> T:
+        bound = getattr(self.sync, name)
+        result: T = await self._call(lambda: bound(*args, **kwargs), control=control)
+        return result
+
+    twin.__name__ = name
+    twin.__qualname__ = f"AsyncGripper.{name}"
+    twin.__doc__ = method.__doc__
+    twin.__signature__ = inspect.signature(method)  # type: ignore[attr-defined]  # read by help() and tests
+    return twin
+
+
 class AsyncGripper:
     """Every :class:`grippers.Gripper` method, awaitable. Open one with :func:`open`; ``.sync`` is the
     gripper underneath (its limits, profile and capabilities are plain attributes, read without awaiting).
@@ -307,12 +336,13 @@ class AsyncGripper:
 
     def __init__(self, gripper: Gripper, workers: _Workers, *, read_on_loop: bool = True) -> None:
         self.sync = gripper
+        self._support = support = gripper.async_support()  # the declared hook (grippers/face_support.py)
         self._workers = workers
         self._control = _Workers(f"{gripper.name} control", 1)
         for pool in (workers, self._control):  # a cancelled query or stop frees its worker at once
-            pool.give_up_with(gripper._abandon, gripper._resume)
+            pool.give_up_with(support.abandon, support.resume)
         self._motion_pool = _Workers(f"{gripper.name} motion", MOTION_WORKERS)
-        gripper._motions.spawn = self._motion_pool.spawn
+        support.run_motions_with(self._motion_pool.spawn)
         self._closed = False
         # The loop reads the transport itself where the driver can (a CAN bus with a file descriptor): a
         # reply then reaches its task with no thread hand-over (drivers/stepfoc/can_reader.py).
@@ -323,7 +353,7 @@ class AsyncGripper:
             except RuntimeError:  # built outside a loop: its calls hand over from the reader, as before
                 pass
             else:
-                self._loop_detach = gripper._read_on(loop)
+                self._loop_detach = support.read_on(loop)
 
     # -- plumbing ------------------------------------------------------------------------------------------
 
@@ -428,52 +458,51 @@ class AsyncGripper:
         )
         return result
 
-    async def stop(self) -> None:
-        await self._call(self.sync.stop, control=True)
-
-    async def fast_stop(self) -> None:
-        await self._call(self.sync.fast_stop, control=True)
-
-    async def acknowledge(self) -> None:
-        await self._call(self.sync.acknowledge, control=True)
+    # Stop, fast stop and acknowledge run on the control worker (``urgent`` in grippers/commands.py), never
+    # behind a query; the others queue for the ordinary workers.
+    stop = _forwarded(Gripper.stop)
+    fast_stop = _forwarded(Gripper.fast_stop)
+    acknowledge = _forwarded(Gripper.acknowledge)
+    info = _forwarded(Gripper.info)
+    temperature = _forwarded(Gripper.temperature)
+    set_soft_limits = _forwarded(Gripper.set_soft_limits)
+    clear_soft_limits = _forwarded(Gripper.clear_soft_limits)
+    device_tag = _forwarded(Gripper.device_tag)
+    set_device_tag = _forwarded(Gripper.set_device_tag)
 
     async def state(self) -> GripperState:
         if self._closed:
             raise GripperError("the gripper is closed", device=self.sync.name)
-        g = self.sync
-        g._check_open("state")
+        g, support = self.sync, self._support
         loop = asyncio.get_running_loop()
         fut: asyncio.Future[GripperState] = loop.create_future()
-        started = g._start_state(lambda st, exc: _deliver(loop, fut, st, exc))
+        started = support.start_state(lambda st, exc: _deliver(loop, fut, st, exc))
         if started is None:  # this backend reads only by blocking: a worker runs it
             return await self._call(g.state)
-        return g._took_state(
+        return support.took_state(
             await _awaited_read(loop, fut, started, g.name, READS_PER_STATE * g.timeout + READ_SLACK_S)
         )
 
-    async def info(self) -> DeviceInfo:
-        return await self._call(self.sync.info)
+    def check(
+        self,
+        width: float | None = None,
+        speed: float | None = None,
+        force: float | None = None,
+        *,
+        command: str = "check",
+    ) -> tuple[float | None, float | None, float | None]:
+        """:meth:`grippers.Gripper.check`: a dry run against the limits, nothing sent, so nothing to await."""
+        return self.sync.check(width, speed, force, command=command)
 
-    async def temperature(self) -> float:
-        return await self._call(self.sync.temperature)
-
-    async def set_soft_limits(self, min_width: float, max_width: float) -> None:
-        await self._call(lambda: self.sync.set_soft_limits(min_width, max_width))
-
-    async def clear_soft_limits(self) -> None:
-        await self._call(self.sync.clear_soft_limits)
-
-    async def device_tag(self) -> str:
-        return await self._call(self.sync.device_tag)
-
-    async def set_device_tag(self, tag: str) -> None:
-        await self._call(lambda: self.sync.set_device_tag(tag))
+    def require(self, capability: Capability, command: str) -> None:
+        """:meth:`grippers.Gripper.require`: NotSupported unless the device has ``capability``; local."""
+        self.sync.require(capability, command)
 
     async def servo(self, width: float, speed: float | None = None, force: float | None = None) -> None:
         """Returns at once once servoing runs (the servo loop has its own sender). The first target of a
         servoing takes over from a running motion (a stop, and the motion's call winding down): that one goes
         through a worker, so the event loop never waits on the device."""
-        if self.sync._servo_loop is None:
+        if not self._support.servoing:
             self.sync.check(width, speed, force, command="servo")  # limits raise here, before anything runs
             await self._call(lambda: self.sync.servo(width, speed, force))
         else:
@@ -498,10 +527,10 @@ class AsyncGripper:
             except GripperTimeout:
                 item = None
             except ConnectionLost:
-                if self.sync._watch is None:
+                if not self._support.reconnects:
                     raise
                 while not self.sync.connected:  # reconnect=true: pause, no worker held, until it is back
-                    if self._closed or self.sync._closed:
+                    if self._closed or self._support.closed:
                         return
                     await asyncio.sleep(min(period, 0.05))
                 gap, next_at = True, loop.time()

@@ -30,6 +30,7 @@ from .streams import StateStream, put_dropping_oldest
 if TYPE_CHECKING:
     import asyncio
 
+    from .face_support import AsyncSupport
     from .servo import ServoLoop
 
 __all__ = [
@@ -143,8 +144,9 @@ class Gripper(ServoFace, OptionalFeatures, ConnectionHooks, ABC):
 
     def _abandon(self, thread_ident: int) -> None:
         """Give up the call thread ``thread_ident`` runs in the driver (its caller stopped waiting: an asyncio
-        task cancelled, grippers/aio.py): its waits end at once, as timeouts, until :meth:`_resume`, so the
-        connection serves the next call at once. Default: nothing (the call runs into its own timeout)."""
+        task cancelled, grippers/aio.py, through :meth:`async_support`): its waits end at once, as timeouts,
+        until :meth:`_resume`, so the connection serves the next call at once. Default: nothing (the call
+        runs into its own timeout)."""
 
     def _resume(self, thread_ident: int) -> None:
         """Thread ``thread_ident`` starts a new call: undo :meth:`_abandon`. Default: nothing."""
@@ -355,6 +357,14 @@ class Gripper(ServoFace, OptionalFeatures, ConnectionHooks, ABC):
             self._faults_logged = st.faults
             log.info("%s: faults: %s", self.name, ", ".join(st.faults) or "none")
         return st
+
+    def async_support(self) -> AsyncSupport:
+        """The one declared hook of a face that awaits instead of blocking (grippers/aio.py): the non-blocking
+        state read, giving up a cancelled call, the loop as reader, motions on the face's threads
+        (grippers/face_support.py). Not a command (grippers/commands.py's ``FACE_HOOKS``)."""
+        from .face_support import AsyncSupport
+
+        return AsyncSupport(self)
 
     def info(self) -> DeviceInfo:
         """What the device is: vendor, model, profile, firmware, serial number and the limits in force.

@@ -96,6 +96,8 @@ class MotionCommand:
         return EXIT_OK
 
 
+# The motions of grippers/commands.py's table, each with --motion-timeout and a preflight: written out, not
+# imported, so `grippers --help` does not load the table; tests/test_command_table.py checks they agree.
 MOTIONS = ("home", "move", "grasp", "release")
 
 

@@ -331,6 +331,17 @@ class RemoteGripper(Gripper):
         wait = self.timeout if timeout is None else timeout + self.timeout
         return self._query(protocol.command_key(self.served_name, command), payload, command, wait)
 
+    def _command(self, verb: str, bound: float | None = None, /, **args: Any) -> Any:
+        """Send a served verb with exactly the arguments grippers/commands.py's table says it takes (the
+        server refuses anything else): the stubs below are checked against the table on every call.
+        ``bound``: how long the command may take beyond the exchange timeout (a motion's timeout)."""
+        expected = protocol.COMMANDS[verb].args
+        if set(args) != set(expected):
+            raise ProtocolError(
+                f"the client sends {sorted(args)}, the command table says {sorted(expected)}", command=verb
+            )
+        return self._call(verb, args, bound)
+
     def _check_motion(self, command: str) -> None:
         if self._lost is not None and self._watch is None and not self._closed:
             raise ConnectionLost(self._lost.message, device=self.name, command=command)
@@ -346,15 +357,15 @@ class RemoteGripper(Gripper):
     # -- the backend primitives ---------------------------------------------------------------------------
 
     def _home(self, timeout: float) -> None:
-        self._call("home", {"timeout": timeout}, timeout)
+        self._command("home", timeout, timeout=timeout)
 
     def _move(self, width: float, speed: float, timeout: float) -> MotionResult:
-        doc = self._call("move", {"width": width, "speed": speed, "timeout": timeout}, timeout)
+        doc = self._command("move", timeout, width=width, speed=speed, timeout=timeout)
         return payloads.motion_from(doc, self.name, "move")
 
     def _grasp(self, width: float, speed: float, force: float, timeout: float) -> GraspResult:
-        args = {"width": width, "speed": speed, "force": force, "timeout": timeout}
-        return payloads.grasp_from(self._call("grasp", args, timeout), self.name)
+        doc = self._command("grasp", timeout, width=width, speed=speed, force=force, timeout=timeout)
+        return payloads.grasp_from(doc, self.name)
 
     def _servo_begin(self) -> None:
         """Nothing to prepare here: the server's gripper begins servoing with the first target it takes."""
@@ -363,22 +374,21 @@ class RemoteGripper(Gripper):
         # One query per target, from the servo thread only (so targets arrive in order); targets that come
         # while one is in flight are coalesced by the ServoLoop: latest wins here, and again on the server.
         # The server answers once its gripper's own slot holds the target (limits and lease checked there).
-        args = {"width": target.width, "speed": target.speed, "force": target.force}
-        self._call("servo", args)
+        self._command("servo", width=target.width, speed=target.speed, force=target.force)
         return True
 
     def _release(self, width: float, speed: float, timeout: float) -> MotionResult:
-        doc = self._call("release", {"width": width, "speed": speed, "timeout": timeout}, timeout)
+        doc = self._command("release", timeout, width=width, speed=speed, timeout=timeout)
         return payloads.motion_from(doc, self.name, "release")
 
     def _stop(self) -> None:
-        self._call("stop")
+        self._command("stop")
 
     def _fast_stop(self) -> None:
-        self._call("fast_stop")
+        self._command("fast_stop")
 
     def _acknowledge(self) -> None:
-        self._call("acknowledge")
+        self._command("acknowledge")
 
     def _state(self) -> GripperState:
         if self._lost is not None:
@@ -429,7 +439,7 @@ class RemoteGripper(Gripper):
         return payloads.info_from(doc, self.url, self.name)
 
     def _temperature(self) -> float:
-        value = self._call("temperature")
+        value = self._command("temperature")
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise ProtocolError(
                 f"temperature is not a number: {value!r}", device=self.name, command="temperature"
@@ -438,14 +448,14 @@ class RemoteGripper(Gripper):
 
     def _set_soft_limits(self, min_width: float | None, max_width: float | None) -> None:
         if min_width is None or max_width is None:
-            self._call("clear_soft_limits")
+            self._command("clear_soft_limits")
         else:
-            self._call("set_soft_limits", {"min_width": min_width, "max_width": max_width})
+            self._command("set_soft_limits", min_width=min_width, max_width=max_width)
 
     def _device_tag(self, tag: str | None) -> str:
         if tag is None:
-            return str(self._call("device_tag"))
-        self._call("set_device_tag", {"tag": tag})
+            return str(self._command("device_tag"))
+        self._command("set_device_tag", tag=tag)
         return tag
 
     # -- the control lease --------------------------------------------------------------------------------

@@ -83,25 +83,21 @@ class Command:
     motion: bool = False
 
 
+def _from_table() -> dict[str, Command]:
+    """The verbs of grippers/commands.py's table, with what each takes on the wire and its lease rule."""
+    from .. import commands
+
+    return {
+        verb: Command(c.wire_args, c.served.lease, c.kind == commands.MOTION)
+        for verb, c in commands.served().items()
+        if c.served is not None
+    }
+
+
 COMMANDS: dict[str, Command] = {
-    "home": Command({"timeout": OPT_NUMBER}, "take", True),
-    "move": Command({"width": NUMBER, "speed": OPT_NUMBER, "timeout": OPT_NUMBER}, "take", True),
-    "grasp": Command(
-        {"width": NUMBER, "speed": OPT_NUMBER, "force": OPT_NUMBER, "timeout": OPT_NUMBER}, "take", True
-    ),
-    "release": Command({"width": OPT_NUMBER, "speed": OPT_NUMBER, "timeout": OPT_NUMBER}, "take", True),
-    # Streamed targets (Gripper.servo): answered as soon as the served gripper's latest-wins slot holds it.
-    "servo": Command({"width": NUMBER, "speed": OPT_NUMBER, "force": OPT_NUMBER}, "take"),
-    "stop": Command(),
-    "fast_stop": Command(),
-    "acknowledge": Command(lease="check"),
-    "temperature": Command(),
-    "device_tag": Command(),
-    "set_device_tag": Command({"tag": TEXT}, "check"),
-    "set_soft_limits": Command({"min_width": NUMBER, "max_width": NUMBER}, "check"),
-    "clear_soft_limits": Command(lease="check"),
+    **_from_table(),
     # The lease itself: acquire (answers the secret), heartbeat and release (with it); never touches the
-    # gripper.
+    # gripper, so it is the remote face's own verb and no Gripper command.
     "control": Command({"action": ACTION}),
 }
 CONTROL_ACTIONS = ("acquire", "heartbeat", "release")

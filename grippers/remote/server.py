@@ -15,6 +15,7 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
+from .. import commands
 from ..errors import AccessDenied, ConnectionLost, GripperError, ProtocolError
 from ..gripper import Gripper
 from . import payloads, protocol
@@ -26,6 +27,10 @@ log = logging.getLogger("grippers.remote")  # serve's own lines: lost, back, lea
 
 CLOSE_JOIN_S = 5.0
 RETRY_LOST_S = 1.0  # how often a lost gripper is tried again (a reconnect=true URL brings it back)
+# The served verbs and the Gripper methods they call, with the arguments protocol.parse_request checked
+# against the same table (grippers/commands.py): the dispatch is a look-up, not a copy of the table.
+_VERBS = commands.served()
+_URGENT = frozenset(verb for verb, c in _VERBS.items() if c.urgent)
 
 
 class ServedGripper:
@@ -239,7 +244,8 @@ class ServedGripper:
         except GripperError as exc:
             self._refuse(query, request, command, exc)
             return
-        pool = self.server.urgent if command in ("stop", "fast_stop") else self.server.pool
+        # Stop, fast stop and acknowledge never queue behind reads or settings (``urgent``: commands.py).
+        pool = self.server.urgent if command in _URGENT else self.server.pool
         try:
             pool.submit(self._answer, query, request, trusted)
         except RuntimeError:  # shutting down
@@ -312,31 +318,20 @@ class ServedGripper:
             pass
 
     def _execute(self, request: Any) -> Any:
-        g, a, command = self.gripper, request.args, request.command
+        """Call the Gripper method the verb names (grippers/commands.py), with the arguments it took."""
+        g, command = self.gripper, request.command
+        method = getattr(g, _VERBS[command].name)
         try:
             if command == "servo":
-                g.servo(a["width"], a["speed"], a["force"])
+                method(**request.args)
                 self._servo_owner = request.client
                 return None
             if command in ("stop", "fast_stop"):
                 self._servo_owner = None  # both end servoing (Gripper's rule)
-                return g.stop() if command == "stop" else g.fast_stop()
-            if command == "acknowledge":
-                return g.acknowledge()
-            if command == "temperature":
-                return g.temperature()
-            if command == "device_tag":
-                return g.device_tag()
-            if command == "set_device_tag":
-                return g.set_device_tag(a["tag"])
-            if command == "set_soft_limits":
-                return g.set_soft_limits(a["min_width"], a["max_width"])
-            if command == "clear_soft_limits":
-                return g.clear_soft_limits()
+            return method(**request.args)
         finally:
             if command != "servo":  # a target is answered once queued: the publisher shows its effect
                 self._refresh()  # every change is published before the reply
-        raise ProtocolError(f"unknown command {command!r}", command=command)
 
     # -- motions ------------------------------------------------------------------------------------------
 
@@ -357,14 +352,7 @@ class ServedGripper:
         try:
             query.reply(query.key_expr, protocol.encode_reply(protocol.PENDING, None, secret))
             self._kick.set()
-            if request.command == "home":
-                result: Any = g.home(timeout=a["timeout"])
-            elif request.command == "move":
-                result = g.move(a["width"], a["speed"], timeout=a["timeout"])
-            elif request.command == "grasp":
-                result = g.grasp(a["width"], a["speed"], a["force"], timeout=a["timeout"])
-            else:
-                result = g.release(a["width"], a["speed"], timeout=a["timeout"])
+            result = getattr(g, _VERBS[request.command].name)(**a)
             self._refresh()
             query.reply(query.key_expr, protocol.encode_reply(protocol.DONE, payloads.result_doc(result)))
         except Exception as exc:

@@ -100,7 +100,7 @@ def test_a_bus_without_a_file_descriptor_keeps_its_reader_thread() -> None:
         async with grippers.aio.open(
             f"stepfoc+can://virtual/{channel}?node={NODE}&profile=msg-150", timeout=TIMEOUT
         ) as g:
-            assert g.sync._read_on(asyncio.get_running_loop()) is None
+            assert g.sync.async_support().read_on(asyncio.get_running_loop()) is None
             await g.state()
             assert len(readers(f"virtual/{channel}")) == 1
 

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import asyncio
 import gc
-import inspect
 from typing import Any
 
 import pytest
@@ -14,8 +13,7 @@ import pytest
 import grippers
 import grippers.aio
 from grippers import CommandFailed
-from grippers.aio import AsyncGripper, AsyncMotionHandle
-from grippers.gripper import Gripper
+from grippers.aio import AsyncMotionHandle
 
 URLS = ["sim://wsg50?time_scale=5", "sim://msg-150?time_scale=5"]
 
@@ -88,40 +86,8 @@ def test_cancelling_a_motion_leaves_the_gripper_usable() -> None:
     run(main())
 
 
-# Public methods of Gripper that the asyncio face does not mirror, and why.
-NOT_MIRRORED = {
-    "check": "pure validation, no I/O: call g.sync.check()",
-    "require": "pure capability check: call g.sync.require()",
-    "stream": "an async iterator there, a threaded stream with a callback here",
-    "driver": "the vendor client, reached as g.sync.driver",
-    "servo_stats": "counters, read as g.sync.servo_stats",
-}
-
-
-def _public(cls: type) -> dict[str, Any]:
-    return {n: v for n, v in vars(cls).items() if not n.startswith("_")} | {
-        n: getattr(cls, n) for n in dir(cls) if not n.startswith("_")
-    }
-
-
-def test_async_methods_match_the_gripper() -> None:
-    """The one declared source is Gripper: every public method has an awaitable twin with the same
-    parameters (names, kinds, defaults); a new Gripper method fails here until it is mirrored."""
-    for name, member in _public(Gripper).items():
-        if name in NOT_MIRRORED or not callable(member) or isinstance(member, type):
-            continue
-        if name in ("close",):
-            assert inspect.iscoroutinefunction(AsyncGripper.close)
-            continue
-        twin = getattr(AsyncGripper, name, None)
-        assert twin is not None, f"AsyncGripper lacks {name}()"
-        if name == "on_connection":
-            assert not inspect.iscoroutinefunction(twin)  # registers a callback: nothing to await
-        else:
-            assert inspect.iscoroutinefunction(twin), f"AsyncGripper.{name} is not awaitable"
-        mine = [(p.name, p.kind, p.default) for p in inspect.signature(member).parameters.values()]
-        theirs = [(p.name, p.kind, p.default) for p in inspect.signature(twin).parameters.values()]
-        assert mine == theirs, f"{name}: {mine} != {theirs}"
+# That every public Gripper method has its asyncio twin with the same parameters is checked against the one
+# declaration of the commands, grippers/commands.py, in tests/test_command_table.py.
 
 
 @pytest.mark.parametrize("url", URLS)
