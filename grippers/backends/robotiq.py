@@ -16,9 +16,13 @@ The semantics on the common interface (docs/getting-started-robotiq.md says the 
   ``grasp()`` is held on gOBJ 2 (contact while closing) or 1 (contact while opening), no part on gOBJ 3.
 - ``stop()`` clears rGTO: the fingers halt where they are. ``fast_stop()`` does the same, since the device has
   no brake or e-stop input of its own (the automatic release, rATR/rARD, is a slow opening or closing, not a
-  stop); the library latches it until ``acknowledge()`` (``info().extra["fast_stop"]`` says so).
-- ``acknowledge()`` clears the fast-stop latch and, after a major fault (0x0A-0x0F), re-activates as the
-  manual prescribes (rACT cleared, then set), which sweeps the fingers and releases any part.
+  stop); the gripper holding the device latches it until ``acknowledge()`` (``reports_fast_stop`` False;
+  ``info().extra["fast_stop"]`` says so).
+- ``acknowledge()`` clears the gripper's fast-stop latch and, after a major fault (0x0A-0x0F), re-activates as
+  the manual prescribes (rACT cleared, then set), which sweeps the fingers and releases any part.
+- a newer motion is written over the running one (rPR with rGTO set, no stop in between:
+  ``moves_to_new_targets``); the older motion's wait ends "superseded" (a new epoch of
+  :class:`grippers.kit.motion.MotionEpochs`).
 - a motion before the activation raises :class:`~grippers.NotReferenced` at once, not a timeout; a move
   stopped by an obstacle short of its target raises :class:`~grippers.MotionBlocked`, as on every family.
 """
