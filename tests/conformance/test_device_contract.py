@@ -226,3 +226,25 @@ def test_poll_until_ends_on_close_on_a_fault_and_at_the_timeout() -> None:
     with pytest.raises(GripperTimeout, match="not done after 0.05 s") as err:
         poll_until(lambda: 0, lambda n: False, context=_context(), command="release", timeout=0.05)
     assert err.value.command == "release" and err.value.device == "acme-r1@acme+tcp://test"
+
+
+def test_reconnect_true_is_refused_at_open_for_a_device_without_reconnection() -> None:
+    """A device that leaves ``reconnection`` None: ``reconnect=true`` is NotSupported when it is switched on
+    (grippers.open does it through grippers.reconnect.attach), not a watch that can never reconnect."""
+    from grippers.backends.robotiq import robotiq_gripper
+    from grippers.drivers.robotiq.client import RobotiqClient
+    from grippers.reconnect import attach
+    from grippers.settings import Settings
+
+    with grippers.open(OPEN["robotiq"]) as served:
+        host, port = served.url.removeprefix("robotiq+tcp://").split(":")
+        client = RobotiqClient.tcp(host, int(port), device=served.url, timeout=0.5)
+        g = robotiq_gripper(client, served.profile, served.url, timeout=0.5)  # no connector: no reconnection
+        try:
+            assert g.device.reconnection is None
+            with pytest.raises(NotSupported, match="cannot reconnect"):
+                attach(g, Settings(g.url, {"reconnect": "true"}, {}))
+            assert g.connected and g.state().referenced  # nothing else changed
+        finally:
+            g.close()
+        assert served.device.reconnection is not None  # the backend's own open offers it
