@@ -79,13 +79,13 @@ class _AnsweringLink(ByteLink):
 
 def cpu_per_poll(polls: int) -> float:
     """CPU seconds of one ``state()`` (this thread's CPU clock; best of three runs)."""
-    from grippers.backends.robotiq import RobotiqGripper, RobotiqProfile
+    from grippers.backends.robotiq import RobotiqProfile, robotiq_gripper
     from grippers.profiles import load_profile
 
     profile = load_profile("robotiq-2f85")
     assert isinstance(profile, RobotiqProfile)
     client = RobotiqClient(_AnsweringLink(), device="bench", timeout=0.5)
-    g = RobotiqGripper(client, profile, "robotiq+serial:///dev/bench", timeout=0.5)
+    g = robotiq_gripper(client, profile, "robotiq+serial:///dev/bench", timeout=0.5)
     best = float("inf")
     try:
         for _ in range(3):

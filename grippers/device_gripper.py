@@ -121,8 +121,12 @@ class DeviceGripper(Gripper):
     # -- optional features: objects the device offers ------------------------------------------------------
 
     def _identity(self) -> dict[str, str]:
+        # Asked once, when reconnect=true switches reconnection on (grippers/reconnect.py's attach): a device
+        # that offers no reconnection refuses it there, at open, instead of a watch that can never reconnect.
         r = self.device.reconnection
-        return {} if r is None else r.identity()
+        if r is None:
+            raise NotSupported("this device cannot reconnect", device=self.name, command="open")
+        return r.identity()
 
     def _link_alive(self) -> bool:
         r = self.device.reconnection

@@ -16,9 +16,13 @@ The semantics on the common interface (docs/getting-started-robotiq.md says the 
   ``grasp()`` is held on gOBJ 2 (contact while closing) or 1 (contact while opening), no part on gOBJ 3.
 - ``stop()`` clears rGTO: the fingers halt where they are. ``fast_stop()`` does the same, since the device has
   no brake or e-stop input of its own (the automatic release, rATR/rARD, is a slow opening or closing, not a
-  stop); the library latches it until ``acknowledge()`` (``info().extra["fast_stop"]`` says so).
-- ``acknowledge()`` clears the fast-stop latch and, after a major fault (0x0A-0x0F), re-activates as the
-  manual prescribes (rACT cleared, then set), which sweeps the fingers and releases any part.
+  stop); the gripper holding the device latches it until ``acknowledge()`` (``reports_fast_stop`` False;
+  ``info().extra["fast_stop"]`` says so).
+- ``acknowledge()`` clears the gripper's fast-stop latch and, after a major fault (0x0A-0x0F), re-activates as
+  the manual prescribes (rACT cleared, then set), which sweeps the fingers and releases any part.
+- a newer motion is written over the running one (rPR with rGTO set, no stop in between:
+  ``moves_to_new_targets``); the older motion's wait ends "superseded" (a new epoch of
+  :class:`grippers.kit.motion.MotionEpochs`).
 - a motion before the activation raises :class:`~grippers.NotReferenced` at once, not a timeout; a move
   stopped by an obstacle short of its target raises :class:`~grippers.MotionBlocked`, as on every family.
 """
@@ -32,7 +36,7 @@ from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from grippers.drivers.errors import CommandFailed, ConnectionLost, GripperTimeout
+from grippers.drivers.errors import CommandFailed
 from grippers.drivers.robotiq.client import RobotiqClient
 from grippers.drivers.robotiq.registers import (
     BAUDRATE,
@@ -51,10 +55,12 @@ from grippers.drivers.robotiq.registers import (
 from grippers.drivers.robotiq.session import FaultClass, MotionTracker, classify_fault
 from grippers.drivers.robotiq.urcap import UrcapClient
 
+from ..device import Device
+from ..device_gripper import DeviceGripper
 from ..errors import MotionBlocked, NotReferenced, URLError
-from ..gripper import Capability, DeviceInfo, GraspResult, GraspState, Gripper, GripperState, MotionResult
+from ..kit.motion import MotionEpochs, poll_until
 from ..profiles import Length, ProfileBase, Timeout, TimeScale
-from .motion_epochs import MotionEpochs
+from ..states import Capability, DeviceInfo, GraspResult, GraspState, GripperState, MotionResult
 
 if TYPE_CHECKING:
     from ..servo import ServoTarget
@@ -63,7 +69,6 @@ if TYPE_CHECKING:
 
 log = logging.getLogger(__name__)
 
-POLL_PERIOD = 0.005  # s between status polls in a motion wait (an exchange takes ~5 ms at 115200 baud)
 FALLBACK_PROFILE = "robotiq-2f85"
 
 
@@ -143,66 +148,79 @@ class RobotiqProfile(ProfileBase):
         return self
 
 
-# -- the gripper ---------------------------------------------------------------------------------------------
+# -- the device ----------------------------------------------------------------------------------------------
 
 
-class RobotiqGripper(Gripper):
+class RobotiqDevice(Device):
+    """One Robotiq gripper over a :class:`RobotiqClient` (Modbus RTU) or a :class:`UrcapClient`, in SI units.
+
+    The gripper that holds it (:class:`~grippers.device_gripper.DeviceGripper`) checks limits, runs the motion
+    rule and keeps the fast-stop latch (``reports_fast_stop`` False: the device has no fast-stop state). The
+    device takes a new rPR mid-motion (``moves_to_new_targets``): a newer motion is written over the running
+    one without a stop, and :meth:`supersede` only ends the older wait (a new motion epoch).
+    """
+
     capabilities = frozenset({Capability.CURRENT_CONTROL, Capability.CALIBRATION})
+    reports_fast_stop = False
+    moves_to_new_targets = True
 
     def __init__(
-        self, client: RobotiqClient | UrcapClient, profile: RobotiqProfile, url: str, *, timeout: float
+        self,
+        client: RobotiqClient | UrcapClient,
+        profile: RobotiqProfile,
+        url: str,
+        *,
+        timeout: float,
+        connect: Callable[[], RobotiqClient | UrcapClient] | None = None,
     ) -> None:
-        super().__init__(profile, url, timeout=timeout)
-        self._client = client
-        self._maps = profile.robotiq
-        self._epochs = MotionEpochs()  # a newer motion or a stop ends older waits
+        self.client = client
+        self.profile = profile
+        self.url = url
+        self.maps = profile.robotiq
+        self.limits = profile.limits()
+        self.timeout = timeout
+        self.epochs = MotionEpochs()  # a newer motion or a stop ends older waits (grippers.kit.motion)
         self._last = Command()  # the request block as last written (its speed and force persist)
         self._mode = "idle"
         self._held = False
-        self._latched = False  # fast_stop(): the device has no fast-stop state, the library keeps it
+        self.reconnection = None if connect is None else RobotiqReconnection(self, connect)
+        self.servo = RobotiqServo(self)
 
     @property
     def driver(self) -> RobotiqClient | UrcapClient:
-        return self._client
+        return self.client
 
     # -- maps --------------------------------------------------------------------------------------------
 
     def _count_per_mm(self) -> float:
-        m = self._maps
+        m = self.maps
         return (m.closed_count - m.open_count) / (m.open_width_mm - m.closed_width_mm)
 
-    def _position_byte(self, width: float) -> int:
-        m = self._maps
+    def position_byte(self, width: float) -> int:
+        """rPR for ``width`` (m), by the unit's own open and closed counts."""
+        m = self.maps
         return max(0, min(255, round(m.open_count + (m.open_width_mm - width * 1000) * self._count_per_mm())))
 
-    def _width_of(self, position: int) -> float:
-        m = self._maps
+    def width_of(self, position: int) -> float:
+        """The width (m) at gPO ``position``."""
+        m = self.maps
         return (m.open_width_mm - (position - m.open_count) / self._count_per_mm()) / 1000
 
-    def _scale(self, value: float, lo: float, hi: float) -> int:
+    @staticmethod
+    def _scale(value: float, lo: float, hi: float) -> int:
         return 255 if hi <= lo else max(0, min(255, round((value - lo) / (hi - lo) * 255)))
 
-    def _speed_byte(self, speed: float) -> int:
+    def speed_byte(self, speed: float) -> int:
         m = self.profile.mechanics
         return self._scale(speed * 1000, m.min_speed_mm_s, m.max_speed_mm_s)
 
-    def _force_byte(self, force: float) -> int:
+    def force_byte(self, force: float) -> int:
         m = self.profile.mechanics
         return self._scale(force, m.min_force_n, m.max_force_n)
 
-    # -- motion bookkeeping (as the MSG backend: a newer motion or a stop ends older waits) ----------------
+    # -- faults and waits ----------------------------------------------------------------------------------
 
-    def _begin(self, cause: str) -> int:
-        return self._epochs.begin(cause)
-
-    def _check_current(self, motion: int, command: str) -> None:
-        self._epochs.check(motion, command=command, device=self.name)
-
-    def _supersede(self) -> None:
-        # The gripper takes a new target mid-motion (rPR rewritten with rGTO set): no stop in between.
-        self._begin("superseded by a newer motion before it ended")
-
-    def _fault_error(self, st: Status, command: str) -> CommandFailed | None:
+    def fault_error(self, st: Status, command: str) -> CommandFailed | None:
         """The typed error for the fault ``st`` shows, or None where the wait goes on (a delayed action, the
         watchdog's note, which the next write clears): drivers/robotiq/session.py classifies."""
         kind = classify_fault(st.fault)
@@ -225,8 +243,8 @@ class RobotiqGripper(Gripper):
 
     def _ready(self, command: str) -> Status:
         """The status before a motion: activated and without a fault, or a clear error."""
-        st = self._client.read_status(command=command)
-        error = self._fault_error(st, command)
+        st = self.client.read_status(command=command)
+        error = self.fault_error(st, command)
         if error is not None:
             raise error
         if not st.activated:
@@ -238,86 +256,94 @@ class RobotiqGripper(Gripper):
             )
         return st
 
-    def _poll(
-        self, command: str, motion: int, timeout: float, done: Any, *, activating: bool = False
+    def _wait(
+        self, command: str, motion: int, timeout: float, done: Callable[[Status], bool], *, activating: bool
     ) -> Status:
-        """Poll the status until ``done(status)``; ends early, never as success, on a newer motion or a stop
-        from this process, a fault, rGTO or rACT cleared by someone else, close(), or the timeout."""
-        deadline = time.monotonic() + timeout
-        while True:
-            if self._closed:
-                raise ConnectionLost(
-                    "the gripper was closed during the motion", device=self.name, command=command
-                )
-            self._check_current(motion, command)
-            st = self._client.read_status(command=command)
-            self._check_current(motion, command)
-            error = self._fault_error(st, command)
-            if error is not None:
-                raise error
-            if not st.act or (not activating and not (st.gto and st.sta == ActivationState.COMPLETE)):
-                raise CommandFailed(
+        """Poll the status until ``done``: ends early, never as success, on a newer motion or a stop, a fault,
+        rGTO or rACT cleared by someone else, close(), or the timeout (grippers.kit.motion.poll_until)."""
+
+        def fault(st: Status) -> CommandFailed | None:
+            error = self.fault_error(st, command)
+            if error is None and (
+                not st.act or (not activating and not (st.gto and st.sta == ActivationState.COMPLETE))
+            ):
+                error = CommandFailed(
                     f"{command} aborted: rGTO or rACT was cleared (another program?) at "
-                    f"{self._width_of(st.position) * 1000:.1f} mm",
+                    f"{self.width_of(st.position) * 1000:.1f} mm",
                     status_name="aborted",
                     device=self.name,
                     command=command,
                 )
-            if done(st):
-                return st
-            if time.monotonic() >= deadline:
-                raise GripperTimeout(f"not done after {timeout:g} s", device=self.name, command=command)
-            time.sleep(POLL_PERIOD)
+            return error
+
+        return poll_until(
+            lambda: self.client.read_status(command=command),
+            done,
+            context=self.context,
+            command=command,
+            timeout=timeout,
+            epochs=self.epochs,
+            motion=motion,
+            fault=fault,
+        )
 
     def _go(self, command: str, position: int, speed: float, force: float | None, timeout: float) -> Status:
         self._ready(command)
-        f = self._last.force if force is None else self._force_byte(force)
-        cmd = Command(act=True, gto=True, position=position, speed=self._speed_byte(speed), force=f)
-        motion = self._begin(f"superseded by a newer motion before it ended ({command})")
-        self._client.write_command(cmd, command=command)
+        f = self._last.force if force is None else self.force_byte(force)
+        cmd = Command(act=True, gto=True, position=position, speed=self.speed_byte(speed), force=f)
+        motion = self.epochs.begin(f"superseded by a newer motion before it ended ({command})")
+        self.client.write_command(cmd, command=command)
         self._last = cmd
-        m = self._maps
+        m = self.maps
         tracker = MotionTracker(position, time.monotonic(), m.open_count, m.closed_count)
-        done = lambda st: tracker.update(st, time.monotonic())  # noqa: E731
-        return self._poll(command, motion, timeout, done)
+        return self._wait(
+            command, motion, timeout, lambda st: tracker.update(st, time.monotonic()), activating=False
+        )
 
-    # -- the interface -----------------------------------------------------------------------------------
+    def _activate(self, command: str, motion: int, timeout: float, *, write: bool, reset: bool) -> None:
+        """rACT cleared (``reset``: a rising edge is needed), then set (``write``), and a bounded wait for
+        gSTA "activation completed"."""
+        if reset:
+            self.client.write_command(Command(), command=command)
+        if write:
+            self._last = Command(act=True, speed=self._last.speed, force=self._last.force or 255)
+            self.client.write_command(self._last, command=command)
+        complete = lambda s: s.sta == ActivationState.COMPLETE  # noqa: E731
+        self._wait(command, motion, timeout, complete, activating=True)
 
-    def _home(self, timeout: float) -> None:
-        st = self._client.read_status(command="home")
+    # -- the primitives ------------------------------------------------------------------------------------
+
+    def home(self, timeout: float) -> None:
+        st = self.client.read_status(command="home")
         if st.activated and st.fault not in MAJOR_FAULTS and st.fault != Fault.ACTIVATION_BIT:
             return  # active already: nothing is toggled (see the module's docstring)
         if st.fault in MAJOR_FAULTS and st.act:
-            error = self._fault_error(st, "home")
+            error = self.fault_error(st, "home")
             assert error is not None
             raise error
-        motion = self._begin("superseded by a newer motion before it ended (home)")
+        motion = self.epochs.begin("superseded by a newer motion before it ended (home)")
         self._mode, self._held = "home", False
-        if not (st.act and st.sta == ActivationState.IN_PROGRESS and not st.fault):  # else: wait for that one
-            if st.act or st.fault:
-                self._client.write_command(Command(), command="home")  # rACT 0: a rising edge is needed
-            self._last = Command(act=True, speed=self._last.speed, force=self._last.force or 255)
-            self._client.write_command(self._last, command="home")
-        self._poll("home", motion, timeout, lambda s: s.sta == ActivationState.COMPLETE, activating=True)
+        waiting = st.act and st.sta == ActivationState.IN_PROGRESS and not st.fault  # wait for that one
+        self._activate("home", motion, timeout, write=not waiting, reset=bool(st.act or st.fault))
         self._mode = "idle"
 
-    def _move(self, width: float, speed: float, timeout: float) -> MotionResult:
+    def move(self, width: float, speed: float, timeout: float) -> MotionResult:
         self._mode, self._held = "move", False
-        st = self._go("move", self._position_byte(width), speed, None, timeout)
+        st = self._go("move", self.position_byte(width), speed, None, timeout)
         self._mode = "idle"
-        at = self._width_of(st.position)
+        at = self.width_of(st.position)
         contact = st.obj in (ObjectDetection.CONTACT_CLOSING, ObjectDetection.CONTACT_OPENING)
         if contact and abs(at - width) > MotionBlocked.MARGIN:  # the rule every family follows (errors.py)
             raise MotionBlocked(width=at, target=width, status=int(st.obj), device=self.name, command="move")
-        return MotionResult(self._width_of(st.position), GraspState.IDLE)
+        return MotionResult(at, GraspState.IDLE)
 
-    def _grasp(self, width: float, speed: float, force: float, timeout: float) -> GraspResult:
-        m = self._maps
+    def grasp(self, width: float, speed: float, force: float, timeout: float) -> GraspResult:
+        m = self.maps
         self._mode, self._held = "grasp", False
         beyond = width * 1000 - m.grasp_travel_mm
-        target = 255 if beyond <= m.closed_width_mm else self._position_byte(beyond / 1000)
+        target = 255 if beyond <= m.closed_width_mm else self.position_byte(beyond / 1000)
         st = self._go("grasp", target, speed, force, timeout)
-        at = self._width_of(st.position)
+        at = self.width_of(st.position)
         held = st.obj in (ObjectDetection.CONTACT_CLOSING, ObjectDetection.CONTACT_OPENING)
         self._held = held
         if held:
@@ -330,43 +356,42 @@ class RobotiqGripper(Gripper):
             reason=f"reached {at * 1000:.1f} mm without meeting a part (gOBJ 3)",
         )
 
-    def _release(self, width: float, speed: float, timeout: float) -> MotionResult:
+    def release(self, width: float, speed: float, timeout: float) -> MotionResult:
         self._mode, self._held = "release", False
-        target = 0 if width >= self.limits.max_width else self._position_byte(width)
+        target = 0 if width >= self.limits.max_width else self.position_byte(width)
         st = self._go("release", target, speed, None, timeout)
         self._mode = "idle"
-        return MotionResult(self._width_of(st.position), GraspState.IDLE)
+        return MotionResult(self.width_of(st.position), GraspState.IDLE)
 
     def _halt(self, cause: str, command: str) -> None:
-        self._begin(cause)
+        self.epochs.begin(cause)
         cmd = Command(
             act=True, gto=False, position=self._last.position, speed=self._last.speed, force=self._last.force
         )
-        self._client.write_command(cmd, command=command)
+        self.client.write_command(cmd, command=command)
         self._last = cmd
         self._mode = "idle"
 
-    def _stop(self) -> None:
+    def stop(self) -> None:
         self._halt("aborted by stop()", "stop")
 
-    def _fast_stop(self) -> None:
-        self._latched = True
+    def fast_stop(self) -> None:
+        # No brake and no e-stop input: the same halt; the gripper latches it (reports_fast_stop False).
         self._halt("aborted by fast_stop()", "fast_stop")
 
-    def _acknowledge(self) -> None:
-        st = self._client.read_status(command="acknowledge")
-        if st.fault in MAJOR_FAULTS:
-            log.warning(
-                "%s: re-activating after fault 0x%02X: the fingers sweep the stroke", self.name, st.fault
-            )
-            motion = self._begin("aborted by acknowledge()")
-            self._client.write_command(Command(), command="acknowledge")
-            self._last = Command(act=True, speed=self._last.speed, force=self._last.force)
-            self._client.write_command(self._last, command="acknowledge")
-            bound = self._motion_timeout(2 * self.limits.stroke, self.limits.min_speed)
-            complete = lambda s: s.sta == ActivationState.COMPLETE  # noqa: E731
-            self._poll("acknowledge", motion, bound, complete, activating=True)
-        self._latched = False
+    def supersede(self) -> None:
+        # The gripper takes a new target mid-motion (rPR rewritten with rGTO set): no stop in between.
+        self.epochs.begin("superseded by a newer motion before it ended")
+
+    def acknowledge(self) -> None:
+        st = self.client.read_status(command="acknowledge")
+        if st.fault not in MAJOR_FAULTS:
+            return  # the fast-stop latch is the gripper's: nothing to clear on the device
+        log.warning("%s: re-activating after fault 0x%02X: the fingers sweep the stroke", self.name, st.fault)
+        motion = self.epochs.begin("aborted by acknowledge()")
+        lim = self.limits
+        bound = 2.0 * 2 * lim.stroke / max(lim.min_speed, 1e-6) + 2.0 + self.timeout  # a sweep at least
+        self._activate("acknowledge", motion, bound, write=True, reset=True)
 
     # -- state and info ----------------------------------------------------------------------------------
 
@@ -383,24 +408,23 @@ class RobotiqGripper(Gripper):
             return GraspState.PART_LOST if self._held else GraspState.NO_PART
         return GraspState.IDLE
 
-    def _state(self) -> GripperState:
-        st = self._client.read_status(command="state")
-        faults = ((fault_name(st.fault),) if st.fault else ()) + (("fast_stop",) if self._latched else ())
+    def read_state(self) -> GripperState:
+        st = self.client.read_status(command="state")
         return GripperState(
-            width=self._width_of(st.position),
+            width=self.width_of(st.position),
             speed=None,
             force=None,
             current=st.current_ma / 1000,
             grasp=self._grasp_state(st),
             moving=st.moving,
             referenced=st.activated,
-            faults=faults,
+            faults=(fault_name(st.fault),) if st.fault else (),
             timestamp=time.time(),
         )
 
-    def _info(self) -> DeviceInfo:
+    def info(self) -> DeviceInfo:
         p = self.profile
-        st = self._client.read_status(command="info")
+        st = self.client.read_status(command="info")
         return DeviceInfo(
             family="robotiq",
             vendor=p.vendor,
@@ -412,7 +436,7 @@ class RobotiqGripper(Gripper):
             url=self.url,
             profile=p.name,
             extra={
-                "slave": self._client.slave,
+                "slave": self.client.slave,
                 "activated": st.activated,
                 "status": st.describe(),
                 "force": "approximate: rFR 0..255 mapped linearly onto the profile's force range",
@@ -421,24 +445,29 @@ class RobotiqGripper(Gripper):
             },
         )
 
-    def _close(self) -> None:
-        self._client.close()
+    def close(self) -> None:
+        self.client.close()
 
-    # -- reconnection (reconnect=true): a fresh link on the same URL ---------------------------------------
 
-    _connect: Callable[[], RobotiqClient | UrcapClient] | None = None  # set by RobotiqBackend.open
+class RobotiqReconnection:
+    """``reconnect=true``: a fresh link on the same URL (the connector ``RobotiqBackend.open`` built)."""
 
-    def _link_alive(self) -> bool:
-        return self._client.alive
+    def __init__(self, device: RobotiqDevice, connect: Callable[[], RobotiqClient | UrcapClient]) -> None:
+        self._device = device
+        self._connect = connect
 
-    def _reconnect(self) -> None:
-        old = self._client
+    def alive(self) -> bool:
+        return self._device.client.alive
+
+    def identity(self) -> dict[str, str]:
+        return {}  # no serial number in the documented registers: units cannot be told apart
+
+    def reconnect(self) -> None:
+        old = self._device.client
         if old.alive:
             new = old  # the link never broke (a serial line): the device answering again is the reconnection
         else:
             old.close()  # a serial port must be free before it is opened again
-            if self._connect is None:
-                raise ConnectionLost("no way to reopen this link", device=self.name, command="reconnect")
             new = self._connect()
         try:
             new.read_status(command="reconnect")
@@ -446,31 +475,52 @@ class RobotiqGripper(Gripper):
             if new is not old:
                 new.close()
             raise
-        self._client = new
+        self._device.client = new
 
-    # -- servo: a stream of rPR targets --------------------------------------------------------------------
 
-    def _servo_begin(self) -> None:
-        self._ready("servo")
-        self._mode = "move"
+class RobotiqServo:
+    """``servo()``: a stream of rPR targets written with rGTO set, without waiting for each motion's end."""
 
-    def _servo(self, target: ServoTarget) -> bool | None:
-        force = self._last.force if target.force is None else self._force_byte(target.force)
+    def __init__(self, device: RobotiqDevice) -> None:
+        self._device = device
+
+    def begin(self) -> None:
+        self._device._ready("servo")
+        self._device._mode = "move"
+
+    def send(self, target: ServoTarget) -> bool | None:
+        d = self._device
+        force = d._last.force if target.force is None else d.force_byte(target.force)
         cmd = Command(
             act=True,
             gto=True,
-            position=self._position_byte(target.width),
-            speed=self._speed_byte(target.speed),
+            position=d.position_byte(target.width),
+            speed=d.speed_byte(target.speed),
             force=force,
         )
-        if cmd == self._last:
+        if cmd == d._last:
             return False
-        self._client.write_command(cmd, command="servo")
-        self._last = cmd
+        d.client.write_command(cmd, command="servo")
+        d._last = cmd
         return True
 
-    def _servo_end(self) -> None:
-        self._mode = "idle"
+    def end(self) -> None:
+        self._device._mode = "idle"
+
+
+def robotiq_gripper(
+    client: RobotiqClient | UrcapClient,
+    profile: RobotiqProfile,
+    url: str,
+    *,
+    timeout: float,
+    connect: Callable[[], RobotiqClient | UrcapClient] | None = None,
+) -> DeviceGripper:
+    """The gripper over an open ``client``: what :meth:`RobotiqBackend.open` returns (``connect``: how to
+    reopen the link for ``reconnect=true``; None, no reconnection). Tests and benchmarks build one over a
+    scripted client with it."""
+    device = RobotiqDevice(client, profile, url, timeout=timeout, connect=connect)
+    return DeviceGripper(device, profile, url, timeout=timeout)
 
 
 class RobotiqBackend:
@@ -501,7 +551,7 @@ class RobotiqBackend:
         t = RobotiqTransport()
         return [ProbeCandidate(f"robotiq+serial://{where.serial_port}?baudrate={t.baudrate}", order=30)]
 
-    def open(self, url: ConnectionURL, profile: ProfileBase | None, settings: Settings) -> RobotiqGripper:
+    def open(self, url: ConnectionURL, profile: ProfileBase | None, settings: Settings) -> DeviceGripper:
         from ..profiles import load_profile
 
         if profile is None:
@@ -549,9 +599,7 @@ class RobotiqBackend:
         client = connect()
         try:
             client.read_status(command="open")  # a gripper answers, or the open fails here
-            gripper = RobotiqGripper(client, profile, url.url, timeout=common["timeout"])
-            gripper._connect = connect
-            return gripper
+            return robotiq_gripper(client, profile, url.url, timeout=common["timeout"], connect=connect)
         except BaseException:
             client.close()
             raise

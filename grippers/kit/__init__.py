@@ -12,8 +12,9 @@ Three parts, each usable alone:
   on a pty or TCP, one :class:`DeviceSession` per connection; :class:`SimClock` is its scaled clock (pause,
   step, resume); :class:`FaultHooks` makes it misbehave on request (drop, delay, corrupt, truncate or
   duplicate a reply, garbage, silence, stall, close the connection).
-- **The polled-motion helper**: :mod:`grippers.kit.motion` (import it by that name) waits for a motion's end
-  by polling the device, ends the wait when a stop or a newer motion comes, and maps the device's faults.
+- **The polled-motion helper** (from :mod:`grippers.kit.motion`): :func:`poll_until` waits for a motion's
+  end by polling the device, ends the wait when a stop or a newer motion comes (:class:`MotionEpochs`), at
+  close or at the timeout, and maps the device's faults.
 
 Everything here is public and stable for plugin authors; the drivers layer underneath imports nothing of
 :mod:`grippers`, so a family's driver may use the same classes from ``grippers.drivers``.
@@ -42,6 +43,8 @@ from grippers.drivers.simkit import (
     flip_last_byte,
 )
 
+from .motion import MotionEpochs, poll_until
+
 __all__ = [
     "ByteLink",
     "DeviceSession",
@@ -49,6 +52,7 @@ __all__ = [
     "FaultHooks",
     "FaultKind",
     "LinkHolder",
+    "MotionEpochs",
     "Reconnectable",
     "SerialLink",
     "SimClock",
@@ -59,4 +63,5 @@ __all__ = [
     "first_half",
     "flip_last_byte",
     "open_link",
+    "poll_until",
 ]

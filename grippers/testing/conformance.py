@@ -465,9 +465,13 @@ class ConformanceSuite:
             CommandFailed, "a move ended by fast_stop()", handle.wait, self.motion_bound_s
         )
         assert "fast_stop()" in str(aborted), aborted
-        assert g.state().fast_stopped, g.state()
+        for _ in range(2):  # latched: a state read does not clear it (the gripper's latch, or the device's)
+            assert g.state().fast_stopped, g.state()
         mid = (g.limits.min_width + g.limits.max_width) / 2
         _raises_typed(FastStopActive, "move() after fast_stop()", g.move, mid)
+        _raises_typed(FastStopActive, "grasp() after fast_stop()", g.grasp, mid)
+        _raises_typed(FastStopActive, "release() after fast_stop()", g.release)
+        assert g.state().fast_stopped, g.state()
         g.acknowledge()
         assert not g.state().fast_stopped, g.state()
         result = _done(g.move(mid, g.limits.max_speed, timeout=self.motion_bound_s))

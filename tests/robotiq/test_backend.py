@@ -237,12 +237,13 @@ class _ScriptedClient:
 
 
 def test_a_stale_gobj_after_the_write_is_not_taken_for_the_end_of_the_motion() -> None:
-    from grippers.backends.robotiq import RobotiqGripper
+    from grippers.backends.robotiq import robotiq_gripper
     from grippers.profiles import load_profile
 
     # Before: open (gPO 3); then the first status still says "at position" at gPO 3, then moving, then there.
     client = _ScriptedClient([(3, 0, 3), (3, 230, 3), (0, 230, 120), (3, 230, 230)])
-    g = RobotiqGripper(client, load_profile("robotiq-2f85"), "robotiq+serial:///dev/scripted", timeout=0.5)  # type: ignore[arg-type]
+    profile = load_profile("robotiq-2f85")
+    g = robotiq_gripper(client, profile, "robotiq+serial:///dev/scripted", timeout=0.5)  # type: ignore[arg-type]
     try:
         assert g.move(0.0).width < 1e-3  # not 85 mm, which the stale status claimed
     finally:
@@ -251,18 +252,18 @@ def test_a_stale_gobj_after_the_write_is_not_taken_for_the_end_of_the_motion() -
 
 @pytest.mark.parametrize("code", range(1, 16))
 def test_every_gflt_code_maps_to_one_typed_outcome(code: int) -> None:
-    from grippers.backends.robotiq import RobotiqGripper
+    from grippers.backends.robotiq import robotiq_gripper
     from grippers.drivers.robotiq.registers import FAULT_NAMES, ObjectDetection, Status
     from grippers.profiles import load_profile
 
-    g = RobotiqGripper(
+    g = robotiq_gripper(
         _ScriptedClient([(3, 0, 3)]),  # type: ignore[arg-type]
-        load_profile("robotiq-2f85"),
+        load_profile("robotiq-2f85"),  # type: ignore[arg-type]
         "robotiq+serial:///dev/scripted",
         timeout=0.5,
     )
     st = Status(True, True, ActivationState.COMPLETE, ObjectDetection.MOVING, code, 0, 0, 3, 0)
-    err = g._fault_error(st, "move")
+    err = g.device.fault_error(st, "move")
     if code in (Fault.ACTION_DELAYED, Fault.NO_COMMUNICATION):
         assert err is None  # transient: the wait goes on
     elif code == Fault.ACTIVATION_BIT:

@@ -2,8 +2,10 @@
 
 Three parts, as in every family: ``codec.py`` (the frames, sans-IO), ``sim.py`` (a simulator on the same
 codec) and this module: the profile model (the ``[acme]`` section), :class:`AcmeLink` (a socket and the
-exchange), :class:`AcmeGripper` (the ``Gripper`` methods in device units) and :class:`AcmeBackend` (what the
-entry point names: open, the simulator, the probe's candidates).
+exchange), :class:`AcmeDevice` (the public device contract, :class:`grippers.device.Device`, in SI units) and
+:class:`AcmeBackend` (what the entry point names: open, the simulator, the probe's candidates, the monitor's
+dissector). Only public names of ``grippers`` are used: the library's gripper holds the device and does the
+limits, the defaults, the motion rule, the streams, the fast-stop latch and close.
 """
 
 from __future__ import annotations
@@ -16,12 +18,26 @@ from typing import TYPE_CHECKING, Any, Literal
 
 from pydantic import BaseModel, ConfigDict
 
-from grippers import CommandFailed, ConnectionLost, Gripper, GripperTimeout, MotionBlocked, NotReferenced
-from grippers.backends import ProbeCandidate
-from grippers.backends.motion_epochs import MotionEpochs
-from grippers.errors import URLError
-from grippers.gripper import DeviceInfo, GraspResult, GraspState, GripperState, MotionResult
-from grippers.profiles import ProfileBase
+from grippers import (
+    Capability,
+    CommandFailed,
+    ConnectionLost,
+    DeviceInfo,
+    GraspResult,
+    GraspState,
+    GripperError,
+    GripperState,
+    GripperTimeout,
+    MotionBlocked,
+    MotionResult,
+    NotReferenced,
+    URLError,
+)
+from grippers.backends import Dissector, ProbeCandidate
+from grippers.device import Device
+from grippers.device_gripper import DeviceGripper
+from grippers.kit.motion import MotionEpochs, poll_until
+from grippers.profiles import ProfileBase, load_profile
 
 from .codec import Control, Decoder, Frame, FrameError, Reg, Status
 
@@ -31,7 +47,7 @@ if TYPE_CHECKING:
 
     from .sim import AcmeServer
 
-POLL_S = 0.005  # between status reads while a motion runs
+Reading = tuple[Status, float]  # the status bits and the width (m)
 
 
 class AcmeSection(BaseModel):
@@ -47,42 +63,41 @@ class AcmeProfile(ProfileBase):
 
 
 class AcmeLink:
-    """One TCP connection: ``read``/``write`` registers, one exchange at a time, each with a deadline."""
+    """One TCP connection: ``read``/``write`` registers, one exchange at a time, each with a deadline;
+    ``alive`` turns False once the connection is lost."""
 
     def __init__(self, host: str, port: int, *, timeout: float, device: str) -> None:
-        self.device, self.timeout = device, timeout
-        self._lock = threading.Lock()
+        self.device, self.timeout, self.alive = device, timeout, True
+        self.lock = threading.Lock()
         try:
-            self._sock = socket.create_connection((host, port), timeout=timeout)
+            self.sock = socket.create_connection((host, port), timeout=timeout)
         except OSError as exc:
             raise ConnectionLost(f"cannot connect: {exc}", device=device, command="open") from exc
-        self._decoder = Decoder()
+        self.decoder = Decoder()
 
-    def _exchange(self, request: Frame, command: str) -> Frame:
-        with self._lock:
+    def exchange(self, request: Frame, command: str) -> Frame:
+        with self.lock:
             try:
-                self._sock.sendall(request.encode())
+                self.sock.sendall(request.encode())
                 deadline = time.monotonic() + self.timeout
-                while True:
-                    self._sock.settimeout(max(deadline - time.monotonic(), 1e-3))
-                    data = self._sock.recv(256)
+                frames: list[Frame] = []
+                while not frames:
+                    self.sock.settimeout(max(deadline - time.monotonic(), 1e-3))
+                    data = self.sock.recv(256)
                     if not data:
-                        raise ConnectionLost(
-                            "the device closed the link", device=self.device, command=command
-                        )
-                    frames = self._decoder.feed(data)
-                    if frames:
-                        reply = frames[0]
-                        break
+                        raise OSError("the device closed the link")
+                    frames = self.decoder.feed(data)
             except TimeoutError as exc:
-                self._decoder = Decoder()  # a late reply must not answer the next request
+                self.decoder = Decoder()  # a late reply must not answer the next request
                 raise GripperTimeout(
                     f"no reply within {self.timeout:g} s", device=self.device, command=command
                 ) from exc
             except FrameError as exc:
                 raise CommandFailed(f"garbled reply: {exc}", device=self.device, command=command) from exc
             except OSError as exc:
+                self.alive = False
                 raise ConnectionLost(str(exc), device=self.device, command=command) from exc
+        reply = frames[0]
         if reply.op == "E":
             raise CommandFailed(
                 f"device error {reply.addr}", status=reply.addr, device=self.device, command=command
@@ -90,115 +105,126 @@ class AcmeLink:
         return reply
 
     def read(self, reg: Reg, count: int, command: str) -> tuple[int, ...]:
-        return self._exchange(Frame("R", reg, count=count), command).values
+        return self.exchange(Frame("R", reg, count=count), command).values
 
     def write(self, reg: Reg, *values: int, command: str) -> None:
-        self._exchange(Frame("W", reg, values), command)
+        self.exchange(Frame("W", reg, values), command)
 
     def close(self) -> None:
-        self._sock.close()
+        self.alive = False
+        self.sock.close()
 
 
-class AcmeGripper(Gripper):
+def answering(connect: Callable[[], AcmeLink], command: str) -> AcmeLink:
+    """A fresh link on which an ACME device answers a status read (or the link is closed and that raises)."""
+    link = connect()
+    try:
+        link.read(Reg.STATUS, 1, command)
+    except BaseException:
+        link.close()
+        raise
+    return link
+
+
+class AcmeDevice(Device):
+    """One R1 in SI units. It takes a new target mid-motion (``moves_to_new_targets``: a newer motion needs no
+    stop, only a new motion epoch), and has no fast-stop state (``reports_fast_stop`` False: the gripper
+    latches it). Homing is required before motion (``Capability.HOMING``)."""
+
+    capabilities = frozenset({Capability.HOMING})
+    moves_to_new_targets = True
+    reports_fast_stop = False
+
     def __init__(self, connect: Callable[[], AcmeLink], profile: AcmeProfile, url: str) -> None:
-        link = connect()
-        try:
-            link.read(Reg.STATUS, 1, "open")  # an ACME device answers, or the open fails here
-        except BaseException:
-            link.close()
-            raise
-        super().__init__(profile, url, timeout=link.timeout)
-        self._connect, self._link = connect, link
-        self._epochs = MotionEpochs()  # a newer motion or a stop ends the older waits
-        self._latched = False  # fast_stop(): the R1 has no fast-stop state of its own
+        self.connect, self.profile, self.url = connect, profile, url
+        self.link = answering(connect, "open")
+        self.limits = profile.limits()
+        self.epochs = MotionEpochs()  # a newer motion or a stop ends the older waits
+        self.reconnection = AcmeReconnection(self)
 
     @property
     def driver(self) -> AcmeLink:
-        return self._link
+        return self.link
 
-    def _status(self, command: str) -> tuple[Status, float]:
-        status, position = self._link.read(Reg.STATUS, 2, command)
+    def status(self, command: str) -> Reading:
+        status, position = self.link.read(Reg.STATUS, 2, command)
         return Status(status), position / 10_000  # 0.1 mm -> m
 
-    def _go(
-        self, command: str, width: float, speed: float, force: float, timeout: float
-    ) -> tuple[Status, float]:
-        """Write the target and GO, then poll until the jaws rest; never reported done when superseded."""
-        motion = self._epochs.begin(f"superseded by a newer motion before it ended ({command})")
-        self._link.write(
-            Reg.TARGET, round(width * 10_000), round(speed * 1000), round(force), command=command
+    def fault(self, reading: Reading, command: str) -> GripperError | None:
+        """The fault bit as a typed error; the R1 keeps it until RESET, which goes out at once."""
+        status, _ = reading
+        if not status & Status.FAULT:
+            return None
+        self.link.write(Reg.CONTROL, Control.RESET, command=command)
+        if not status & Status.HOMED:
+            return NotReferenced(f"{command} before home()", device=self.name, command=command)
+        return CommandFailed("the device reports a fault", device=self.name, command=command)
+
+    def go(self, command: str, width: float, speed: float, force: float, timeout: float) -> Reading:
+        """Write the target and GO (HOME for home), then poll until the jaws rest (grippers.kit.motion)."""
+        motion = self.epochs.begin(f"superseded by a newer motion before it ended ({command})")
+        self.link.write(Reg.TARGET, round(width * 10_000), round(speed * 1000), round(force), command=command)
+        self.link.write(Reg.CONTROL, Control.HOME if command == "home" else Control.GO, command=command)
+        return poll_until(
+            lambda: self.status(command),
+            lambda reading: not reading[0] & Status.MOVING,
+            context=self.context,
+            command=command,
+            timeout=timeout,
+            epochs=self.epochs,
+            motion=motion,
+            fault=lambda reading: self.fault(reading, command),
         )
-        self._link.write(Reg.CONTROL, Control.GO if command != "home" else Control.HOME, command=command)
-        deadline = time.monotonic() + timeout
-        while True:
-            self._epochs.check(motion, command=command, device=self.name)
-            status, at = self._status(command)
-            self._epochs.check(motion, command=command, device=self.name)
-            if status & Status.FAULT:
-                self._link.write(Reg.CONTROL, Control.RESET, command=command)
-                if not status & Status.HOMED:
-                    raise NotReferenced(f"{command} before home()", device=self.name, command=command)
-                raise CommandFailed("the device reports a fault", device=self.name, command=command)
-            if not status & Status.MOVING:
-                return status, at
-            if time.monotonic() > deadline:
-                raise GripperTimeout(f"not done after {timeout:g} s", device=self.name, command=command)
-            time.sleep(POLL_S)
 
-    def _home(self, timeout: float) -> None:
+    def home(self, timeout: float) -> None:
         m = self.limits
-        self._go("home", m.max_width, m.min_speed + 0.5 * (m.max_speed - m.min_speed), m.min_force, timeout)
+        self.go("home", m.max_width, m.min_speed + 0.5 * (m.max_speed - m.min_speed), m.min_force, timeout)
 
-    def _move(self, width: float, speed: float, timeout: float) -> MotionResult:
-        status, at = self._go("move", width, speed, self.limits.min_force, timeout)
+    def move(self, width: float, speed: float, timeout: float) -> MotionResult:
+        status, at = self.go("move", width, speed, self.limits.min_force, timeout)
         if status & Status.OBJECT and abs(at - width) > MotionBlocked.MARGIN:
             raise MotionBlocked(width=at, target=width, device=self.name, command="move")
         return MotionResult(at, GraspState.IDLE)
 
-    def _grasp(self, width: float, speed: float, force: float, timeout: float) -> GraspResult:
-        status, at = self._go("grasp", self.limits.min_width, speed, force, timeout)  # close until a part
+    def grasp(self, width: float, speed: float, force: float, timeout: float) -> GraspResult:
+        status, at = self.go("grasp", self.limits.min_width, speed, force, timeout)  # close until a part
         if status & Status.OBJECT:
             return GraspResult(True, at, force, GraspState.HOLDING)
         return GraspResult(False, at, None, GraspState.NO_PART, reason="closed without meeting a part")
 
-    def _release(self, width: float, speed: float, timeout: float) -> MotionResult:
-        _, at = self._go("release", width, speed, self.limits.min_force, timeout)
-        return MotionResult(at, GraspState.IDLE)
+    def stop(self) -> None:
+        self.epochs.begin("aborted by stop()")
+        self.link.write(Reg.CONTROL, Control.STOP, command="stop")
 
-    def _stop(self) -> None:
-        self._epochs.begin("aborted by stop()")
-        self._link.write(Reg.CONTROL, Control.STOP, command="stop")
+    def fast_stop(self) -> None:  # no brake: a stop; the gripper refuses motion until acknowledge()
+        self.epochs.begin("aborted by fast_stop()")
+        self.link.write(Reg.CONTROL, Control.STOP, command="fast_stop")
 
-    def _fast_stop(self) -> None:  # no brake: a stop, latched here until acknowledge()
-        self._latched = True
-        self._epochs.begin("aborted by fast_stop()")
-        self._link.write(Reg.CONTROL, Control.STOP, command="fast_stop")
+    def supersede(self) -> None:  # the R1 takes a new target mid-motion: the older wait ends, no stop
+        self.epochs.begin("superseded by a newer motion before it ended")
 
-    def _supersede(self) -> None:  # the R1 takes a new target mid-motion: no stop in between
-        self._epochs.begin("superseded by a newer motion before it ended")
+    def acknowledge(self) -> None:
+        self.link.write(Reg.CONTROL, Control.RESET, command="acknowledge")
 
-    def _acknowledge(self) -> None:
-        self._link.write(Reg.CONTROL, Control.RESET, command="acknowledge")
-        self._latched = False
-
-    def _state(self) -> GripperState:
-        status, at = self._status("state")
-        grasp = GraspState.HOLDING if status & Status.OBJECT else GraspState.IDLE
+    def read_state(self) -> GripperState:
+        status, at = self.status("state")
+        moving = bool(status & Status.MOVING)
+        held = GraspState.HOLDING if status & Status.OBJECT else GraspState.IDLE
         return GripperState(
             width=at,
             speed=None,
             force=None,
             current=None,
-            grasp=GraspState.POSITIONING if status & Status.MOVING else grasp,
-            moving=bool(status & Status.MOVING),
+            grasp=GraspState.POSITIONING if moving else held,
+            moving=moving,
             referenced=bool(status & Status.HOMED),
-            faults=(("fault",) if status & Status.FAULT else ()) + (("fast_stop",) if self._latched else ()),
+            faults=("fault",) if status & Status.FAULT else (),
             timestamp=time.time(),
         )
 
-    def _info(self) -> DeviceInfo:
+    def info(self) -> DeviceInfo:
         p = self.profile
-        status, _ = self._status("info")
+        status, _ = self.status("info")
         return DeviceInfo(
             family="acme",
             vendor=p.vendor,
@@ -212,17 +238,25 @@ class AcmeGripper(Gripper):
             extra={"status": "|".join(f.name or "" for f in Status if f in status) or "idle"},
         )
 
-    def _close(self) -> None:
-        self._link.close()
+    def close(self) -> None:
+        self.link.close()
 
-    def _reconnect(self) -> None:  # reconnect=true: a fresh link on the same URL once the device answers
-        new = self._connect()
-        try:
-            new.read(Reg.STATUS, 1, "reconnect")
-        except BaseException:
-            new.close()
-            raise
-        old, self._link = self._link, new
+
+class AcmeReconnection:
+    """``reconnect=true``: a fresh link on the same URL once the device answers there again."""
+
+    def __init__(self, device: AcmeDevice) -> None:
+        self.device = device
+
+    def alive(self) -> bool:
+        return self.device.link.alive
+
+    def identity(self) -> dict[str, str]:
+        return {}  # the R1 reports no serial number: units cannot be told apart
+
+    def reconnect(self) -> None:
+        new = answering(self.device.connect, "reconnect")
+        old, self.device.link = self.device.link, new
         old.close()
 
 
@@ -235,9 +269,7 @@ class AcmeBackend:
     sim_help = "simulate an ACME R1 gripper on loopback TCP"
     sim_example = "grippers sim acme --listen tcp://127.0.0.1:5500 --part-width 30"
 
-    def open(self, url: ConnectionURL, profile: ProfileBase | None, settings: Settings) -> AcmeGripper:
-        from grippers.profiles import load_profile
-
+    def open(self, url: ConnectionURL, profile: ProfileBase | None, settings: Settings) -> DeviceGripper:
         profile = profile or load_profile(self.default_profile)
         if not isinstance(profile, AcmeProfile):
             raise URLError(f"{url.url}: profile {profile.name!r} is not an ACME profile")
@@ -246,7 +278,8 @@ class AcmeBackend:
         host, port = url.host, url.port or profile.acme.tcp_port
         timeout = settings.positive("timeout", profile.acme.timeout_s)
         settings.check()  # a misspelt ?timout= is a URLError now, before anything is opened
-        return AcmeGripper(lambda: AcmeLink(host, port, timeout=timeout, device=url.url), profile, url.url)
+        device = AcmeDevice(lambda: AcmeLink(host, port, timeout=timeout, device=url.url), profile, url.url)
+        return DeviceGripper(device, profile, url.url, timeout=timeout)
 
     def simulator(self, profile: ProfileBase, settings: Settings, listen: str | None = None) -> AcmeServer:
         """A simulated R1 on loopback TCP (``listen``: tcp://127.0.0.1:PORT, default a free port)."""
@@ -263,10 +296,8 @@ class AcmeBackend:
     def simulate(self, profile: ProfileBase, settings: Settings) -> AcmeServer:
         return self.simulator(profile, settings)
 
-    def dissector(self) -> Any:
+    def dissector(self) -> Dissector:
         """``grippers monitor``: the R1's frames in a byte capture or through the TCP proxy."""
-        from grippers.backends import Dissector
-
         from .codec import AcmeDissector
 
         return Dissector("acme", stream=AcmeDissector, tcp_port=AcmeSection().tcp_port)
