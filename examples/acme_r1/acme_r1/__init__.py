@@ -10,8 +10,6 @@ limits, the defaults, the motion rule, the streams, the fast-stop latch and clos
 
 from __future__ import annotations
 
-import socket
-import threading
 import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, Literal
@@ -21,7 +19,6 @@ from pydantic import BaseModel, ConfigDict
 from grippers import (
     Capability,
     CommandFailed,
-    ConnectionLost,
     DeviceInfo,
     GraspResult,
     GraspState,
@@ -36,10 +33,10 @@ from grippers import (
 from grippers.backends import Dissector, ProbeCandidate
 from grippers.device import Device
 from grippers.device_gripper import DeviceGripper
-from grippers.kit.motion import MotionEpochs, poll_until
+from grippers.kit import MotionEpochs, TcpLink, poll_until
 from grippers.profiles import ProfileBase, load_profile
 
-from .codec import Control, Decoder, Frame, FrameError, Reg, Status
+from .codec import Control, Decoder, Frame, Reg, Status
 
 if TYPE_CHECKING:
     from grippers.settings import Settings
@@ -63,44 +60,26 @@ class AcmeProfile(ProfileBase):
 
 
 class AcmeLink:
-    """One TCP connection: ``read``/``write`` registers, one exchange at a time, each with a deadline;
-    ``alive`` turns False once the connection is lost."""
+    """Register reads and writes over the kit's TCP link (``grippers.kit.TcpLink``: one exchange at a time,
+    each with a deadline, typed errors, ``alive`` False once the connection is lost)."""
 
     def __init__(self, host: str, port: int, *, timeout: float, device: str) -> None:
-        self.device, self.timeout, self.alive = device, timeout, True
-        self.lock = threading.Lock()
-        try:
-            self.sock = socket.create_connection((host, port), timeout=timeout)
-        except OSError as exc:
-            raise ConnectionLost(f"cannot connect: {exc}", device=device, command="open") from exc
+        self.link = TcpLink(host, port, device=device, timeout=timeout)
         self.decoder = Decoder()
 
+    @property
+    def alive(self) -> bool:
+        return self.link.alive
+
     def exchange(self, request: Frame, command: str) -> Frame:
-        with self.lock:
-            try:
-                self.sock.sendall(request.encode())
-                deadline = time.monotonic() + self.timeout
-                frames: list[Frame] = []
-                while not frames:
-                    self.sock.settimeout(max(deadline - time.monotonic(), 1e-3))
-                    data = self.sock.recv(256)
-                    if not data:
-                        raise OSError("the device closed the link")
-                    frames = self.decoder.feed(data)
-            except TimeoutError as exc:
-                self.decoder = Decoder()  # a late reply must not answer the next request
-                raise GripperTimeout(
-                    f"no reply within {self.timeout:g} s", device=self.device, command=command
-                ) from exc
-            except FrameError as exc:
-                raise CommandFailed(f"garbled reply: {exc}", device=self.device, command=command) from exc
-            except OSError as exc:
-                self.alive = False
-                raise ConnectionLost(str(exc), device=self.device, command=command) from exc
-        reply = frames[0]
+        try:
+            reply = self.link.exchange(request.encode(), self.decoder.feed, command=command)[0]
+        except GripperTimeout:
+            self.decoder = Decoder()  # a late reply must not answer the next request
+            raise
         if reply.op == "E":
             raise CommandFailed(
-                f"device error {reply.addr}", status=reply.addr, device=self.device, command=command
+                f"device error {reply.addr}", status=reply.addr, device=self.link.device, command=command
             )
         return reply
 
@@ -111,8 +90,7 @@ class AcmeLink:
         self.exchange(Frame("W", reg, values), command)
 
     def close(self) -> None:
-        self.alive = False
-        self.sock.close()
+        self.link.close()
 
 
 def answering(connect: Callable[[], AcmeLink], command: str) -> AcmeLink:
