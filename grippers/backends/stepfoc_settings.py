@@ -13,7 +13,9 @@ from collections.abc import Callable
 from typing import Any
 
 from ..cli.output import UsageError
-from ..cli.settings_cmd import MAX_NODE, MAX_PERIOD_MS, confirm, try_read
+from ..cli.settings_cmd import MAX_PERIOD_MS, confirm, try_read
+
+MAX_NODE = 15  # 4-bit node id (MSG manual, "Bits 10 - 7 of CAN ID"; docs/protocols.md §2)
 
 
 def _read(driver: Any) -> dict[str, Any]:
