@@ -51,9 +51,9 @@ def _prose(tree: ast.AST) -> set[int]:
     ids = set()
     for node in ast.walk(tree):
         for stmt in getattr(node, "body", []) if isinstance(getattr(node, "body", None), list) else []:
-            if isinstance(stmt, ast.Expr) and isinstance(stmt.value, ast.Constant):
-                if isinstance(stmt.value.value, str):
-                    ids.add(id(stmt.value))
+            value = stmt.value if isinstance(stmt, ast.Expr) else None
+            if isinstance(value, ast.Constant) and isinstance(value.value, str):
+                ids.add(id(value))
     return ids
 
 

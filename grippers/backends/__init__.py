@@ -70,9 +70,9 @@ class BusSimulatedBackend(SimulatedBackend, Protocol):
 class Dissector:
     """What a family's ``dissector()`` hook gives ``grippers monitor`` (issue 28 §2): its protocol's name,
     and the readers it has: ``stream()`` for a byte stream (a capture, the TCP proxy), ``can(options)`` for
-    CAN frames (``options``: ``only`` when ``--protocol`` names it, ``can_id`` from ``--can-id``: the command id of a
-    family whose replies come on the next id), and the
-    device's TCP port for the proxy. ``bytes_default``: the reader of a byte capture when none is named.
+    CAN frames (``options``: ``only`` when ``--protocol`` names it, ``can_id`` from ``--can-id``, the command
+    id of a family whose replies come on the next id), and the device's TCP port for the proxy.
+    ``bytes_default``: the reader of a byte capture when none is named.
     ``finds(data)``: whether a run of bytes holds one of the family's packets (``monitor`` tells a raw
     capture without line ends from a file that is no capture at all)."""
 

@@ -1,6 +1,7 @@
 """The WSG family's command-line hooks: ``grippers sim wsg`` (a WSG simulator on TCP, UDP, a pseudo-terminal
-or a CAN bus, or the replay of a capture; the backend offers this module as its ``cli_sim``), and the hooks
-``grippers.backends.hook`` finds here: ``probe_candidates``, ``raw_probe``, ``factory_address``, ``dissector``.
+or a CAN bus, or the replay of a capture; the backend offers this module as its ``cli_sim``), and the
+hooks ``grippers.backends.hook`` finds here: ``probe_candidates``, ``raw_probe``, ``factory_address``,
+``dissector``.
 
 Transport defaults (ports, serial speed) are the profile model's (``WsgTransport``), read from there."""
 
@@ -107,6 +108,7 @@ def __getattr__(name: str) -> Any:
     if name == "factory_address":
         return f"tcp://{FACTORY_HOST}:{_transport().tcp_port}"
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
 
 # The WSG over CAN: commands on a base id, replies on base + 1, base 0x000 (docs/protocols.md §1, one public
 # driver); the probe adds the ids of every WSG profile on the search path.

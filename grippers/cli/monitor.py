@@ -64,9 +64,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--protocol",
         default="auto",
         metavar="NAME",
-        help="decode with this family's or protocol's dissector (an installed family's name; default: every "
-        "installed family's, each CAN frame by the family that claims it; bytes by the family that reads byte "
-        "captures by default)",
+        help="decode with this family's or protocol's dissector (an installed family's name; default: "
+        "every installed family's, each CAN frame by the family that claims it; bytes by the family that "
+        "reads byte captures by default)",
     )
     parser.add_argument(
         "--can-id",

@@ -35,7 +35,7 @@ EXAMPLE = (
     "         grippers probe tcp://127.0.0.1:1000 --json\n"
     "         grippers probe can://socketcan/can0 --timeout 0.5\n"
     "         grippers probe -i udp_multicast -c 239.74.163.2 --can-id 0x7E8\n"
-    "         grippers probe            (this machine: serial ports, SocketCAN, the families' factory addresses)"
+    "         grippers probe            (this machine: serial ports, SocketCAN, factory addresses)"
 )
 
 # Per-candidate hard deadline, in multiples of --timeout: opening (one exchange) plus info and state reads.

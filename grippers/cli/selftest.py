@@ -32,9 +32,9 @@ if TYPE_CHECKING:
 
 HELP = "bench acceptance run: homes, moves at three speeds, closes without a part; measured vs the profile"
 EXAMPLE = (
-    "grippers selftest wsg+tcp://192.168.1.20\n"
-    "         grippers selftest 'stepfoc+can://socketcan/can0?node=0' --profile msg-100 --yes --json\n"
-    "         grippers selftest 'stepfoc+can://socketcan/can0?node=0' --write-profile my-msg.toml"
+    "grippers selftest FAMILY+tcp://192.168.1.20\n"
+    "         grippers selftest 'FAMILY+can://socketcan/can0?node=0' --profile PROFILE --yes --json\n"
+    "         grippers selftest 'FAMILY+can://socketcan/can0?node=0' --write-profile my-gripper.toml"
 )
 
 SELFTEST_SCHEMA_ID = "grippers.selftest/1"
@@ -127,7 +127,7 @@ def _time_scale(args: argparse.Namespace) -> float:
 def plan_text(name: str, lo_mm: float, hi_mm: float, speeds: list[float], force: float) -> str:
     return (
         f"grippers selftest will move {name}:\n"
-        f"  home twice (a WSG references; an MSG calibrates: its jaws travel to both end stops);\n"
+        f"  home twice (the gripper references itself; some calibrate: the jaws travel to both end stops);\n"
         f"  move between {lo_mm:.1f} and {hi_mm:.1f} mm at {', '.join(f'{s:g}' for s in speeds)} mm/s;\n"
         f"  close from {hi_mm:.1f} mm as for a part of {lo_mm:.1f} mm at {force:g} N (keep the jaws EMPTY);\n"
         f"  open again, and read the faults and settings back."
@@ -216,12 +216,12 @@ class _Run:
             self.add(f"faults {when}", "none", "none", "PASS")
 
     def stroke(self) -> None:
-        from grippers.backends import find_backend
+        from grippers.backends import find_backend, hook
 
         profile_mm = self.g.profile.mechanics.stroke_mm
         info = self.g.info()
-        if getattr(find_backend(info.family), "reports_stroke", False):
-            # The device reports its own limits (a WSG's 53h); the backend narrows the profile's with them.
+        if hook(find_backend(info.family), "reports_stroke"):
+            # The device reports its own limits; the backend narrows the profile's with them.
             self.stroke_mm = info.limits.stroke * 1000
             ok = abs(self.stroke_mm - profile_mm) <= POSITION_TOLERANCE * profile_mm
             self.add(
@@ -322,16 +322,16 @@ class _Run:
         self.g.release()
 
     def settings(self) -> None:
-        from grippers.backends import find_backend
+        from grippers.backends import find_backend, hook
 
         from .settings_cmd import device_settings_of
 
         info = self.g.info()
-        hook = device_settings_of(self.g)
-        if hook is None:
-            self.add("settings", "-", "-", "INFO", f"the {info.family} backend offers no device settings")
+        settings = device_settings_of(self.g)
+        if settings is None:
+            self.add("settings", "-", "-", "INFO", f"its family ({info.family}) offers no device settings")
             return
-        if not hook.supports(self.g):
+        if not settings.supports(self.g):
             self.add(
                 "settings",
                 "-",
@@ -340,7 +340,7 @@ class _Run:
                 "not served over the network: run selftest on the serving machine",
             )
             return
-        checks = getattr(find_backend(info.family), "selftest_checks", None)
+        checks = hook(find_backend(info.family), "selftest_checks")
         if checks is not None:
             checks(self.g, self.add)
 

@@ -1,7 +1,8 @@
 """``grippers settings URL``: read, and change, what a gripper stores besides its motion.
 
-What a family offers is its backend's ``device_settings`` hook (which options it takes, how they are checked,
-changed and read); this module parses the options and shows the result. The built-in families: WSG: temperature, soft limits, device tag, acceleration, force limit, finger information (WSG manual 4.0.x
+What a family offers is its backend's ``device_settings`` hook (which options it takes, how they are
+checked, changed and read); this module parses the options and shows the result. The built-in families:
+WSG: temperature, soft limits, device tag, acceleration, force limit, finger information (WSG manual 4.0.x
 §3.3-§3.5 and §3.6, commands 30h-36h, 40h, 52h/53h, 60h-63h). MSG on a STEPFOC driver: temperature, supply
 voltage, the CAN node id (command 11), the watchdog (15) and the heartbeat (30), which are saved to flash
 (command 13) behind a confirmation: a node id that no program expects makes the gripper disappear from the
