@@ -13,10 +13,12 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import TYPE_CHECKING, Any
 
+from grippers.timeouts import DEFAULT_TIMEOUT_S
+
 if TYPE_CHECKING:
     from grippers.gripper import Gripper
 
-DEFAULT_TIMEOUT = 2.0  # seconds; per device for probe, per exchange otherwise
+DEFAULT_TIMEOUT = DEFAULT_TIMEOUT_S  # seconds; per device for probe, per exchange otherwise
 
 
 def positive_float(text: str) -> float:

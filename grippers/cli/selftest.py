@@ -329,7 +329,7 @@ class _Run:
         info = self.g.info()
         settings = device_settings_of(self.g)
         if settings is None:
-            self.add("settings", "-", "-", "INFO", f"its family ({info.family}) offers no device settings")
+            self.add("settings", "-", "-", "INFO", f"the {info.family} backend offers no device settings")
             return
         if not settings.supports(self.g):
             self.add(

@@ -153,7 +153,7 @@ def _refuse_unreachable(gripper: Any, hook: Any, family: str) -> None:
     """Refuse before anything is written: a family without settings, or a gripper whose device client is
     not here (a served one: issue 23 §3, the tag went out over the API, then the acceleration failed)."""
     if hook is None:
-        raise UsageError(f"{gripper.url}: its family ({family}) offers no device settings to read or change")
+        raise UsageError(f"the {family} backend offers no device settings")
     if not hook.supports(gripper):
         raise UsageError(
             f"{gripper.url}: device settings are not served over the network; run grippers settings on the "
