@@ -14,8 +14,7 @@ from typing import Any
 
 from ..cli.output import UsageError
 from ..cli.settings_cmd import MAX_PERIOD_MS, confirm, try_read
-
-MAX_NODE = 15  # 4-bit node id (MSG manual, "Bits 10 - 7 of CAN ID"; docs/protocols.md §2)
+from .stepfoc_profile import MAX_NODE
 
 
 def _read(driver: Any) -> dict[str, Any]:

@@ -19,9 +19,13 @@ from ..cli.sim_common import (
     warn_private_bus,
 )
 
-# The WSG's own port (docs/protocols.md §1): scripts written for the device work unchanged against the
-# simulator. A user without root gets a free port instead, and is told (sim_common.start_server).
-DEFAULT_LISTEN = "tcp://127.0.0.1:1000"
+
+def default_listen() -> str:
+    """The WSG's own port (the profile model's, docs/protocols.md §1): scripts written for the device work
+    unchanged against the simulator. A user without root gets a free port instead, and is told
+    (sim_common.start_server)."""
+    return f"tcp://127.0.0.1:{_transport().tcp_port}"
+
 
 NAMES = ("wsg",)  # `grippers sim wsg`
 HELP = "simulate a WSG gripper (binary protocol) on tcp://, udp://, pty or can://"
@@ -56,7 +60,7 @@ def _replay(args: argparse.Namespace, blob: bytes) -> tuple[Any, Any]:
     from ..cli.output import UsageError
 
     script = wsg_script(blob, args.replay)
-    listen = args.listen or DEFAULT_LISTEN
+    listen = args.listen or default_listen()
     if listen.partition("://")[0] != "tcp":
         raise UsageError(f"--replay serves a WSG on tcp://HOST:PORT, not {listen!r}")
     where = parse_url(listen, bare_family="wsg", listen=True)  # the one grammar: drivers/urls.py
@@ -82,7 +86,7 @@ def run(args: argparse.Namespace, backend: Any) -> int:
     settings = settings_for(profile, args, firmware=args.firmware)
     try:
         server = start_server(
-            lambda where: backend.simulator(profile, settings, listen=where), args.listen, DEFAULT_LISTEN
+            lambda where: backend.simulator(profile, settings, listen=where), args.listen, default_listen()
         )
     except ValueError as exc:  # a malformed --listen or --firmware: the command line's fault
         raise UsageError(str(exc)) from None

@@ -100,7 +100,7 @@ def _specs(args: argparse.Namespace) -> list[Any]:
     from grippers.ros2.app import GripperSpec
     from grippers.ros2.node import DEFAULT_JOINT, NodeOptions
 
-    from .output import UsageError
+    from .output import UsageError, mm_to_m
     from .serve import parse_targets
 
     targets = parse_targets(args.targets)
@@ -121,7 +121,7 @@ def _specs(args: argparse.Namespace) -> list[Any]:
             namespace=args.namespace,
             joint_names=(joint,),
             rate=args.rate,
-            tolerance=args.tolerance / 1000,
+            tolerance=mm_to_m(args.tolerance),
             actions=args.actions,
         )
         specs.append(GripperSpec(functools.partial(grippers.open, target, **kwargs), options))
