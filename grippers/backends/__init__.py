@@ -12,6 +12,13 @@ A backend is any object with ``family`` (the URL scheme's first part), ``profile
 settings) -> Gripper`` and, optionally, ``simulate(profile, settings)`` returning a running simulator (an
 object with ``url`` and ``close()``) for ``sim://``. The protocols below declare every call the API, the CLI
 and grippers.testing make on a backend.
+
+Everything else a family knows, the CLI asks through :func:`hook` (issue 28 §2: no generic module names a
+family): ``probe_candidates``, ``raw_probe``, ``factory_address``, ``bare_forms``, ``dissector``,
+``device_settings``, ``selftest_checks``, ``reports_stroke``, ``cli_sim`` (or ``sim_help``, ``sim_example``,
+``default_profile``). A family declares them in its CLI module (``X_cli`` beside its backend's module ``X``)
+or on its backend; one it lacks is a command that says, in words that fit every family, that it is not
+offered. ``tests/test_vendor_neutral.py`` keeps the rest of the package free of vendor names.
 """
 
 from __future__ import annotations
