@@ -317,7 +317,9 @@ def _host_port(url: str, netloc: str, listen: bool) -> tuple[str | None, int | N
             raise URLError(f"{shown(url)}: unbalanced brackets in {netloc[:60]!r}")
         raw_host, _, port_text = netloc.partition(":")
         if ":" in port_text:
-            raise URLError(f"{shown(url)}: an IPv6 address is written in brackets, e.g. wsg+tcp://[::1]:1000")
+            raise URLError(
+                f"{shown(url)}: an IPv6 address is written in brackets, e.g. FAMILY+tcp://[::1]:1000"
+            )
         host = _decoded(url, raw_host, "host").lower()
         _check_host_name(url, host)
     if not host and not listen:

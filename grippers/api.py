@@ -78,7 +78,7 @@ def warn_if_assumed(gripper: Gripper, stacklevel: int = 3) -> None:
     if getattr(gripper, "_profile_assumed", False):
         warnings.warn(
             ProfileAssumed(
-                f"model {gripper.profile.name} assumed (an MSG cannot report its rail length: "
+                f"model {gripper.profile.name} assumed (the device cannot report its model or stroke: "
                 "on another model every width is wrong); pass profile= (--profile)"
             ),
             stacklevel=stacklevel,

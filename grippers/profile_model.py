@@ -13,6 +13,8 @@ from typing import Annotated
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
+from .timeouts import MAX_TIMEOUT_S
+
 # Every number is finite and below a bound no real gripper comes near: beyond them a profile cannot work
 # (an infinite stroke makes home() wait for ever, an opening width of 1e308 overflows in state(), a WSG stroke
 # of 1e308 kills the simulator's thread), so they are refused at load, naming the field and the rule.
@@ -20,7 +22,6 @@ MAX_LENGTH_MM = 10_000.0  # 10 m
 MAX_SPEED_MM_S = 100_000.0  # 100 m/s
 MAX_ACCEL_MM_S2 = 10_000_000.0
 MAX_FORCE_N = 100_000.0
-MAX_TIMEOUT_S = 3600.0  # an exchange that takes longer than an hour is not an exchange
 MAX_TIME_SCALE = 1_000_000.0
 
 NonNegative = Annotated[float, Field(ge=0, allow_inf_nan=False)]

@@ -72,27 +72,19 @@ MAX_PROFILE_BYTES = 1 << 20  # 1 MiB: every shipped profile is under 2 kB; a big
 MAX_EXTENDS_DEPTH = 16
 
 # The families' own sections and profile models live with their backends (issue 28 §2: the backend declares
-# its profile model); the names stay importable from here for programs written against them.
-_MOVED = {
-    "WsgTransport": "grippers.backends.wsg_profile",
-    "WsgDevice": "grippers.backends.wsg_profile",
-    "WsgSimulator": "grippers.backends.wsg_profile",
-    "WsgProfile": "grippers.backends.wsg_profile",
-    "wsg_profile_for_device_type": "grippers.backends.wsg_profile",
-    "StepfocTransport": "grippers.backends.stepfoc_profile",
-    "MsgMaps": "grippers.backends.stepfoc_profile",
-    "MsgSimulator": "grippers.backends.stepfoc_profile",
-    "MsgProfile": "grippers.backends.stepfoc_profile",
-}
+# its profile model, the only registry). Names that were once defined here (a family's profile class, its
+# sections) stay importable from here: they are looked up in the modules of the installed families' models.
 
 
 def __getattr__(name: str) -> Any:
-    module = _MOVED.get(name)
-    if module is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    import importlib
+    if not name.startswith("_"):
+        import importlib
 
-    return getattr(importlib.import_module(module), name)
+        for model in installed_profile_models():
+            module = importlib.import_module(model.__module__)
+            if hasattr(module, name):
+                return getattr(module, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 Profile = ProfileBase  # the type users annotate with

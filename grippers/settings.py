@@ -11,6 +11,7 @@ from collections.abc import Callable
 from typing import Any, TypeVar
 
 from .errors import URLError
+from .timeouts import MAX_TIMEOUT_S
 from .urls import refuse_unknown, to_bool, to_float, to_int
 
 T = TypeVar("T")
@@ -32,12 +33,12 @@ RANGES: dict[str, tuple[float, float]] = {
     "baudrate": (1, 10_000_000),
     "bytesize": (5, 8),
     "serial": (0, 0xFFFFFFFF),
-    "timeout": (0, 3600.0),  # an exchange longer than an hour is not an exchange
+    "timeout": (0, MAX_TIMEOUT_S),  # an exchange longer than an hour is not an exchange (grippers.timeouts)
     # The reconnection thread waits on a condition for these: 1e308 s overflowed it (OverflowError), and a
     # retry or heartbeat an hour apart is no longer a reconnection (grippers/reconnect.py).
-    "reconnect_backoff_s": (0, 3600.0),
-    "reconnect_backoff_max_s": (0, 3600.0),
-    "heartbeat_s": (0, 3600.0),
+    "reconnect_backoff_s": (0, MAX_TIMEOUT_S),
+    "reconnect_backoff_max_s": (0, MAX_TIMEOUT_S),
+    "heartbeat_s": (0, MAX_TIMEOUT_S),
     "time_scale": (0, 1_000_000.0),
     "part_width_mm": (0, 10_000.0),
     "clamping_travel_mm": (0, 10_000.0),

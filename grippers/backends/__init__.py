@@ -12,6 +12,13 @@ A backend is any object with ``family`` (the URL scheme's first part), ``profile
 settings) -> Gripper`` and, optionally, ``simulate(profile, settings)`` returning a running simulator (an
 object with ``url`` and ``close()``) for ``sim://``. The protocols below declare every call the API, the CLI
 and grippers.testing make on a backend.
+
+Everything else a family knows, the CLI asks through :func:`hook` (issue 28 §2: no generic module names a
+family): ``probe_candidates``, ``raw_probe``, ``factory_address``, ``bare_forms``, ``dissector``,
+``device_settings``, ``selftest_checks``, ``reports_stroke``, ``cli_sim`` (or ``sim_help``, ``sim_example``,
+``default_profile``). A family declares them in its CLI module (``X_cli`` beside its backend's module ``X``)
+or on its backend; one it lacks is a command that says, in words that fit every family, that it is not
+offered. ``tests/test_vendor_neutral.py`` keeps the rest of the package free of vendor names.
 """
 
 from __future__ import annotations
@@ -70,14 +77,18 @@ class BusSimulatedBackend(SimulatedBackend, Protocol):
 class Dissector:
     """What a family's ``dissector()`` hook gives ``grippers monitor`` (issue 28 §2): its protocol's name,
     and the readers it has: ``stream()`` for a byte stream (a capture, the TCP proxy), ``can(options)`` for
-    CAN frames (``options``: ``only`` when ``--protocol`` names it, ``wsg_id`` from ``--wsg-id``), and the
-    device's TCP port for the proxy. ``bytes_default``: the reader of a byte capture when none is named."""
+    CAN frames (``options``: ``only`` when ``--protocol`` names it, ``can_id`` from ``--can-id``, the command
+    id of a family whose replies come on the next id), and the device's TCP port for the proxy.
+    ``bytes_default``: the reader of a byte capture when none is named.
+    ``finds(data)``: whether a run of bytes holds one of the family's packets (``monitor`` tells a raw
+    capture without line ends from a file that is no capture at all)."""
 
     protocol: str
     stream: Callable[[], Any] | None = None
     can: Callable[[dict[str, Any]], Any] | None = None
     tcp_port: int | None = None
     bytes_default: bool = False
+    finds: Callable[[bytes], bool] | None = None
 
 
 @dataclass(frozen=True)
@@ -104,7 +115,7 @@ def bus_query(options: dict[str, Any]) -> str:
 class RawProbe:
     """A family's ``raw_probe(transport)`` hook: after a silent open, ``grippers probe`` sends ``request`` on
     a raw connection and tells a device that answers garbage (another protocol, baud rate) from a silent
-    one. ``goodbye`` is sent after (a WSG on TCP must not be left in FAST STOP); ``is_answer(received)``:
+    one. ``goodbye`` is sent after (a device on TCP that must not be left stopped); ``is_answer(received)``:
     bytes that are the family's (a late answer: the timeout stands); ``port``: for a URL without one."""
 
     request: bytes
@@ -154,6 +165,38 @@ def find_backend(family: str) -> Any | None:
         backend = obj() if isinstance(obj, type) else obj
     _cache[family] = backend
     return backend
+
+
+def hook(backend: Any, name: str) -> Any:
+    """The hook ``name`` a family offers the CLI (``dissector``, ``probe_candidates``, ``factory_address``,
+    ``device_settings``, ``selftest_checks``, ``cli_sim``, ...), or None when it offers none.
+
+    A family declares a hook in its CLI module, the module ``X_cli`` beside its backend's module ``X``
+    (``grippers.backends.acme`` -> ``grippers.backends.acme_cli``), or as an attribute of its backend; the CLI
+    module's wins, so the command-line side of a family lives in one file apart from the device code. A
+    backend defined in a top-level module has no CLI module: its attributes are its hooks.
+    """
+    module = _cli_module(type(backend).__module__)
+    if module is not None and hasattr(module, name):
+        return getattr(module, name)
+    return getattr(backend, name, None)
+
+
+_cli_modules: dict[str, Any] = {}
+
+
+def _cli_module(backend_module: str) -> Any:
+    if "." not in backend_module:
+        return None
+    if backend_module not in _cli_modules:
+        name = backend_module + "_cli"
+        try:
+            _cli_modules[backend_module] = importlib.import_module(name)
+        except ModuleNotFoundError as exc:
+            if exc.name != name:  # the CLI module exists and lacks a dependency: that is its error
+                raise
+            _cli_modules[backend_module] = None
+    return _cli_modules[backend_module]
 
 
 def get_backend(family: str) -> Any:

@@ -1,6 +1,8 @@
 """The STEPFOC family's command-line hooks: ``grippers sim msg`` (MSG grippers on STEPFOC drivers, as CAN
-nodes or on a UART pseudo-terminal, or the replay of a candump log). The backend offers it as
-its ``cli_sim``."""
+nodes or on a UART pseudo-terminal, or the replay of a candump log; the backend offers it as its
+``cli_sim``), and ``probe_candidates`` (``grippers.backends.hook`` finds it here).
+
+The UART's speed and the node range are the profile model's (``StepfocTransport``, ``MAX_NODE``)."""
 
 from __future__ import annotations
 
@@ -108,3 +110,22 @@ def run(args: argparse.Namespace, backend: Any) -> int:
     if bus_query:  # a client needs the same port to reach the bus
         urls = [f"{u}&{bus_query}" for u in urls]
     return serve_forever(server, what, urls, as_json=args.json)
+
+
+# --- grippers probe ----------------------------------------------------------------------------------------
+
+
+def probe_candidates(transport: str, where: Any, options: dict[str, Any]) -> list[Any]:
+    """``grippers probe`` on a bare transport: the UART on a serial port at the profile model's speed, every
+    node on a CAN bus (each with its own bus connection, so the nodes are asked in parallel)."""
+    from . import ProbeCandidate, bus_query
+    from .stepfoc_profile import MAX_NODE, StepfocTransport
+
+    if transport == "serial":
+        baud = StepfocTransport().baudrate
+        return [ProbeCandidate(f"stepfoc+serial://{where.serial_port}?baudrate={baud}", order=20)]
+    if transport == "can":
+        extra = bus_query(options)
+        base = f"stepfoc+can://{where.interface}/{where.channel}"
+        return [ProbeCandidate(f"{base}?node={node}{extra}", order=10) for node in range(MAX_NODE + 1)]
+    return []

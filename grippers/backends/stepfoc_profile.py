@@ -9,6 +9,8 @@ from pydantic import Field, model_validator
 
 from ..profiles import MAX_FORCE_N, Length, ProfileBase, Timeout, TimeScale, _Model
 
+MAX_NODE = 15  # 4-bit node id (MSG manual, "Bits 10 - 7 of CAN ID"; docs/protocols.md §2)
+
 
 class StepfocTransport(_Model):
     timeout_s: Timeout = 0.5
@@ -16,7 +18,7 @@ class StepfocTransport(_Model):
     can_interface: str = "socketcan"
     can_channel: str = "can0"
     can_bitrate: Annotated[int, Field(gt=0)] = 1_000_000  # docs/protocols.md §2 CAN
-    node: Annotated[int, Field(ge=0, le=15)] = 0
+    node: Annotated[int, Field(ge=0, le=MAX_NODE)] = 0
 
 
 class MsgMaps(_Model):

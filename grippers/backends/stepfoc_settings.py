@@ -13,7 +13,8 @@ from collections.abc import Callable
 from typing import Any
 
 from ..cli.output import UsageError
-from ..cli.settings_cmd import MAX_NODE, MAX_PERIOD_MS, confirm, try_read
+from ..cli.settings_cmd import MAX_PERIOD_MS, confirm, try_read
+from .stepfoc_profile import MAX_NODE
 
 
 def _read(driver: Any) -> dict[str, Any]:

@@ -1,5 +1,9 @@
 """The WSG family's command-line hooks: ``grippers sim wsg`` (a WSG simulator on TCP, UDP, a pseudo-terminal
-or a CAN bus, or the replay of a capture). The backend offers this module as its ``cli_sim``."""
+or a CAN bus, or the replay of a capture; the backend offers this module as its ``cli_sim``), and the
+hooks ``grippers.backends.hook`` finds here: ``probe_candidates``, ``raw_probe``, ``factory_address``,
+``dissector``.
+
+Transport defaults (ports, serial speed) are the profile model's (``WsgTransport``), read from there."""
 
 from __future__ import annotations
 
@@ -15,9 +19,13 @@ from ..cli.sim_common import (
     warn_private_bus,
 )
 
-# The WSG's own port (docs/protocols.md §1): scripts written for the device work unchanged against the
-# simulator. A user without root gets a free port instead, and is told (sim_common.start_server).
-DEFAULT_LISTEN = "tcp://127.0.0.1:1000"
+
+def default_listen() -> str:
+    """The WSG's own port (the profile model's, docs/protocols.md §1): scripts written for the device work
+    unchanged against the simulator. A user without root gets a free port instead, and is told
+    (sim_common.start_server)."""
+    return f"tcp://127.0.0.1:{_transport().tcp_port}"
+
 
 NAMES = ("wsg",)  # `grippers sim wsg`
 HELP = "simulate a WSG gripper (binary protocol) on tcp://, udp://, pty or can://"
@@ -52,7 +60,7 @@ def _replay(args: argparse.Namespace, blob: bytes) -> tuple[Any, Any]:
     from ..cli.output import UsageError
 
     script = wsg_script(blob, args.replay)
-    listen = args.listen or DEFAULT_LISTEN
+    listen = args.listen or default_listen()
     if listen.partition("://")[0] != "tcp":
         raise UsageError(f"--replay serves a WSG on tcp://HOST:PORT, not {listen!r}")
     where = parse_url(listen, bare_family="wsg", listen=True)  # the one grammar: drivers/urls.py
@@ -78,7 +86,7 @@ def run(args: argparse.Namespace, backend: Any) -> int:
     settings = settings_for(profile, args, firmware=args.firmware)
     try:
         server = start_server(
-            lambda where: backend.simulator(profile, settings, listen=where), args.listen, DEFAULT_LISTEN
+            lambda where: backend.simulator(profile, settings, listen=where), args.listen, default_listen()
         )
     except ValueError as exc:  # a malformed --listen or --firmware: the command line's fault
         raise UsageError(str(exc)) from None
@@ -88,10 +96,24 @@ def run(args: argparse.Namespace, backend: Any) -> int:
 
 
 # --- grippers probe ----------------------------------------------------------------------------------------
-# Defaults not in the manuals; docs/protocols.md §1 "Transport defaults".
-TCP_PORT = 1000
-UDP_PORT = 1500
-SERIAL_BAUD = 115200
+# The set-up default address (docs/protocols.md §1 "Transport defaults"): the machine scan and doctor's route.
+FACTORY_HOST = "192.168.1.20"
+
+
+def _transport() -> Any:
+    """The profile model's transport defaults, the one home of the ports and the serial speed."""
+    from .wsg_profile import WsgTransport
+
+    return WsgTransport()
+
+
+def __getattr__(name: str) -> Any:
+    """``factory_address``: computed from the profile model's TCP port when asked (no pydantic at import)."""
+    if name == "factory_address":
+        return f"tcp://{FACTORY_HOST}:{_transport().tcp_port}"
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
 # The WSG over CAN: commands on a base id, replies on base + 1, base 0x000 (docs/protocols.md §1, one public
 # driver); the probe adds the ids of every WSG profile on the search path.
 CAN_IDS: tuple[tuple[int, int], ...] = ((0x000, 0x001),)
@@ -118,13 +140,14 @@ def probe_candidates(transport: str, where: Any, options: dict[str, Any]) -> lis
 
     from . import ProbeCandidate, bus_query
 
+    t = _transport()
     if transport in ("tcp", "udp"):
-        port = where.port or (TCP_PORT if transport == "tcp" else UDP_PORT)
+        port = where.port or (t.tcp_port if transport == "tcp" else t.udp_port)
         return [ProbeCandidate(f"wsg+{transport}://{format_host(where.host, port)}", order=10)]
     if transport == "serial":
-        return [ProbeCandidate(f"wsg+serial://{where.serial_port}?baudrate={SERIAL_BAUD}", order=10)]
+        return [ProbeCandidate(f"wsg+serial://{where.serial_port}?baudrate={t.baudrate}", order=10)]
     if transport == "can":
-        ids = options.get("wsg_can_ids") or can_ids(options.get("can_ids"))
+        ids = can_ids(options.get("can_ids"))
         extra = bus_query(options)
         out = []
         for send_id, recv_id in ids:
@@ -148,5 +171,23 @@ def raw_probe(transport: str) -> Any:
         wsg_probe.identify_request(),
         goodbye=wsg_probe.goodbye(transport),  # a WSG on TCP must not be left in FAST STOP by this check
         is_answer=wsg_probe.holds_a_packet,
-        port=TCP_PORT if transport == "tcp" else UDP_PORT,
+        port=_transport().tcp_port if transport == "tcp" else _transport().udp_port,
+    )
+
+
+def dissector() -> Any:
+    """``grippers monitor``: WSG packets from bytes (captures, the TCP proxy) or CAN frames (commands on
+    ``--can-id``, replies on the next id)."""
+    from grippers.drivers.wsg.dissect import PROTOCOL, WsgCanDissector, WsgStream
+    from grippers.drivers.wsg.protocol import PREAMBLE
+
+    from . import Dissector
+
+    return Dissector(
+        PROTOCOL,
+        stream=WsgStream,
+        can=lambda o: WsgCanDissector(o.get("can_id", 0x000), bool(o.get("only"))),
+        tcp_port=_transport().tcp_port,
+        bytes_default=True,
+        finds=lambda data: PREAMBLE in data,
     )

@@ -72,7 +72,7 @@ EXIT_CODES = "Exit codes: 0 ok, 1 failed or nothing found, 2 usage error, 130 in
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(
         prog="grippers",
-        description="Drive robot grippers (WSG, MSG/STEPFOC) and their simulators.",
+        description="Drive robot grippers of every installed family, and their simulators.",
         epilog=f"Example: grippers probe sim://\n{EXIT_CODES}",
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )

@@ -13,10 +13,12 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import TYPE_CHECKING, Any
 
+from grippers.timeouts import DEFAULT_TIMEOUT_S
+
 if TYPE_CHECKING:
     from grippers.gripper import Gripper
 
-DEFAULT_TIMEOUT = 2.0  # seconds; per device for probe, per exchange otherwise
+DEFAULT_TIMEOUT = DEFAULT_TIMEOUT_S  # seconds; per device for probe, per exchange otherwise
 
 
 def positive_float(text: str) -> float:
@@ -40,7 +42,7 @@ def non_negative_float(text: str) -> float:
 
 
 def can_id(text: str) -> int:
-    """An argparse type for a CAN identifier in decimal or 0x hex (``--wsg-id`` of probe and monitor)."""
+    """An argparse type for a CAN identifier in decimal or 0x hex (``--can-id`` of probe and monitor)."""
     try:
         value = int(text, 0)
     except ValueError:
@@ -54,8 +56,9 @@ def add_target(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "target",
         metavar="URL",
-        help="a connection URL (wsg+tcp://HOST[:PORT], wsg+udp://, wsg+serial://PORT, wsg+can://IF/CH, "
-        "stepfoc+can://IF/CH?node=N, stepfoc+serial://PORT, sim://PROFILE), a profile name or a profile file",
+        help="a connection URL (FAMILY+tcp://HOST[:PORT], FAMILY+udp://, FAMILY+serial://PORT, "
+        "FAMILY+can://IF/CH[?node=N], sim://PROFILE, zenoh://NAME; grippers probe finds them), a profile "
+        "name or a profile file",
     )
 
 
@@ -81,7 +84,7 @@ def add_common(
     )
     parser.add_argument("--json", action="store_true", help=json_help)
     parser.add_argument(
-        "--profile", metavar="NAME", help="device profile, for devices that cannot report their model (MSG)"
+        "--profile", metavar="NAME", help="device profile, for devices that cannot report their model"
     )
     add_can_flags(parser)
 

@@ -3,8 +3,9 @@ or fail and the fix.
 
 Checks are plain functions over what the operating system shows (``/sys/class/net``, ``/sys/module``,
 device files, ``ip -details -json link``), each returning :class:`Check` rows, so each rule is tested on a
-prepared directory. Nothing is sent to any device or network: the route to the WSG's factory address is
-looked up with an unconnected UDP socket's ``connect``, which sends no packet.
+prepared directory. Nothing is sent to any device or network: the route to each family's factory address
+(its backend's ``factory_address`` hook) is looked up with an unconnected UDP socket's ``connect``, which
+sends no packet.
 """
 
 from __future__ import annotations
@@ -25,8 +26,6 @@ from .output import DOCTOR_SCHEMA_ID, EXIT_FAILED, EXIT_OK, write_json
 HELP = "check this machine: python-can, SocketCAN, vcan, serial ports and permissions, route, extras"
 EXAMPLE = "grippers doctor\n         grippers doctor --json"
 
-WSG_FACTORY_ADDRESS = "192.168.1.20"  # WSG set-up default (docs/protocols.md §1 "Transport defaults")
-WSG_TCP_PORT = 1000
 ARPHRD_CAN = "280"  # linux/if_arp.h: the link type of a SocketCAN interface in /sys/class/net/*/type
 EXTRAS = {  # extra -> (the module it brings, what it is for)
     "yaml": ("yaml", "YAML profiles"),
@@ -45,7 +44,7 @@ SEE = {
     "socketcan": "#can-bus",
     "vcan": "#can-bus",
     "serial": "#serial-ports",
-    "route": "#network-wsg",
+    "route": "#network",
     "extra": "#installing",
 }
 
@@ -222,7 +221,7 @@ def check_serial_ports(ports: list[str] | None = None) -> list[Check]:
         except ImportError:
             return []
     if not ports:
-        fix = "plug in the USB-serial adapter (WSG RS-232, MSG UART)"
+        fix = "plug in the gripper's USB-serial adapter (RS-232, RS-485 or UART)"
         return [Check("serial ports", "warn", "none found", fix)]
     out = []
     for port in ports:
@@ -244,20 +243,43 @@ def _group_of(path: str) -> str | None:
         return None
 
 
-def check_route(address: str = WSG_FACTORY_ADDRESS) -> list[Check]:
-    """Which local address would talk to the WSG's factory address; connect() on UDP sends nothing."""
+def factory_addresses() -> list[tuple[str, int, str]]:
+    """(host, port, family) of every installed family's factory network address (``factory_address``
+    hook, a ``tcp://HOST:PORT`` URL), once per host. A family that does not load is left out: the
+    dependency checks above say why."""
+    from grippers.backends import available_backends, find_backend, hook
+    from grippers.urls import parse_url
+
+    out: dict[str, tuple[str, int, str]] = {}
+    for family in available_backends():
+        try:
+            address = hook(find_backend(family), "factory_address")
+            if address is None:
+                continue
+            where = parse_url(address, bare_family="bare")
+        except Exception:
+            continue
+        if where.host and where.host not in out:
+            out[where.host] = (where.host, where.port or 0, family)
+    return list(out.values())
+
+
+def check_route(address: str, port: int = 0, family: str = "a gripper") -> list[Check]:
+    """Which local address would talk to a family's factory address; connect() on UDP sends nothing."""
     name = f"route to {address}"
+    mine = address.rsplit(".", 1)[0] + ".100/24"  # an address of this computer on the gripper's /24 network
     try:
         with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-            s.connect((address, WSG_TCP_PORT))
+            s.connect((address, port))
             local = s.getsockname()[0]
     except OSError as exc:
         return [
             Check(
                 name,
                 "warn",
-                f"no route ({exc.strerror or exc}); needed for a WSG on Ethernet at its factory address",
-                "sudo ip addr add 192.168.1.100/24 dev eth0 (your Ethernet interface)",
+                f"no route ({exc.strerror or exc}); needed for a {family} gripper on Ethernet at its "
+                "factory address",
+                f"sudo ip addr add {mine} dev eth0 (your Ethernet interface)",
             )
         ]
     if local.rsplit(".", 1)[0] == address.rsplit(".", 1)[0]:
@@ -266,8 +288,9 @@ def check_route(address: str = WSG_FACTORY_ADDRESS) -> list[Check]:
         Check(
             name,
             "warn",
-            f"only through a gateway (from {local}); a WSG at its factory address is on a direct link",
-            "sudo ip addr add 192.168.1.100/24 dev eth0 (the interface the gripper is plugged into)",
+            f"only through a gateway (from {local}); a {family} gripper at its factory address is on a "
+            "direct link",
+            f"sudo ip addr add {mine} dev eth0 (the interface the gripper is plugged into)",
         )
     ]
 
@@ -290,7 +313,7 @@ def collect() -> list[Check]:
         *check_socketcan(),
         *check_vcan(),
         *check_serial_ports(),
-        *check_route(),
+        *(c for host, port, family in factory_addresses() for c in check_route(host, port, family)),
         *check_extras(),
     ]
 

@@ -10,7 +10,7 @@ from .logs import issued_warnings
 from .output import EXIT_OK, INFO_SCHEMA_ID, fmt_num, info_dict, key_values, write_json
 
 HELP = "show vendor, model, firmware, serial number and limits of a gripper"
-EXAMPLE = "grippers info wsg+tcp://127.0.0.1:1000 --json"
+EXAMPLE = "grippers info sim://PROFILE --json\n         grippers info FAMILY+tcp://192.168.1.20"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -1,10 +1,10 @@
 """``grippers monitor``: decode live traffic or a capture into one readable line per frame or packet.
 
-Sources: a capture file (candump log for CAN; hex dump or raw bytes for the WSG byte protocol; ``-`` reads
-stdin, so ``candump -L can0 | grippers monitor -`` works), a live CAN bus (``-i``/``-c``), or a live WSG TCP
-connection through ``--proxy``. The decoding is the drivers' own (the WSG packet parser and command table, the
-STEPFOC frame table and their one-line descriptions), so the monitor shows exactly what the clients and
-simulators understand, and there is no second copy of any byte layout here.
+Sources: a capture file (candump log for CAN; hex dump or raw bytes for a byte protocol; ``-`` reads stdin,
+so ``candump -L can0 | grippers monitor -`` works), a live CAN bus (``-i``/``-c``), or a live TCP connection
+through ``--proxy``. The decoding is the families' own (each backend's ``dissector`` hook hands over its
+driver's packet parser and command table), so the monitor shows exactly what the clients and simulators
+understand, and there is no second copy of any byte layout here.
 """
 
 from __future__ import annotations
@@ -21,13 +21,13 @@ from typing import IO, Any
 from .common import add_can_flags, can_id, positive_float
 from .output import EXIT_FAILED, EXIT_OK, MONITOR_SCHEMA_ID, UsageError, write_json
 
-HELP = "decode live CAN traffic, a WSG TCP connection (--proxy) or a capture, one line per frame or packet"
+HELP = "decode live CAN traffic, a TCP connection (--proxy) or a capture, one line per frame or packet"
 EXAMPLE = (
     "grippers monitor capture.log            (candump -L format)\n"
-    "         grippers monitor wsg.hex --protocol wsg\n"
-    "         grippers monitor -i socketcan -c can0 --protocol stepfoc\n"
-    "         grippers monitor stepfoc+can://socketcan/can0      (the URL the other commands take)\n"
-    "         grippers monitor wsg+tcp://192.168.1.20            (through a proxy on a free port)\n"
+    "         grippers monitor session.hex --protocol FAMILY\n"
+    "         grippers monitor -i socketcan -c can0 --protocol FAMILY\n"
+    "         grippers monitor FAMILY+can://socketcan/can0       (the URL the other commands take)\n"
+    "         grippers monitor FAMILY+tcp://192.168.1.20         (through a proxy on a free port)\n"
     "         grippers monitor --proxy 127.0.0.1:1000 --to 192.168.1.20:1000\n"
     "         candump -L can0 | grippers monitor -\n"
     "         grippers monitor -i socketcan -c can0 -t r --write session.log   (record a fixture)"
@@ -56,23 +56,25 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "capture",
         nargs="?",
         metavar="FILE|URL",
-        help="capture file, or - for stdin; or a URL: can://IF/CH, stepfoc+can://IF/CH, wsg+can://IF/CH "
-        "(a live bus, like -i/-c), wsg+tcp://HOST[:PORT] (through the proxy); omit with -i/-c or --proxy",
+        help="capture file, or - for stdin; or a URL: can://IF/CH, FAMILY+can://IF/CH (a live bus, like "
+        "-i/-c), FAMILY+tcp://HOST[:PORT] (through the proxy); omit with -i/-c or --proxy",
     )
     parser.add_argument("--format", choices=FORMATS, default="auto", help="capture format (default: detect)")
     parser.add_argument(
         "--protocol",
         default="auto",
         metavar="NAME",
-        help="decode with this family's dissector (wsg, stepfoc, robotiq or modbus, a plugin's; default: on "
-        "CAN, frames on the WSG ids that carry a WSG packet as WSG, the rest as STEPFOC; bytes as WSG)",
+        help="decode with this family's or protocol's dissector (an installed family's name; default: "
+        "every installed family's, each CAN frame by the family that claims it; bytes by the family that "
+        "reads byte captures by default)",
     )
     parser.add_argument(
-        "--wsg-id",
+        "--can-id",
         type=can_id,
         default=0x000,
         metavar="ID",
-        help="WSG over CAN: the command id; replies come on ID+1 (default 0x000, docs/protocols.md §1)",
+        help="for a family that sends commands on a CAN id and replies on the next: the command id "
+        "(default 0x000, docs/protocols.md)",
     )
     parser.add_argument(
         "--direction",
@@ -94,7 +96,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--proxy",
         type=_host_port,
         metavar="HOST:PORT",
-        help="live WSG over TCP: listen here (port 0: a free port, printed on stderr), forward to --to",
+        help="live over TCP: listen here (port 0: a free port, printed on stderr), forward to --to",
     )
     parser.add_argument(
         "--to", type=_host_port, metavar="HOST:PORT", help="with --proxy: the gripper to forward to"
@@ -153,13 +155,12 @@ class _Capture:
     def _too_long(self, number: int) -> UsageError:
         return UsageError(
             f"{self.name}: line {number} is longer than {MAX_LINE} bytes: not a candump log or a hex dump "
-            "(raw WSG bytes: --format raw)"
+            "(raw bytes: --format raw)"
         )
 
     def sniff(self) -> str:
         """'candump', 'hex' or 'raw' from the first significant line, as :func:`sniff_format` decides."""
         from grippers.drivers.captures import looks_like_text, sniff_format
-        from grippers.drivers.wsg.protocol import PREAMBLE
 
         held = 0
         while held <= MAX_LINE:  # blank lines and comments before the first record: bounded too
@@ -169,10 +170,10 @@ class _Capture:
             if not line:
                 break
             if not looks_like_text(line):
-                if len(line) > MAX_LINE and PREAMBLE not in line:
+                if len(line) > MAX_LINE and not _holds_a_packet(line):
                     raise UsageError(
-                        f"{self.name}: not a capture: no line end in the first {MAX_LINE} bytes, and no WSG "
-                        "packet in them (raw WSG bytes anyway: --format raw)"
+                        f"{self.name}: not a capture: no line end in the first {MAX_LINE} bytes, and no "
+                        "packet of an installed family in them (raw bytes anyway: --format raw)"
                     )
                 return "raw"
             if len(line) > MAX_LINE:
@@ -196,6 +197,11 @@ class _Capture:
         read1 = getattr(self._fh, "read1", self._fh.read)
         yield from (piece for piece in head if piece)
         yield from iter(lambda: read1(CHUNK), b"")
+
+
+def _holds_a_packet(data: bytes) -> bool:
+    """Whether any installed family's byte dissector finds one of its packets in ``data``."""
+    return any(d.finds(data) for d in dict.fromkeys(dissectors().values()) if d.finds is not None)
 
 
 def _capture_records(args: argparse.Namespace) -> Iterator[dict[str, Any]]:
@@ -356,16 +362,16 @@ Writer = Callable[[str], None]
 
 def dissectors() -> dict[str, Any]:
     """Every installed family's ``dissector()`` (issue 28 §2), by family name and by protocol name."""
-    from grippers.backends import available_backends, find_backend
+    from grippers.backends import available_backends, find_backend, hook
 
     found: dict[str, Any] = {}
     for family in available_backends():
         try:
-            hook = getattr(find_backend(family), "dissector", None)
+            offered = hook(find_backend(family), "dissector")
         except Exception:  # a family whose optional dependency is missing dissects nothing here
             continue
-        if hook is not None:
-            dissector = hook()
+        if offered is not None:
+            dissector = offered()
             found.setdefault(family, dissector)
             found.setdefault(dissector.protocol, dissector)
     return found
@@ -386,7 +392,7 @@ def can_decoder(args: argparse.Namespace) -> Any:
     """The CAN dissectors of the installed families (or the one ``--protocol`` names), one decoder."""
     from grippers.drivers.dissect import CanDecoder
 
-    options = {"wsg_id": args.wsg_id, "only": args.protocol != "auto"}
+    options = {"can_id": args.can_id, "only": args.protocol != "auto"}
     parts = [d.can(options) for d in _chosen(args) if d.can is not None]
     if not parts:
         raise UsageError(f"the {args.protocol} dissector reads no CAN frames")
@@ -427,7 +433,7 @@ def apply_url(args: argparse.Namespace) -> None:
     """A connection URL in place of the capture FILE: the URLs every other command takes (issue 22 §2).
 
     ``can://IF/CH`` or ``FAMILY+can://IF/CH`` watch that bus (the family picks the decoder when
-    ``--protocol`` is auto; ``?bitrate=`` as ``-b``, a WSG's ``?send_id=`` as ``--wsg-id``);
+    ``--protocol`` is auto; ``?bitrate=`` as ``-b``, ``?send_id=`` as ``--can-id``);
     ``FAMILY+tcp://HOST[:PORT]`` relays through the proxy (``--proxy``, default a free loopback port) to that
     gripper, decoded by the family's byte stream dissector. Flags given beside the URL win over what the URL
     says, as they do for ``grippers.open``.
@@ -449,7 +455,7 @@ def apply_url(args: argparse.Namespace) -> None:
         if args.protocol == "auto" and dissector is not None and dissector.can is not None:
             args.protocol = url.family
         if "send_id" in url.params:
-            args.wsg_id = can_id(url.params["send_id"])
+            args.can_id = can_id(url.params["send_id"])
         from grippers.drivers.urls import bus_options
 
         if "port" in url.params:  # a udp_multicast bus of its own (issue 33 §3: it watched the default port)

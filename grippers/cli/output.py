@@ -13,7 +13,7 @@ import math
 import re
 import sys
 from collections.abc import Iterable, Mapping, Sequence
-from typing import TYPE_CHECKING, Any, TextIO
+from typing import TYPE_CHECKING, Any, TextIO, overload
 
 if TYPE_CHECKING:
     from grippers.profile_model import Limits
@@ -43,12 +43,26 @@ class UsageError(Exception):
 # --- units -------------------------------------------------------------------------------------------------
 
 
+# The API speaks SI (metres, m/s); people and the CLI speak millimetres. Every command converts here, once
+# each way (issue 32 §4: the CLI's display units in one module), so a width, a speed and a tolerance read the
+# same in every command; None (the device did not say) stays None.
+
+
+@overload
+def m_to_mm(value: float) -> float: ...
+@overload
+def m_to_mm(value: None) -> None: ...
 def m_to_mm(value: float | None) -> float | None:
-    """The API speaks SI (metres); people and the CLI speak millimetres."""
+    """Metres (or m/s) as millimetres (mm/s)."""
     return None if value is None else value * 1000.0
 
 
+@overload
+def mm_to_m(value: float) -> float: ...
+@overload
+def mm_to_m(value: None) -> None: ...
 def mm_to_m(value: float | None) -> float | None:
+    """Millimetres (mm/s) as metres (m/s), for the API."""
     return None if value is None else value / 1000.0
 
 

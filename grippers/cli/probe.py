@@ -34,8 +34,8 @@ EXAMPLE = (
     "grippers probe sim://\n"
     "         grippers probe tcp://127.0.0.1:1000 --json\n"
     "         grippers probe can://socketcan/can0 --timeout 0.5\n"
-    "         grippers probe -i udp_multicast -c 239.74.163.2 --wsg-id 0x7E8\n"
-    "         grippers probe            (this machine: serial ports, SocketCAN, 192.168.1.20)"
+    "         grippers probe -i udp_multicast -c 239.74.163.2 --can-id 0x7E8\n"
+    "         grippers probe            (this machine: serial ports, SocketCAN, factory addresses)"
 )
 
 # Per-candidate hard deadline, in multiples of --timeout: opening (one exchange) plus info and state reads.
@@ -49,7 +49,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="URL",
         nargs="?",
         help="tcp://HOST[:PORT], udp://HOST[:PORT], serial://PORT, can://INTERFACE/CHANNEL, a family URL "
-        "(wsg+tcp://..., stepfoc+can://...?node=N), sim:// (all simulators) or sim://PROFILE; "
+        "(FAMILY+tcp://..., FAMILY+can://...), sim:// (all simulators) or sim://PROFILE; "
         "none: scan this machine",
     )
     parser.add_argument(
@@ -65,20 +65,21 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--no-network",
         dest="network",
         action="store_false",
-        help="with no URL, leave out the WSG's factory address 192.168.1.20 (no traffic on the LAN)",
+        help="with no URL, leave out the families' factory network addresses (no traffic on the LAN)",
     )
     parser.add_argument(
-        "--wsg-id",
+        "--can-id",
         type=can_id,
         action="append",
         metavar="ID",
-        help="on a bare CAN bus, look for a WSG taking commands on ID and replying on ID+1 (repeatable; "
-        "default: the ids of the WSG profiles, 0x000)",
+        help="on a bare CAN bus, for a family that takes commands on a CAN id and replies on the next: "
+        "look on ID and ID+1 (repeatable; default: the ids of the family's profiles)",
     )
     parser.add_argument(
         "--profile",
         metavar="NAME",
-        help="device profile for the candidates of its family (an MSG cannot report its model or stroke)",
+        help="device profile for the candidates of its family (for a device that cannot report its model "
+        "or stroke)",
     )
     add_can_flags(parser)
 
@@ -155,7 +156,7 @@ def garbage_check(url: str, timeout: float) -> str | None:
     comes back. A device that answers with bytes that are not a packet of the family is reported as sending
     garbage (wrong baud rate, wrong protocol), not as silent. None when nothing came back, or when the family
     offers no raw probe (its backend's ``raw_probe`` hook)."""
-    from grippers.backends import find_backend
+    from grippers.backends import find_backend, hook
     from grippers.errors import URLError
     from grippers.urls import parse_url, to_int
 
@@ -164,8 +165,8 @@ def garbage_check(url: str, timeout: float) -> str | None:
     except URLError:
         return None  # opening it has said why
     family, transport = u.family, u.transport
-    hook = getattr(find_backend(family), "raw_probe", None)
-    raw = hook(transport) if hook is not None else None
+    offered = hook(find_backend(family), "raw_probe")
+    raw = offered(transport) if offered is not None else None
     if raw is None:
         return None
     request, goodbye = raw.request, raw.goodbye
@@ -320,7 +321,7 @@ def collect(
     network: bool,
     bitrate: int | None,
     progress: Progress,
-    wsg_ids: list[int] | None = None,
+    can_ids: list[int] | None = None,
     profile: str | None = None,
 ) -> dict[str, Any]:
     """Probe and build the JSON document (grippers.probe/2)."""
@@ -333,13 +334,13 @@ def collect(
         loaded = load_profile(profile)  # an unknown name is a usage error before anything is sent
 
     if target is None:
-        plan = pt.machine_targets(network=network, bitrate=bitrate, options={"can_ids": wsg_ids})
+        plan = pt.machine_targets(network=network, bitrate=bitrate, options={"can_ids": can_ids})
     elif target.startswith("zenoh://"):  # grippers served over Zenoh: ask who is served (docs/remote.md)
         from grippers.remote import served_urls
 
         plan = pt.Plan([pt.Candidate(u, pt.location_of(u), group=u) for u in served_urls(target, timeout)])
     else:
-        plan = pt.expand(target, bitrate=bitrate, options={"can_ids": wsg_ids})
+        plan = pt.expand(target, bitrate=bitrate, options={"can_ids": can_ids})
         if plan.sim_all:
             for url in _sim_targets():
                 plan.candidates.append(pt.Candidate(url, pt.location_of(url), group=url))
@@ -363,8 +364,8 @@ def collect(
                 skipped.append(
                     {
                         "target": c.url,
-                        "reason": "a STEPFOC node answers on the CAN ids this WSG probe would "
-                        "use (its E-stop frame); not sent",
+                        "reason": "a device answers at the bus node these CAN ids address; this "
+                        "probe's frame would reach it as a command there; not sent",
                     }
                 )
             else:
@@ -519,7 +520,7 @@ def run(args: argparse.Namespace) -> int:
             raise UsageError("-i/--interface and -c/--channel go together")
         args.target = f"can://{args.interface}/{args.channel}"
     progress = Progress()
-    doc = collect(args.target, args.timeout, args.network, args.bitrate, progress, args.wsg_id, args.profile)
+    doc = collect(args.target, args.timeout, args.network, args.bitrate, progress, args.can_id, args.profile)
     if args.json:
         write_json(doc)
     else:

@@ -116,7 +116,7 @@ def expand(target: str, bitrate: int | None = None, options: dict[str, Any] | No
     if scheme not in BARE_SCHEMES:
         from .suggest import hint
 
-        known = ", ".join((*BARE_SCHEMES, "FAMILY+TRANSPORT (e.g. wsg+tcp)", "sim"))
+        known = ", ".join((*BARE_SCHEMES, "FAMILY+TRANSPORT (e.g. FAMILY+tcp)", "sim"))
         fix = hint(text)
         raise UsageError(
             f"{target!r}: unknown scheme {raw_scheme!r} (known: {known})" + (f"; {fix}" if fix else "")
@@ -134,11 +134,13 @@ def expand(target: str, bitrate: int | None = None, options: dict[str, Any] | No
         if bitrate:
             bus["bitrate"] = bitrate  # -b wins over the URL, as flags do everywhere
         given["bus"] = bus
+    from grippers.backends import hook
+
     offered = []
     for backend in _backends():
-        hook = getattr(backend, "probe_candidates", None)
-        if hook is not None:
-            offered += hook(scheme, u, given)
+        candidates = hook(backend, "probe_candidates")
+        if candidates is not None:
+            offered += candidates(scheme, u, given)
     for c in sorted(offered, key=lambda c: c.order):  # stable: a family's own order within one rank
         # Candidates on one serial port share it, tried one after another; the rest each have their own.
         group = f"serial:{u.serial_port}" if scheme == "serial" else c.url
@@ -217,15 +219,17 @@ def serial_ports() -> list[str]:
 
 def machine_targets(network: bool, bitrate: int | None = None, options: dict[str, Any] | None = None) -> Plan:
     """What ``grippers probe`` with no URL looks at: serial ports, SocketCAN interfaces and the families'
-    factory addresses (a WSG's 192.168.1.20:1000: a TCP connection attempt; ``--no-network`` leaves them
-    out)."""
+    factory addresses (their ``factory_address`` hook: a TCP connection attempt each; ``--no-network`` leaves
+    them out)."""
+    from grippers.backends import hook
+
     plan = Plan()
     for port in serial_ports():
         plan.candidates += expand(f"serial://{port}", bitrate, options).candidates
     for name in socketcan_interfaces():
         plan.candidates += expand(f"can://socketcan/{name}", bitrate, options).candidates
     for backend in _backends():
-        address = getattr(backend, "factory_address", None)
+        address = hook(backend, "factory_address")
         if address is None:
             continue
         if network:

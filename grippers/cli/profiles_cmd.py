@@ -19,7 +19,7 @@ if TYPE_CHECKING:
 HELP = "list the device profiles, show one, validate profile files, or print their JSON Schema"
 EXAMPLE = (
     "grippers profiles list\n"
-    "         grippers profiles show wsg50\n"
+    "         grippers profiles show PROFILE\n"
     "         grippers profiles validate my-gripper.toml\n"
     "         grippers profiles schema > profile.schema.json\n"
     "         grippers profiles path            (where profiles are searched)"

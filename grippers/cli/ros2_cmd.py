@@ -17,9 +17,9 @@ from .common import positive_float
 
 HELP = "run ROS 2 nodes (control_msgs gripper actions, joint_states, /diagnostics, Trigger services)"
 EXAMPLE = (
-    "grippers ros2 wsg+tcp://192.168.1.20 --name left_gripper --namespace /cell1\n"
-    "         grippers ros2 sim://msg-150 --joint-name finger_joint --rate 100\n"
-    "         grippers ros2 left=wsg+tcp://192.168.1.20 right=sim://msg-150 --namespace /cell1\n"
+    "grippers ros2 FAMILY+tcp://192.168.1.20 --name left_gripper --namespace /cell1\n"
+    "         grippers ros2 sim://PROFILE --joint-name finger_joint --rate 100\n"
+    "         grippers ros2 left=FAMILY+tcp://192.168.1.20 right=sim://PROFILE --namespace /cell1\n"
     "         grippers ros2 zenoh://left --lifecycle --ros-args --params-file gripper.yaml"
 )
 
@@ -100,7 +100,7 @@ def _specs(args: argparse.Namespace) -> list[Any]:
     from grippers.ros2.app import GripperSpec
     from grippers.ros2.node import DEFAULT_JOINT, NodeOptions
 
-    from .output import UsageError
+    from .output import UsageError, mm_to_m
     from .serve import parse_targets
 
     targets = parse_targets(args.targets)
@@ -121,7 +121,7 @@ def _specs(args: argparse.Namespace) -> list[Any]:
             namespace=args.namespace,
             joint_names=(joint,),
             rate=args.rate,
-            tolerance=args.tolerance / 1000,
+            tolerance=mm_to_m(args.tolerance),
             actions=args.actions,
         )
         specs.append(GripperSpec(functools.partial(grippers.open, target, **kwargs), options))

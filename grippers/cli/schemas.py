@@ -17,7 +17,7 @@ from grippers.states import GraspName
 
 # The firmware exactly as the API's DeviceInfo.firmware says it (issue 22 §1: one value everywhere): the WSG's
 # major.minor1.minor2 with a release candidate's -rcN, the MSG's single software-version number.
-FIRMWARE_TEXT = "as grippers' DeviceInfo.firmware: WSG 4.0.1 (or 4.0.1-rc2), MSG 12 (one number)"
+FIRMWARE_TEXT = "as grippers' DeviceInfo.firmware: up to three numbers (4.0.1, or 4.0.1-rc2, or 12)"
 FIRMWARE_PATTERN = r"^\d+(\.\d+){0,2}(-[0-9A-Za-z.]+)?$"
 
 
@@ -34,7 +34,7 @@ class Location(_Strict):
     serial_port: str | None
     interface: str | None = Field(description="python-can interface")
     channel: str | None = Field(description="python-can channel")
-    node: int | None = Field(description="STEPFOC CAN node id 0-15")
+    node: int | None = Field(description="the device's node id on a bus; null where it has none")
     profile: str | None = Field(description="sim:// profile name")
 
 
@@ -42,10 +42,14 @@ class State(_Strict):
     width_mm: float = Field(description="opening width in mm")
     speed_mm_s: float | None = Field(description="finger speed in mm/s; null where the device does not say")
     force_n: float | None = Field(description="grip force in N; null where only a current is reported")
-    current_a: float | None = Field(description="motor current in A (MSG over CAN); null elsewhere")
+    current_a: float | None = Field(
+        description="motor current in A; null where the device does not report it"
+    )
     grasp_state: GraspName = Field(description="grippers.GraspState, lower case")
     moving: bool
-    referenced: bool = Field(description="the jaws know their position: WSG homed, MSG calibrated")
+    referenced: bool = Field(
+        description="the jaws know their position (homed or calibrated, as the family calls it)"
+    )
     faults: list[str] = Field(description="active faults by name, e.g. fast_stop; empty when none")
 
 
@@ -62,12 +66,12 @@ class Limits(_Strict):
     max_speed_mm_s: float
     min_force_n: float
     max_force_n: float
-    max_current_a: float | None = Field(description="for devices controlled by a current limit (MSG)")
+    max_current_a: float | None = Field(description="for devices controlled by a current limit; else null")
 
 
 class Device(_Strict):
     url: str = Field(description="a URL that opens this gripper with grippers.open() and every command")
-    family: str = Field(description="wsg or stepfoc (or a plugin's family)")
+    family: str = Field(description="the family: the connection URL's first part (a built-in or a plugin's)")
     vendor: str
     model: str
     profile: str = Field(description="the device profile used")
@@ -78,7 +82,8 @@ class Device(_Strict):
     state: State | StateError | None
     limits: Limits
     warnings: list[str] = Field(
-        default_factory=list, description="what the probe assumed or ignored, e.g. an MSG's model"
+        default_factory=list,
+        description="what the probe assumed or ignored, e.g. a model the device cannot report",
     )
 
 
@@ -114,7 +119,7 @@ class StateDocument(_Strict):
     state: State
     warnings: list[str] = Field(
         default_factory=list,
-        description="what the library assumed (grippers.GripperWarning), e.g. an MSG taken as msg-150",
+        description="what the library assumed (grippers.GripperWarning), e.g. a model it cannot read",
     )
 
 
@@ -136,7 +141,7 @@ class InfoDocument(_Strict):
     info: Info
     warnings: list[str] = Field(
         default_factory=list,
-        description="what the library assumed (grippers.GripperWarning), e.g. an MSG taken as msg-150",
+        description="what the library assumed (grippers.GripperWarning), e.g. a model it cannot read",
     )
 
 
@@ -148,7 +153,9 @@ class MotionOutcome(_Strict):
 class GraspOutcome(_Strict):
     grasped: bool
     width_mm: float
-    force_n: float | None = Field(description="grip force reached (estimated from the current on the MSG)")
+    force_n: float | None = Field(
+        description="grip force reached (estimated from the current where the device reports no force)"
+    )
     grasp_state: GraspName
     reason: str | None = Field(description="why no part is held, when none is")
 
@@ -166,7 +173,7 @@ class ResultDocument(_Strict):
     state: State | None = Field(description="the state read back after the command")
     warnings: list[str] = Field(
         default_factory=list,
-        description="what the library assumed (grippers.GripperWarning), e.g. an MSG taken as msg-150",
+        description="what the library assumed (grippers.GripperWarning), e.g. a model it cannot read",
     )
 
 
@@ -176,16 +183,21 @@ class MonitorRecord(_Strict):
     schema_: Literal["grippers.monitor/1"] = Field(alias="schema")
     time: float | None
     protocol: str = Field(
-        description="the family dissector's protocol (wsg, stepfoc, modbus, a plugin's); can: a frame no "
+        description="the family dissector's protocol (its name, e.g. a family's); can: a frame no "
         "family reads (error, extended, CAN FD) or that did not decode"
     )
     direction: str = Field(description="host->gripper, gripper->host or ?")
-    id: str | None = Field(description="WSG command id as '21h'; CAN arbitration id in hex for STEPFOC")
-    node: int | None = Field(description="STEPFOC node id; null for WSG")
+    id: str | None = Field(
+        description="the frame's or packet's id as the family writes it (a command id, a CAN id in hex)"
+    )
+    node: int | None = Field(
+        description="the bus node the frame is for or from; null where the protocol has none"
+    )
     command: str | None = Field(description="the command's name in the drivers' table; null for noise")
     fields: dict[str, object] = Field(description="decoded fields in the device's units")
     status: str | None = Field(
-        description="WSG replies: the status name; 'noise', 'error', or a checksum/length problem; else null"
+        description="a reply's status name where the protocol has one; 'noise', 'error', or a "
+        "checksum/length problem; else null"
     )
     text: str = Field(description="the drivers' one-line description, as the text output shows it")
     raw: str | None = Field(description="the packet or frame data in hex; 'R' for a remote frame")
@@ -230,8 +242,8 @@ class SettingsDocument(_Strict):
     family: str
     settings: dict[str, object] = Field(
         description="device units in the names (temperature_c, acceleration_mm_s2, force_limit_n, "
-        "soft_limits {min_mm, max_mm}, device_tag, finger_N {type, data_size}; MSG: node_id, "
-        "temperature_c, supply_v); "
+        "soft_limits {min_mm, max_mm}, device_tag, finger_N {type, data_size}, node_id, supply_v: what "
+        "the family's settings hook reads); "
         "a value the device did not give is {unavailable: why}"
     )
     changed: list[str] = Field(description="the settings this call changed")
@@ -258,10 +270,10 @@ class DoctorDocument(_Strict):
 
 
 class SimDocument(_Strict):
-    """``grippers sim wsg|msg --json``: where the simulator (or a replay) serves, printed once at start."""
+    """``grippers sim FAMILY --json``: where the simulator (or a replay) serves, printed once at start."""
 
     schema_: Literal["grippers.sim/1"] = Field(alias="schema")
-    what: str = Field(description="what is served, e.g. 'simulated WSG 50 (firmware 4.0.1)'")
+    what: str = Field(description="what is served, e.g. 'simulated MODEL (firmware X.Y.Z)'")
     urls: list[str] = Field(description="the URLs a client opens, one per simulated device")
 
 

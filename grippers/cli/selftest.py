@@ -25,16 +25,16 @@ import time
 from typing import TYPE_CHECKING, Any
 
 from .common import add_common, add_target, opened_gripper
-from .output import EXIT_OK, UsageError, table, write_json
+from .output import EXIT_OK, UsageError, m_to_mm, mm_to_m, table, write_json
 
 if TYPE_CHECKING:
     from .selftest_target import ProfileTarget
 
 HELP = "bench acceptance run: homes, moves at three speeds, closes without a part; measured vs the profile"
 EXAMPLE = (
-    "grippers selftest wsg+tcp://192.168.1.20\n"
-    "         grippers selftest 'stepfoc+can://socketcan/can0?node=0' --profile msg-100 --yes --json\n"
-    "         grippers selftest 'stepfoc+can://socketcan/can0?node=0' --write-profile my-msg.toml"
+    "grippers selftest FAMILY+tcp://192.168.1.20\n"
+    "         grippers selftest 'FAMILY+can://socketcan/can0?node=0' --profile PROFILE --yes --json\n"
+    "         grippers selftest 'FAMILY+can://socketcan/can0?node=0' --write-profile my-gripper.toml"
 )
 
 SELFTEST_SCHEMA_ID = "grippers.selftest/1"
@@ -127,7 +127,7 @@ def _time_scale(args: argparse.Namespace) -> float:
 def plan_text(name: str, lo_mm: float, hi_mm: float, speeds: list[float], force: float) -> str:
     return (
         f"grippers selftest will move {name}:\n"
-        f"  home twice (a WSG references; an MSG calibrates: its jaws travel to both end stops);\n"
+        f"  home twice (the gripper references itself; some calibrate: the jaws travel to both end stops);\n"
         f"  move between {lo_mm:.1f} and {hi_mm:.1f} mm at {', '.join(f'{s:g}' for s in speeds)} mm/s;\n"
         f"  close from {hi_mm:.1f} mm as for a part of {lo_mm:.1f} mm at {force:g} N (keep the jaws EMPTY);\n"
         f"  open again, and read the faults and settings back."
@@ -154,8 +154,8 @@ def _timed_move(
     handle = gripper.move(target, speed, wait=False)
     while not handle.done():
         state = gripper.state()
-        samples.append((time.monotonic(), state.width * 1000))
-        reported.append(None if state.speed is None else state.speed * 1000)
+        samples.append((time.monotonic(), m_to_mm(state.width)))
+        reported.append(m_to_mm(state.speed))
     handle.wait()
     end = time.monotonic()
     duration = end - start
@@ -187,11 +187,11 @@ class _Run:
         self.speeds: list[SpeedMeasurement] = []
         self.stroke_mm: float | None = None
         limits = gripper.limits
-        self.lo_mm = (limits.min_width + SPAN[0] * limits.stroke) * 1000
-        self.hi_mm = (limits.min_width + SPAN[1] * limits.stroke) * 1000
+        self.lo_mm = m_to_mm(limits.min_width + SPAN[0] * limits.stroke)
+        self.hi_mm = m_to_mm(limits.min_width + SPAN[1] * limits.stroke)
         self.speed_list = test_speeds(
-            limits.min_speed * 1000,
-            limits.max_speed * 1000,
+            m_to_mm(limits.min_speed),
+            m_to_mm(limits.max_speed),
             self.hi_mm - self.lo_mm,
             SPEED_FRACTIONS,
             _accel(gripper),
@@ -216,13 +216,13 @@ class _Run:
             self.add(f"faults {when}", "none", "none", "PASS")
 
     def stroke(self) -> None:
-        from grippers.backends import find_backend
+        from grippers.backends import find_backend, hook
 
         profile_mm = self.g.profile.mechanics.stroke_mm
         info = self.g.info()
-        if getattr(find_backend(info.family), "reports_stroke", False):
-            # The device reports its own limits (a WSG's 53h); the backend narrows the profile's with them.
-            self.stroke_mm = info.limits.stroke * 1000
+        if hook(find_backend(info.family), "reports_stroke"):
+            # The device reports its own limits; the backend narrows the profile's with them.
+            self.stroke_mm = m_to_mm(info.limits.stroke)
             ok = abs(self.stroke_mm - profile_mm) <= POSITION_TOLERANCE * profile_mm
             self.add(
                 "stroke",
@@ -269,12 +269,12 @@ class _Run:
     def moves(self) -> None:
         from .selftest_checks import SpeedMeasurement, fit_speed, speed_verdict
 
-        stroke_mm = self.g.limits.stroke * 1000
-        self.g.move(self.lo_mm / 1000)
+        stroke_mm = m_to_mm(self.g.limits.stroke)
+        self.g.move(mm_to_m(self.lo_mm))
         here, there = self.lo_mm, self.hi_mm
         for speed in self.speed_list:
-            samples, reported, duration, poll = _timed_move(self.g, there / 1000, speed / 1000)
-            end = self.g.state().width * 1000
+            samples, reported, duration, poll = _timed_move(self.g, mm_to_m(there), mm_to_m(speed))
+            end = m_to_mm(self.g.state().width)
             # Wall times to device times: a simulator N times faster than real time moves N times faster.
             dev = [(self.device_s(t), w) for t, w in samples]
             measured, uncertainty, used, method = fit_speed(
@@ -304,14 +304,15 @@ class _Run:
             here, there = there, here
 
     def close_without_part(self) -> None:
-        if abs(self.g.state().width * 1000 - self.hi_mm) > POSITION_TOLERANCE * self.g.limits.stroke * 1000:
-            self.g.move(self.hi_mm / 1000)
+        off_mm = abs(m_to_mm(self.g.state().width) - self.hi_mm)
+        if off_mm > POSITION_TOLERANCE * m_to_mm(self.g.limits.stroke):
+            self.g.move(mm_to_m(self.hi_mm))
         start = time.monotonic()
-        result = self.g.grasp(self.lo_mm / 1000, force=self.force)
+        result = self.g.grasp(mm_to_m(self.lo_mm), force=self.force)
         took = self.device_s(time.monotonic() - start)
         self.add(
             "close without a part",
-            "no part" if not result.grasped else f"holding at {result.width * 1000:.1f} mm",
+            "no part" if not result.grasped else f"holding at {m_to_mm(result.width):.1f} mm",
             "no part",
             "WARN" if result.grasped else "PASS",
             "reported a part in empty jaws: stall detection too eager, or the jaws are not empty"
@@ -322,16 +323,16 @@ class _Run:
         self.g.release()
 
     def settings(self) -> None:
-        from grippers.backends import find_backend
+        from grippers.backends import find_backend, hook
 
         from .settings_cmd import device_settings_of
 
         info = self.g.info()
-        hook = device_settings_of(self.g)
-        if hook is None:
+        settings = device_settings_of(self.g)
+        if settings is None:
             self.add("settings", "-", "-", "INFO", f"the {info.family} backend offers no device settings")
             return
-        if not hook.supports(self.g):
+        if not settings.supports(self.g):
             self.add(
                 "settings",
                 "-",
@@ -340,7 +341,7 @@ class _Run:
                 "not served over the network: run selftest on the serving machine",
             )
             return
-        checks = getattr(find_backend(info.family), "selftest_checks", None)
+        checks = hook(find_backend(info.family), "selftest_checks")
         if checks is not None:
             checks(self.g, self.add)
 

@@ -17,9 +17,9 @@ from .common import positive_float
 
 HELP = "serve grippers over Eclipse Zenoh (zenoh://NAME URLs for other processes and machines)"
 EXAMPLE = (
-    "grippers serve left=wsg+tcp://192.168.1.20 right=sim://msg-150\n"
-    "         grippers serve wsg50 --listen tcp/0.0.0.0:7447        (every interface: other machines)\n"
-    "         grippers serve left=wsg50 --zenoh-config cell.json5   (TLS, access control, routers)"
+    "grippers serve left=FAMILY+tcp://192.168.1.20 right=sim://PROFILE\n"
+    "         grippers serve PROFILE --listen tcp/0.0.0.0:7447        (every interface: other machines)\n"
+    "         grippers serve left=PROFILE --zenoh-config cell.json5   (TLS, access control, routers)"
 )
 
 

@@ -1,5 +1,7 @@
 """``grippers settings URL``: read, and change, what a gripper stores besides its motion.
 
+What a family offers is its backend's ``device_settings`` hook (which options it takes, how they are
+checked, changed and read); this module parses the options and shows the result. The built-in families:
 WSG: temperature, soft limits, device tag, acceleration, force limit, finger information (WSG manual 4.0.x
 §3.3-§3.5 and §3.6, commands 30h-36h, 40h, 52h/53h, 60h-63h). MSG on a STEPFOC driver: temperature, supply
 voltage, the CAN node id (command 11), the watchdog (15) and the heartbeat (30), which are saved to flash
@@ -21,13 +23,14 @@ from typing import Any
 from .common import add_common, add_target, non_negative_float, open_gripper, positive_float
 from .output import EXIT_OK, SETTINGS_SCHEMA_ID, UsageError, key_values, write_json
 
-HELP = "show or change device settings: WSG soft limits, tag, acceleration, force limit; MSG node id"
+HELP = "show or change device settings: soft limits, tag, acceleration, force limit, bus node id, ..."
 EXAMPLE = (
-    "grippers settings wsg+tcp://192.168.1.20\n"
-    "         grippers settings wsg+tcp://192.168.1.20 --soft-limits 10 90 --tag bench-2 --json\n"
-    "         grippers settings wsg+tcp://192.168.1.20 --acceleration 500 --force-limit 40\n"
-    "         grippers settings 'stepfoc+can://socketcan/can0?node=0' --node-id 3   (asks, then saves)\n"
-    "         grippers settings 'stepfoc+can://socketcan/can0?node=0' --watchdog 0 --heartbeat 0 --save"
+    "grippers settings URL\n"
+    "         grippers settings URL --soft-limits 10 90 --tag bench-2 --json\n"
+    "         grippers settings URL --acceleration 500 --force-limit 40\n"
+    "         grippers settings 'FAMILY+can://socketcan/can0?node=0' --node-id 3   (asks, then saves)\n"
+    "         grippers settings 'FAMILY+can://socketcan/can0?node=0' --watchdog 0 --heartbeat 0 --save\n"
+    "         (which of these a gripper takes is its family's to say: grippers settings URL shows them)"
 )
 
 # Every option a family's ``device_settings`` may take (argparse dests): one given that the gripper's family
@@ -43,48 +46,47 @@ SETTING_OPTIONS = (
     "heartbeat",
     "save",
 )
-MAX_NODE = 15  # 4-bit node id (MSG manual, "Bits 10 - 7 of CAN ID"; docs/protocols.md §2)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_target(parser)
-    wsg = parser.add_argument_group("WSG")
-    wsg.add_argument(
+    stored = parser.add_argument_group("stored in the gripper (families with them)")
+    stored.add_argument(
         "--soft-limits",
         nargs=2,
         type=non_negative_float,
         metavar=("MIN_MM", "MAX_MM"),
         help="set the soft limits the device enforces",
     )
-    wsg.add_argument("--clear-soft-limits", action="store_true", help="remove the soft limits")
-    wsg.add_argument("--tag", metavar="TEXT", help="set the device tag (a name stored in the gripper)")
-    wsg.add_argument("--acceleration", type=positive_float, metavar="MM_S2", help="set the acceleration")
-    wsg.add_argument("--force-limit", type=positive_float, metavar="N", help="set the grip force limit")
-    msg = parser.add_argument_group("MSG (STEPFOC over CAN)")
-    msg.add_argument("--node-id", type=int, metavar="N", help=f"change the CAN node id (0..{MAX_NODE})")
-    msg.add_argument(
+    stored.add_argument("--clear-soft-limits", action="store_true", help="remove the soft limits")
+    stored.add_argument("--tag", metavar="TEXT", help="set the device tag (a name stored in the gripper)")
+    stored.add_argument("--acceleration", type=positive_float, metavar="MM_S2", help="set the acceleration")
+    stored.add_argument("--force-limit", type=positive_float, metavar="N", help="set the grip force limit")
+    node = parser.add_argument_group("a node on a bus (families with them)")
+    node.add_argument("--node-id", type=int, metavar="N", help="change the bus node id (the family's range)")
+    node.add_argument(
         "--watchdog",
         type=period_ms,
         metavar="MS",
-        help="node raises 'timeout' and idles after MS ms without a 61, data pack or remote request (0 off)",
+        help="node raises 'timeout' and idles after MS ms without traffic from its controller (0 off)",
     )
-    msg.add_argument(
+    node.add_argument(
         "--heartbeat",
         type=period_ms,
         metavar="MS",
         help="node sends a heartbeat after MS ms of silence (0 off)",
     )
-    msg.add_argument(
+    node.add_argument(
         "--save",
         dest="save",
         action="store_true",
         default=None,
         help="save node id, watchdog and heartbeat to flash (default with --node-id; asks first)",
     )
-    msg.add_argument(
+    node.add_argument(
         "--no-save", dest="save", action="store_false", help="with --node-id: do not save it (lost at reset)"
     )
-    msg.add_argument(
+    node.add_argument(
         "-y", "--yes", action="store_true", help="do not ask before changing a node id or saving"
     )
     add_common(parser)
@@ -142,10 +144,9 @@ def _given(args: argparse.Namespace, option: str) -> bool:
 
 def device_settings_of(gripper: Any) -> Any:
     """The ``device_settings`` hook of ``gripper``'s family (issue 28 §2), or None when it offers none."""
-    from grippers.backends import find_backend
+    from grippers.backends import find_backend, hook
 
-    backend = find_backend(gripper.info().family)
-    return getattr(backend, "device_settings", None)
+    return hook(find_backend(gripper.info().family), "device_settings")
 
 
 def _refuse_unreachable(gripper: Any, hook: Any, family: str) -> None:

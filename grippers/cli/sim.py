@@ -15,8 +15,8 @@ from typing import Any
 
 HELP = "run a simulated gripper that speaks the real protocol (TCP, UDP, a pty or a CAN bus)"
 EXAMPLE = (
-    "grippers sim wsg --listen tcp://127.0.0.1:1000\n"
-    "         grippers sim robotiq --listen pty --model 2f85\n"
+    "grippers sim FAMILY --listen tcp://127.0.0.1:5020\n"
+    "         grippers sim FAMILY --listen pty\n"
     "         grippers sim FAMILY --help   (what that family's simulator takes)"
 )
 
@@ -28,7 +28,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "family",
         metavar="FAMILY",
-        help=f"the family to simulate ({shown}, msg for stepfoc, or an installed plugin's); "
+        help=f"the family to simulate ({shown}, a name its simulator answers to, or an installed plugin's); "
         "`grippers sim FAMILY --help` lists its options",
     )
     parser.add_argument("family_args", nargs=argparse.REMAINDER, help=argparse.SUPPRESS)
@@ -41,13 +41,11 @@ class Generic:
     NAMES: tuple[str, ...] = ()
 
     def __init__(self, family: str, backend: Any) -> None:
+        from grippers.backends import hook
+
         self.family = family
-        self.HELP = (
-            getattr(backend, "sim_help", None) or f"simulate a {family} gripper with its backend's simulator"
-        )
-        self.EXAMPLE = (
-            getattr(backend, "sim_example", None) or f"grippers sim {family} --listen pty --model NAME"
-        )
+        self.HELP = hook(backend, "sim_help") or f"simulate a {family} gripper with its backend's simulator"
+        self.EXAMPLE = hook(backend, "sim_example") or f"grippers sim {family} --listen pty --model NAME"
 
     def add_arguments(self, parser: argparse.ArgumentParser) -> None:
         from .sim_common import add_sim_arguments
@@ -61,13 +59,14 @@ class Generic:
         )
 
     def run(self, args: argparse.Namespace, backend: Any) -> int:
+        from grippers.backends import hook
         from grippers.profiles import list_profiles, load_profile
 
         from .output import UsageError
         from .sim_common import serve_forever, settings_for, warn_private_bus
 
         if args.profile is None:
-            default = getattr(backend, "default_profile", None) or next(
+            default = hook(backend, "default_profile") or next(
                 (p.name for p in list_profiles() if p.family == backend.family), None
             )
             if default is None:
@@ -89,7 +88,7 @@ class Generic:
 def _find(name: str) -> tuple[Any, Any]:
     """The backend simulating ``name`` (a family, or a name its ``cli_sim`` declares, ``msg``) and its
     command (its ``cli_sim``, or :class:`Generic`)."""
-    from grippers.backends import available_backends, find_backend
+    from grippers.backends import available_backends, find_backend, hook
 
     from .output import UsageError
 
@@ -100,15 +99,15 @@ def _find(name: str) -> tuple[Any, Any]:
                 other = find_backend(family)
             except Exception:  # a family whose optional dependency is missing has no simulator here
                 continue
-            if name in getattr(getattr(other, "cli_sim", None), "NAMES", ()):
+            if name in getattr(hook(other, "cli_sim"), "NAMES", ()):
                 backend = other
                 break
     if backend is None:
         raise UsageError(f"no family {name!r} to simulate (installed: {', '.join(available_backends())})")
-    command = getattr(backend, "cli_sim", None)
+    command = hook(backend, "cli_sim")
     if command is None:
         if not callable(getattr(backend, "simulator", None)):
-            raise UsageError(f"the {backend.family} backend offers no simulator")
+            raise UsageError(f"the {backend.family} family offers no simulator")
         command = Generic(name, backend)
     return backend, command
 

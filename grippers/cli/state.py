@@ -17,7 +17,7 @@ if TYPE_CHECKING:
     from grippers.gripper import GripperState
 
 HELP = "show the gripper's state (width, force, grasp state, faults), once or live with --watch"
-EXAMPLE = "grippers state wsg+tcp://127.0.0.1:1000 --watch --rate 5"
+EXAMPLE = "grippers state FAMILY+tcp://192.168.1.20 --watch --rate 5"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -108,7 +108,7 @@ def test_bare_can_bus_lists_the_wsg_and_the_msg(start_sim, cli, cli_json, mcast_
     ).url
     start_sim("msg", "--listen", f"can://udp_multicast/{mcast_channel}?node={MSG_NODE_WITH_WSG}")
     doc = cli_json(
-        "probe", "-i", "udp_multicast", "-c", mcast_channel, "--wsg-id", hex(WSG_CAN_ID), "--timeout", "0.5"
+        "probe", "-i", "udp_multicast", "-c", mcast_channel, "--can-id", hex(WSG_CAN_ID), "--timeout", "0.5"
     )
     found = {d["family"]: d for d in doc["grippers"] if d["location"]["channel"] == mcast_channel}
     msg = [d for d in doc["grippers"] if d["location"]["node"] == MSG_NODE_WITH_WSG]

@@ -1,4 +1,4 @@
-"""The ``--wsg-id`` argument type shared by ``grippers probe`` and ``grippers monitor``."""
+"""The ``--can-id`` argument type shared by ``grippers probe`` and ``grippers monitor``."""
 
 from __future__ import annotations
 

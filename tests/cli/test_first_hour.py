@@ -242,7 +242,7 @@ def test_monitor_reads_can_urls_like_the_other_commands() -> None:
     a = _monitor_args("stepfoc+can://socketcan/vcan1?node=3&bitrate=500000")
     assert (a.interface, a.channel, a.protocol, a.bitrate) == ("socketcan", "vcan1", "stepfoc", 500000)
     a = _monitor_args("wsg+can://socketcan/can0?send_id=0x7E8")
-    assert (a.protocol, a.wsg_id) == ("wsg", 0x7E8)
+    assert (a.protocol, a.can_id) == ("wsg", 0x7E8)
     a = _monitor_args("-c", "can1", "can://socketcan/can0")  # a flag beside the URL wins, as in open()
     assert a.channel == "can1"
     a = _monitor_args("wsg+tcp://192.168.1.20")

@@ -135,11 +135,11 @@ def test_candump_log_of_wsg_over_can(tmp_path: Path, cli) -> None:
     ]
     capture = tmp_path / "wsg-can.log"
     capture.write_text("\n".join(lines) + "\n")
-    docs = _records(cli("monitor", str(capture), "--protocol", "wsg", "--wsg-id", hex(base), "--json"))
+    docs = _records(cli("monitor", str(capture), "--protocol", "wsg", "--can-id", hex(base), "--json"))
     assert [d["direction"] for d in docs] == ["host->gripper", "gripper->host"]
     assert docs[1]["id"] == "30h" and docs[1]["time"] == 1.2  # reassembled from two frames
     # --protocol auto finds the same packets among STEPFOC frames.
-    auto = _records(cli("monitor", str(capture), "--wsg-id", hex(base), "--json"))
+    auto = _records(cli("monitor", str(capture), "--can-id", hex(base), "--json"))
     assert [d["protocol"] for d in auto] == ["wsg", "wsg"]
 
 
