@@ -155,7 +155,7 @@ _TABLE = (
     Command(
         "home",
         MOTION,
-        "reference the axis (WSG homing) or calibrate the stroke (MSG)",
+        "reference the axis: homing, calibration or activation, as the family does",
         (Param("timeout", NUMBER, "s", None), _WAIT),
         served=Served("home", lease=_TAKE),
         cli=("home",),

@@ -47,7 +47,8 @@ class MotionCommand:
             parser.add_argument(
                 "--home",
                 action="store_true",
-                help="home (WSG) or calibrate (MSG) first if the gripper is not referenced yet "
+                help="home first (reference, calibrate or activate, as the family does) if the gripper is "
+                "not referenced yet "
                 "(needed on sim://, which starts a new simulator each time)",
             )
         if self.name in MOTIONS:
@@ -253,44 +254,44 @@ def _ack(g: Gripper, a: argparse.Namespace) -> None:
 
 home = MotionCommand(
     "home",
-    "move the fingers to their reference position (WSG homing, MSG calibration)",
-    "grippers home wsg+tcp://127.0.0.1:1000",
+    "reference the axis: homing, calibration or activation, as the family does",
+    "grippers home FAMILY+tcp://192.168.1.20",
     _no_extra,
     _home,
 )
 move = MotionCommand(
     "move",
     "move the fingers to an opening width in mm, without gripping",
-    "grippers move wsg+tcp://127.0.0.1:1000 40 --speed 50\n"
-    "         grippers move 'sim://msg-150?time_scale=20' 30 --home",
+    "grippers move FAMILY+tcp://192.168.1.20 40 --speed 50\n"
+    "         grippers move 'sim://PROFILE?time_scale=20' 30 --home",
     _move_args,
     _move,
 )
 grasp = MotionCommand(
     "grasp",
     "grip a part of a nominal width in mm with a force in N (exit 1 if no part was gripped)",
-    "grippers grasp wsg+tcp://127.0.0.1:1000 20 --force 30 --speed 50",
+    "grippers grasp FAMILY+tcp://192.168.1.20 20 --force 30 --speed 50",
     _grasp_args,
     _grasp,
 )
 release = MotionCommand(
     "release",
     "release a gripped part: open to a width in mm (default fully open)",
-    "grippers release wsg+tcp://127.0.0.1:1000 60",
+    "grippers release FAMILY+tcp://192.168.1.20 60",
     _release_args,
     _release,
 )
 stop = MotionCommand(
     "stop",
     "stop the current motion (--fast: FAST STOP, acknowledge with `grippers ack`)",
-    "grippers stop wsg+tcp://127.0.0.1:1000",
+    "grippers stop FAMILY+tcp://192.168.1.20",
     _stop_args,
     _stop,
 )
 ack = MotionCommand(
     "ack",
     "acknowledge a FAST STOP or fault so the gripper accepts commands again",
-    "grippers ack wsg+tcp://127.0.0.1:1000",
+    "grippers ack FAMILY+tcp://192.168.1.20",
     _no_extra,
     _ack,
 )

@@ -30,7 +30,7 @@ class State(_Strict):
     current: float | None = Field(description="A; null where the device does not report it")
     grasp: GraspName = Field(description="grippers.GraspState")
     moving: bool
-    referenced: bool = Field(description="WSG homed / MSG calibrated")
+    referenced: bool = Field(description="homed, calibrated or activated, as the family does: home() done")
     faults: list[str] = Field(description="active faults by name (fast_stop, ...)")
 
 
@@ -71,7 +71,8 @@ class Info(_Strict):
     )
     profile_assumed: bool = Field(
         default=False,
-        description="the served gripper's model was assumed (an MSG opened without a profile): clients warn",
+        description="the served gripper's model was assumed (a device that cannot report it, opened "
+        "without a profile): clients warn",
     )
 
 
