@@ -49,6 +49,8 @@ class GripperCore(Protocol):
 
     def _read_on(self, loop: asyncio.AbstractEventLoop) -> Callable[[], None] | None: ...
 
+    def _motion_timeout(self, distance: float, speed: float) -> float: ...
+
 
 class AsyncSupport:
     """What a gripper offers a face that awaits instead of blocking. Get it with ``g.async_support()``."""
@@ -102,6 +104,29 @@ class AsyncSupport:
         threads) instead of a thread of its own each; None goes back to a thread each. The motion rule
         (supersede, abort, the handles) stays the gripper's (grippers/motions.py)."""
         self._g._motions.spawn = spawn
+
+    def stop_running_motions(self, by: str) -> list[BaseException]:
+        """Stop (bounded) every motion still running, each ending with CommandFailed "aborted by BY"; returns
+        the stops that failed. Sends nothing when no motion runs (an MSG over UART stops by switching its
+        motor off, which would let a held part go).
+
+        Why a face needs it: the gripper stops a motion on Ctrl-C only inside a blocking call; a motion
+        started with ``wait=False`` belongs to its caller, so a command that polls one (the CLI's
+        ``selftest``, ``record --do``) stops it itself when it is interrupted (issue 33 §1)."""
+        supervisor = self._g._motions
+        failures = []
+        for handle in list(supervisor.handles):
+            if handle.done():
+                continue
+            failure = supervisor.abort(by, handle, bounded=True)
+            if failure is not None:
+                failures.append(failure)
+        return failures
+
+    def motion_timeout(self, distance: float, speed: float) -> float:
+        """The bound the gripper puts on a motion of ``distance`` (m) at ``speed`` (m/s) when the caller
+        gives none (a face that times a motion itself uses the same bound)."""
+        return self._g._motion_timeout(distance, speed)
 
     # -- what a face asks before choosing its path ----------------------------------------------------------
 

@@ -359,9 +359,10 @@ class Gripper(ServoFace, OptionalFeatures, ConnectionHooks, ABC):
         return st
 
     def async_support(self) -> AsyncSupport:
-        """The one declared hook of a face that awaits instead of blocking (grippers/aio.py): the non-blocking
-        state read, giving up a cancelled call, the loop as reader, motions on the face's threads
-        (grippers/face_support.py). Not a command (grippers/commands.py's ``FACE_HOOKS``)."""
+        """The one declared hook of a face built on this gripper (grippers/aio.py; the CLI's commands that
+        poll a motion): the non-blocking state read, giving up a cancelled call, the loop as reader, motions
+        on the face's threads, stopping the motions a face started without waiting (grippers/face_support.py).
+        Not a command (grippers/commands.py's ``FACE_HOOKS``)."""
         from .face_support import AsyncSupport
 
         return AsyncSupport(self)

@@ -128,15 +128,7 @@ def stop_running_motions(gripper: Gripper, by: str) -> list[BaseException]:
     ``wait=False`` belongs to its caller, and ``close()`` lets it run on to its end (documented), so a
     command that is interrupted while it polls (``selftest``'s timed moves) left the jaws moving after exit
     130 (issue 33 §1). Each motion ends with CommandFailed "aborted by BY"."""
-    supervisor = gripper._motions  # the gripper's one register of its motions (grippers/motions.py)
-    failures = []
-    for handle in list(supervisor.handles):
-        if handle.done():
-            continue
-        failure = supervisor.abort(by, handle, bounded=True)
-        if failure is not None:
-            failures.append(failure)
-    return failures
+    return gripper.async_support().stop_running_motions(by)
 
 
 @contextmanager

@@ -248,7 +248,7 @@ class _Run:
         took = self.device_s(time.monotonic() - start)
         # The library's own bound on home() (Gripper.home: twice the travel at 20 mm/s, plus slack); a unit
         # that needs more than half of it is one slow day away from a GripperTimeout.
-        bound = self.device_s(self.g._motion_timeout(2 * self.g.limits.stroke, 0.02)) / 2
+        bound = self.device_s(self.g.async_support().motion_timeout(2 * self.g.limits.stroke, 0.02)) / 2
         ok = took <= bound
         self.add(
             f"home ({which})",
