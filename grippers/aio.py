@@ -508,6 +508,10 @@ class AsyncGripper:
         else:
             self.sync.servo(width, speed, force)
 
+    async def servo_flush(self, timeout: float = 5.0) -> bool:
+        """``Gripper.servo_flush`` on a worker: the event loop never waits for the servo loop's sender."""
+        return await self._call(lambda: self.sync.servo_flush(timeout))
+
     async def stream(self, rate_hz: float = 50.0) -> AsyncIterator[GripperState]:
         """States at ``rate_hz`` as an async iterator, polled from this task (no thread of its own).
 

@@ -260,6 +260,12 @@ _TABLE = (
         served=Served("servo", lease=_TAKE),
     ),
     Command(
+        "servo_flush",
+        QUERY,
+        "wait until the servo targets given so far are on the wire (True) or the timeout passed (False)",
+        (Param("timeout", NUMBER, "s", 5.0),),
+    ),
+    Command(
         "stream",
         STREAM,
         "states at a rate; the asyncio twin is an async iterator: no callback, its loop body is one",

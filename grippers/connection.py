@@ -12,6 +12,8 @@ from .errors import DeviceMismatch, NotSupported
 from .parts import GripperPart
 
 if TYPE_CHECKING:
+    from .errors import GripperError
+    from .reconnect import ReconnectPolicy
     from .states import GripperState
 
 
@@ -35,6 +37,17 @@ class Watch(Protocol):
 
     def close(self) -> None: ...
 
+    # Read by users and tests through Gripper.link_watch: what the watch does, never how.
+    @property
+    def policy(self) -> ReconnectPolicy: ...
+
+    epoch: int
+    """Reconnections so far (a stream that saw another epoch missed states)."""
+    attempts: int
+    """Failed attempts in the current outage."""
+    last_error: GripperError | None
+    """Why the link was last lost, or the last attempt failed."""
+
 
 class ConnectionHooks(GripperPart):
     """Connection state for users, reconnection hooks for backends."""
@@ -44,6 +57,13 @@ class ConnectionHooks(GripperPart):
     _on_close: list[Callable[[], None]]
     _watch: Watch | None
     _opened_identity: dict[str, str]
+
+    @property
+    def link_watch(self) -> Watch | None:
+        """With ``reconnect=true``: the watch that brings a lost link back (its ``policy``, ``epoch``: the
+        reconnections so far, ``attempts`` in the current outage, ``last_error``); None when reconnection is
+        off. Read it; the gripper drives it."""
+        return self._watch
 
     @property
     def connected(self) -> bool:

@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING
 
 from .errors import NotSupported
 from .limit_checks import LimitChecks
+from .motions import wait_seconds
 
 if TYPE_CHECKING:
     from .motions import MotionSupervisor
@@ -55,6 +56,21 @@ class ServoFace(LimitChecks):
         """Counts of the current (or last) servoing: received, sent, coalesced, unchanged, failed."""
         loop = self._servo_loop or self._last_servo_loop
         return None if loop is None else loop.stats
+
+    @property
+    def servoing(self) -> bool:
+        """A servoing runs: ``servo()`` targets stream to the device until stop() or a motion command."""
+        return self._servo_loop is not None
+
+    def servo_flush(self, timeout: float = 5.0) -> bool:
+        """Wait until every target given so far is on the wire (sent, coalesced into a newer one, or found
+        unchanged) or servoing ended; False if that took longer than ``timeout`` seconds.
+
+        For a program that reads the state or the counters right after its last target (a test, a
+        benchmark); a control loop never needs it, the latest target wins anyway."""
+        seconds = wait_seconds(timeout, "servo_flush", self.name)
+        loop = self._servo_loop
+        return True if loop is None else loop.flush(seconds if seconds is not None else threading.TIMEOUT_MAX)
 
     def _end_servo(self, *, stop_device: bool) -> None:
         with self._lock:

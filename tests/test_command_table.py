@@ -141,7 +141,7 @@ def test_the_remote_client_sends_each_served_verb_with_the_tables_arguments(verb
         kwargs = {p.name: _SAMPLE[p.name] for p in c.params if p.required}
         getattr(g, c.name)(**kwargs)
         if c.name == "servo":
-            assert g._servo_loop is not None and g._servo_loop.flush(5.0)
+            assert g.servoing and g.servo_flush(5.0)
         with g.sent_lock:
             sent = list(g.sent)
         assert sent and sent[-1][0] == verb, f"{c.name}() sent {sent}, the table says {verb!r}"

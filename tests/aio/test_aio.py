@@ -155,7 +155,7 @@ def test_awaiting_open_and_servo() -> None:
             for i in range(50):
                 await g.servo(0.02 + i * 0.0004)
                 await asyncio.sleep(0.002)
-            assert g.sync._servo_loop.flush(2.0)
+            assert g.sync.servo_flush(2.0)
             await asyncio.sleep(0.2)
             assert abs((await g.state()).width - 0.0396) < 1e-3
         finally:

@@ -59,7 +59,7 @@ def test_calls_during_a_long_outage_never_hang(wsg_port_sim: Restartable) -> Non
     with grippers.open(f"{wsg_port_sim.url}?reconnect=true&{FAST}") as g:
         wsg_port_sim.kill()
         wait_for(lambda: not g.connected)
-        watch = g._watch
+        watch = g.link_watch
         wait_for(lambda: watch.attempts >= 4)
         with pytest.raises(ConnectionLost):
             g.state()
@@ -70,9 +70,9 @@ def test_wsg_dropped_connection_comes_back_in_fast_stop() -> None:
     """Manual 4.0.x §1.4.2: the link dropped without 07h, so the (still powered) gripper is in FAST STOP."""
     with grippers.open(f"sim://wsg50?time_scale=20&reconnect=true&{FAST}") as g:
         g.home()
-        epoch = g._watch.epoch
+        epoch = g.link_watch.epoch
         g.simulator.faults.request_close()
-        wait_for(lambda: g._watch.epoch > epoch and g.connected)
+        wait_for(lambda: g.link_watch.epoch > epoch and g.connected)
         assert g.state().fast_stopped
         with pytest.raises(FastStopActive):
             g.move(0.02)
@@ -84,23 +84,23 @@ def test_acknowledge_on_reconnect_clears_the_fast_stop() -> None:
     url = f"sim://wsg50?time_scale=20&reconnect=true&{FAST}"
     with grippers.open(url, acknowledge_on_reconnect=True) as g:
         g.home()
-        epoch = g._watch.epoch
+        epoch = g.link_watch.epoch
         g.simulator.faults.request_close()
-        wait_for(lambda: g._watch.epoch > epoch and g.connected)
+        wait_for(lambda: g.link_watch.epoch > epoch and g.connected)
         assert not g.state().fast_stopped
         assert abs(g.move(0.02).width - 0.02) < 1e-3
 
 
 def test_settings_from_keyword_url_and_default() -> None:
     with grippers.open("sim://wsg50?time_scale=20") as g:
-        assert g._watch is None and g.connected  # off by default
+        assert g.link_watch is None and g.connected  # off by default
         seen: list[bool] = []
         g.on_connection(seen.append)
     assert seen == [False] and not g.connected
     url = "sim://wsg50?time_scale=20&reconnect=true"
     with grippers.open(url, heartbeat_s=2, reconnect_backoff_max_s=9) as g:
-        assert g._watch.policy.heartbeat_s == 2 and g._watch.policy.backoff_max_s == 9
-        assert not g._watch.policy.acknowledge_on_reconnect  # a safety decision: off unless asked
+        assert g.link_watch.policy.heartbeat_s == 2 and g.link_watch.policy.backoff_max_s == 9
+        assert not g.link_watch.policy.acknowledge_on_reconnect  # a safety decision: off unless asked
     with pytest.raises(URLError):
         grippers.open("sim://wsg50?reconnect=maybe")
     with pytest.raises(URLError):
@@ -162,16 +162,16 @@ def test_a_lost_link_ends_servoing_and_servo_starts_afresh_after_it() -> None:
     with grippers.open(f"sim://wsg50?time_scale=20&reconnect=true&{FAST}") as g:
         g.home()
         g.servo(0.03)
-        assert g._servo_loop.flush(2.0)
-        epoch = g._watch.epoch
+        assert g.servo_flush(2.0)
+        epoch = g.link_watch.epoch
         g.simulator.faults.request_close()
-        wait_for(lambda: g._watch.epoch > epoch and g.connected)
-        assert g._servo_loop is None  # ended with the link: no stale target or error carried over
+        wait_for(lambda: g.link_watch.epoch > epoch and g.connected)
+        assert not g.servoing  # ended with the link: no stale target or error carried over
         with pytest.raises(FastStopActive):
             g.servo(0.04)
         g.acknowledge()
         g.servo(0.04)
-        assert g._servo_loop.flush(2.0)
+        assert g.servo_flush(2.0)
         wait_for(lambda: abs(g.state().width - 0.04) < 1e-3 and not g.state().moving)
 
 
@@ -186,7 +186,7 @@ def test_a_profile_connection_table_switches_reconnection_on(tmp_path) -> None: 
     path = tmp_path / "wsg50-cell.toml"
     path.write_text(text)
     with grippers.open(path, url="sim://?time_scale=20") as g:
-        assert g._watch is not None
-        assert g._watch.policy.heartbeat_s == 0.25 and g._watch.policy.acknowledge_on_reconnect
+        assert g.link_watch is not None
+        assert g.link_watch.policy.heartbeat_s == 0.25 and g.link_watch.policy.acknowledge_on_reconnect
     with grippers.open(path, url="sim://?time_scale=20", reconnect=False) as g:
-        assert g._watch is None  # the keyword wins over the profile
+        assert g.link_watch is None  # the keyword wins over the profile

@@ -55,7 +55,7 @@ def test_another_model_on_the_address_is_refused(wsg_port_sim: Restartable, rest
         other = restartable(
             "wsg", "--profile", "wsg25", "--listen", f"tcp://127.0.0.1:{port}", "--time-scale", "20"
         )
-        wait_for(lambda: isinstance(g._watch.last_error, DeviceMismatch))
+        wait_for(lambda: isinstance(g.link_watch.last_error, DeviceMismatch))
         assert not g.connected
         with pytest.raises(ConnectionLost, match="another device answers here"):
             g.grasp(0.01, force=70)

@@ -40,7 +40,7 @@ def test_streamed_targets_over_zenoh_latest_wins(serve, profile: str) -> None:
         targets = [0.05 + 0.0004 * k for k in range(60)] + [0.03]  # faster than any device takes them
         for w in targets:
             g.servo(w, 0.1)
-        assert g._servo_loop.flush(5.0)
+        assert g.servo_flush(5.0)
         stats = g.servo_stats
         assert stats.received == len(targets) and stats.failed == 0
         assert stats.sent + stats.coalesced + stats.unchanged == stats.received
@@ -88,7 +88,7 @@ def test_the_lease_applies_to_servo(serve) -> None:
         a.home()
         a.move(0.07)
         b.servo(0.02)  # queued at once; the server refuses it: a holds the lease
-        assert b._servo_loop.flush(5.0)
+        assert b.servo_flush(5.0)
         with pytest.raises(AccessDenied, match="robot"):
             b.servo(0.02)  # the error the earlier target met, raised by the next call
         assert a.state().width == pytest.approx(0.07, abs=0.001)  # nothing moved

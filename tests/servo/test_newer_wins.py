@@ -111,7 +111,7 @@ def test_the_newer_command_wins(gripper: grippers.Gripper, first: str, second: s
         # polled on to its 30 s timeout).
         assert not handle._busy()
     else:
-        assert g._servo_loop is None or second == "servo"  # a motion command ended servoing
+        assert not g.servoing or second == "servo"  # a motion command ended servoing
     if second == "servo":
         _until("servo target reached", lambda: _at(g, target))
     g.stop()

@@ -40,7 +40,7 @@ def test_latest_target_wins_and_coalesces(gripper: grippers.Gripper) -> None:
     for i in range(300):  # as fast as Python goes: far faster than any device takes commands
         gripper.servo(0.03 + 0.02 * (i % 7) / 7)
     gripper.servo(0.062)
-    assert gripper._servo_loop.flush(5.0)
+    assert gripper.servo_flush(5.0)
     stats = gripper.servo_stats
     assert stats.received == 301
     assert stats.sent + stats.coalesced + stats.unchanged == stats.received
@@ -53,7 +53,7 @@ def test_a_new_target_takes_effect_without_waiting_for_the_motion(gripper: gripp
     gripper.move(0.05)
     slow = gripper.limits.min_speed * 2
     gripper.servo(0.005, speed=slow)
-    assert gripper._servo_loop.flush(2.0)
+    assert gripper.servo_flush(2.0)
     time.sleep(0.02)
     gripper.servo(0.055)
     seen = _settle(gripper, 0.055, timeout=3.0)
@@ -77,20 +77,20 @@ def test_limits_are_checked_on_every_call_and_nothing_is_sent(gripper: grippers.
 def test_stop_ends_servoing_and_a_move_takes_over(gripper: grippers.Gripper) -> None:
     gripper.move(0.06)
     gripper.servo(0.01, speed=gripper.limits.min_speed * 2)
-    assert gripper._servo_loop.flush(2.0)
+    assert gripper.servo_flush(2.0)
     gripper.stop()
-    assert gripper._servo_loop is None
+    assert not gripper.servoing
     time.sleep(0.05)
     a = gripper.state()
     time.sleep(0.1)
     assert abs(gripper.state().width - a.width) < 1e-3  # stopped, not still heading for 10 mm
     gripper.servo(0.02, speed=gripper.limits.min_speed * 2)
-    assert gripper._servo_loop.flush(2.0)
+    assert gripper.servo_flush(2.0)
     # A motion command ends servoing and is not refused because the servo motion still runs (WSG:
     # E_ALREADY_RUNNING without the STOP the servo end sends).
     result = gripper.move(0.045)
     assert abs(result.width - 0.045) < 1e-3
-    assert gripper._servo_loop is None
+    assert not gripper.servoing
 
 
 def test_an_error_on_the_device_is_raised_by_the_next_call() -> None:
@@ -98,7 +98,7 @@ def test_an_error_on_the_device_is_raised_by_the_next_call() -> None:
         g.home()
         g.driver.fast_stop()  # behind the Gripper's back: the device refuses motion from now on
         g.servo(0.03)
-        g._servo_loop.flush(2.0)
+        g.servo_flush(2.0)
         with pytest.raises(GripperError) as info:
             g.servo(0.04)
         assert "E_ACCESS_DENIED" in str(info.value)
@@ -117,7 +117,7 @@ def test_msg_first_target_equal_to_the_last_61_still_moves() -> None:
         same = node.last_command
         speed = round(g.profile.mechanics.default_speed_mm_s / 1000, 6)
         g.servo(0.04, speed=speed)
-        assert g._servo_loop.flush(2.0)
+        assert g.servo_flush(2.0)
         assert node.last_command.position == same.position
         assert node.last_command != same  # made to differ, so the firmware takes it
         assert model.mode is Mode.GRIPPER and model.action  # taken: the gripper holds its target again
