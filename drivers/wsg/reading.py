@@ -34,7 +34,7 @@ from .session import (
 )
 from .transports import Transport
 
-__all__ = ["POLL", "SILENT_GAP", "LineReader", "Submitted"]
+__all__ = ["POLL", "SILENT_GAP", "Line", "Submitted"]
 
 log = logging.getLogger(__name__)
 
@@ -81,20 +81,27 @@ def _always(_timeout: float) -> bool:
     return True
 
 
-class LineReader:
-    """The input side of a connection: who reads, and what the bytes read mean (lock, session, role)."""
+class Line:
+    """One connection's shared state and its input side: who reads, and what the bytes read mean (lock,
+    session, reading role). The parts of the connection (:class:`~.exchanges.Exchanges`,
+    :class:`~.callbacks.Callbacks`, :class:`~.motion_exchanges.MotionSteps`, the reader thread of
+    :class:`~.connection.WsgConnection`) each hold this one object: they share its lock and its state, not
+    a base class."""
 
     def __init__(
         self,
         transport: Transport,
         *,
         device: str | None,
+        timeout: float,
+        motion_timeout: float,
         verify_checksum: bool,
         stale_ttl: float,
         stale_final_ttl: float,
         silent_gap: float,
     ) -> None:
         self.device = device or f"wsg {transport.name}"
+        self.transport = transport  # as opened (the client shows it); reads and writes go through the tap
         self._transport = wire_tap(transport, self.device)  # DEBUG on grippers.wire: every packet, decoded
         self.stats: dict[str, int] = dict.fromkeys(
             (
@@ -152,6 +159,18 @@ class LineReader:
         self._notify: dict[Exchange, Submitted] = {}
         self._queued: dict[int, deque[Submitted]] = {}
         self._reader_ident: int | None = None
+        self.timeout = timeout
+        self.motion_timeout = motion_timeout
+        self.firmware: Any = None  # FirmwareVersion once 50h was read: decides what is refused locally
+        self._stops_sent = 0  # the fence of queued motion requests (exchanges.py, "Stops first")
+        # Threads whose caller gave up (exchanges.py, "Abandoned callers"); read without the lock on the
+        # hot path: an empty set costs one truth test per step.
+        self._abandoned: set[int] = set()
+        # Whether replies keep their order on this line: then an abandoned reply needs no reorder margin. A
+        # transport that does not say (a plugin's) keeps the margin.
+        self._ordered = bool(getattr(transport, "ordered", False))
+        # Running subscriptions' (period_ms, changes_only) per command: a plain query repeats them.
+        self._sub_params: dict[int, tuple[int, bool]] = {}
 
     # ----------------------------------------------------------------------------------- matching input
 

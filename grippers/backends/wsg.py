@@ -369,18 +369,10 @@ class WsgGripper(Gripper):
             "timeout": old.timeout,
             "motion_timeout": old.motion_timeout,
         }
-        t: Any = old._transport
-        port = getattr(t, "_port", None)
-        if port is not None and hasattr(port, "get_settings"):  # pyserial: keep the framing that was used
-            framing = port.get_settings()
-            return WsgClient.serial(
-                port.port,
-                baudrate=framing["baudrate"],
-                bytesize=framing["bytesize"],
-                parity=framing["parity"],
-                stopbits=framing["stopbits"],
-                **common,
-            )
+        t: Any = old.transport
+        framing = getattr(t, "framing", None)
+        if framing is not None:  # a serial line: keep the framing that was used
+            return WsgClient.serial(t.port, **framing, **common)
         return self._connect()
 
 
