@@ -10,15 +10,13 @@ a client opens in :mod:`.opening`.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
 from typing import Any, Self
 
 from can import BusABC
 
-from ..errors import GripperError, LimitError, ProtocolError
+from ..errors import GripperError, LimitError
 from ..numbers import finite
 from .commands import (
-    AUTO_UPDATE_COMMANDS,
     Cmd,
     FingerFlags,
     FingerInfo,
@@ -29,15 +27,14 @@ from .commands import (
     SystemInfo,
     SystemLimits,
     command_name,
-    encode_request,
-    reply_value,
 )
 from .connection import WsgConnection
 from .exchanges import SILENT_GAP
 from .handles import Pending, Queries, Subscription
 from .opening import can_transport, serial_transport, transport_from_url
-from .protocol import Packet, Status
+from .protocol import Status
 from .reading import Submitted
+from .state_reads import StateReads
 from .transports import (
     DEFAULT_BAUDRATE,
     DEFAULT_CAN_RECV_ID,
@@ -54,9 +51,6 @@ __all__ = ["Pending", "Queries", "Submitted", "Subscription", "WsgClient"]
 
 _MAX_TAG = 64  # WSG manual 4.0.x §3.5.2
 _MAX_LOOP = 256  # WSG manual 4.0.x §3.1.1
-
-# The payload of a plain state query (auto update off), encoded once.
-_PLAIN_QUERY: dict[int, bytes] = {cmd: encode_request(cmd) for cmd in AUTO_UPDATE_COMMANDS}
 
 
 class WsgClient:
@@ -105,6 +99,10 @@ class WsgClient:
         self.withdraw = conn.callbacks.withdraw
         self.callbacks_waiting = conn.callbacks.waiting
         self.motion_outstanding = conn.motions.motion_outstanding
+        self._reads = StateReads(self._line, ex, conn.callbacks)
+        self._query = self._reads.query
+        self.queries = self._reads.queries
+        self.start_queries = self._reads.start_queries
         self.outstanding = conn.outstanding
         self.subscribe = conn.subscribe
         self.close = conn.close
@@ -374,48 +372,6 @@ class WsgClient:
         self._call(Cmd.TARE, timeout=timeout)
 
     # -------------------------------------------------------------------------------------------- state
-
-    def _query(self, cmd: int, timeout: float | None) -> Any:
-        """The value of a state query (40h-45h: all firmware has them, so no firmware check)."""
-        packet = self._exchanges._exchange(
-            cmd, self._query_payload(cmd), self.timeout if timeout is None else timeout
-        )
-        return self._query_value(cmd, packet)
-
-    def _query_payload(self, cmd: int) -> bytes:
-        """A state query's request: plain, or repeating a running subscription's parameters."""
-        # A plain query (auto update off) would switch a running subscription off on the device, so while one
-        # is active the query repeats its parameters.
-        params = self._line._sub_params.get(cmd)  # one dict read: atomic, no lock needed
-        if params is None:
-            return _PLAIN_QUERY[cmd]
-        return encode_request(cmd, auto_update=True, changes_only=params[1], period_ms=params[0])
-
-    def _query_value(self, cmd: int, packet: Packet) -> Any:
-        """A state query's reply decoded; CommandFailed or ProtocolError naming the device and command."""
-        data = packet.payload  # a completed exchange's reply has its status (session)
-        if not (data[0] | data[1]):  # E_SUCCESS
-            try:
-                return reply_value(cmd, data)
-            except ProtocolError:
-                pass  # _check raises it with the device's name
-        return self._check(cmd, packet).value
-
-    def queries(self, cmds: Sequence[int], *, timeout: float | None = None) -> list[Any]:
-        """The values of state queries (40h-45h), one after another: what :meth:`start_queries` reads,
-        with this thread waiting (and reading its own replies, the cheapest way for a thread)."""
-        return [self._query(cmd, timeout) for cmd in cmds]
-
-    def start_queries(
-        self, cmds: Sequence[int], done: Callable[[list[Any] | None, GripperError | None], None]
-    ) -> Queries:
-        """:meth:`queries` with no thread waiting: each query is sent when the previous one's reply came,
-        from the reader thread, which then calls ``done(values, None)`` or ``done(None, error)`` (once,
-        unless :meth:`Queries.cancel` came first). Each query times out as :meth:`queries`' do (the reader
-        keeps the time)."""
-        reads = Queries(self, cmds, done)
-        reads._next()
-        return reads
 
     def system_state(self, *, timeout: float | None = None) -> SystemFlags:
         return self._query(Cmd.GET_SYSTEM_STATE, timeout)
