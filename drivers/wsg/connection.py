@@ -70,7 +70,7 @@ class WsgConnection:
             target=self._read_loop, name=f"{self.line.device} reader", daemon=True
         )
         self._reader.start()
-        self.line._reader_ident = self._reader.ident
+        self.line.reader_ident = self._reader.ident
 
     @property
     def device(self) -> str:
@@ -78,8 +78,8 @@ class WsgConnection:
 
     def outstanding(self) -> list[int]:
         """The command ids whose exchanges still wait for a reply (the sans-IO session's view)."""
-        with self.line._lock:
-            return [exchange.command for exchange in self.line._session.outstanding()]
+        with self.line.lock:
+            return [exchange.command for exchange in self.line.session.outstanding()]
 
     # -------------------------------------------------------------------------------------------- lifetime
 
@@ -88,41 +88,41 @@ class WsgConnection:
 
         Idempotent; never raises for a line that is already gone.
         """
-        with self.line._lock:
-            if self.line._closing or self.line._closed:
+        with self.line.lock:
+            if self.line.closing or self.line.closed:
                 return
-            self.line._closing = True
-            healthy = self.line._lost is None
+            self.line.closing = True
+            healthy = self.line.lost is None
         goodbye = min(self.line.timeout, 0.5) if timeout is None else timeout
         if healthy and threading.current_thread() is not self._reader:
-            for cmd in list(self.line._sub_params):
+            for cmd in list(self.line.sub_params):
                 try:
                     self.exchanges._call(cmd, payload=encode_request(cmd), timeout=goodbye, internal=True)
                 except GripperError:
                     pass
-            if self.line._transport.connection_oriented:
+            if self.line.wire.connection_oriented:
                 try:
                     self.exchanges._call(Cmd.DISCONNECT, timeout=goodbye, internal=True)
                 except GripperError:
                     pass
-        self.line._stop.set()
-        with self.line._lock:
-            self.line._bg.notify()
+        self.line.quit.set()
+        with self.line.lock:
+            self.line.bg.notify()
         if threading.current_thread() is not self._reader:
             self._reader.join(timeout=2.0)
         try:
-            self.line._transport.close()
+            self.line.wire.close()
         except Exception:  # noqa: BLE001 - closing must not fail
             log.debug("closing %s failed", self.line.device, exc_info=True)
         error = ConnectionLost("client closed", device=self.line.device)
-        with self.line._lock:
-            self.line._closed = True
-            self.line._session.fail_all(error)
-            orphans = self.line._orphans(error)
-            subs = [s for lst in self.line._subs.values() for s in lst]
-            self.line._subs.clear()
-            self.line._sub_params.clear()
-            self.line._cond.notify_all()
+        with self.line.lock:
+            self.line.closed = True
+            self.line.session.fail_all(error)
+            orphans = self.line.orphans(error)
+            subs = [s for lst in self.line.subs.values() for s in lst]
+            self.line.subs.clear()
+            self.line.sub_params.clear()
+            self.line.cond.notify_all()
         for sub in subs:
             sub._end()
         for fail, exc in orphans:
@@ -130,11 +130,11 @@ class WsgConnection:
 
     @property
     def closed(self) -> bool:
-        return self.line._closed
+        return self.line.closed
 
     @property
     def connection_lost(self) -> ConnectionLost | None:
-        return self.line._lost
+        return self.line.lost
 
     def __enter__(self) -> Self:
         return self
@@ -143,7 +143,7 @@ class WsgConnection:
         self.close()
 
     def __repr__(self) -> str:
-        return f"<{type(self).__name__} {self.line.device}{' closed' if self.line._closed else ''}>"
+        return f"<{type(self).__name__} {self.line.device}{' closed' if self.line.closed else ''}>"
 
     # ------------------------------------------------------------------------------------------- reader
 
@@ -153,9 +153,9 @@ class WsgConnection:
 
         The calls and sends happen outside the lock and before the next read, and they do not wait for the
         reading role: a callback that submits the next request has it on the line at once."""
-        lock = self.line._lock
+        lock = self.line.lock
         me = get_ident()
-        stop = self.line._stop
+        stop = self.line.quit
         while True:
             sends: list[tuple[Submitted, bytes]] = []
             deliveries: list[tuple[Callable[[Any], None], Any]] = []
@@ -164,37 +164,37 @@ class WsgConnection:
                 # The usual turn while callback exchanges run: one is out, nobody else reads, nothing else
                 # to do: straight to the line (each check below costs a callback round trip time).
                 quick = (
-                    self.line._notify
+                    self.line.notify
                     and not (
-                        self.line._reading
-                        or self.line._deferred
-                        or self.line._queued
-                        or self.line._callers
-                        or self.line._subs
+                        self.line.reading
+                        or self.line.deferred
+                        or self.line.queued
+                        or self.line.callers
+                        or self.line.subs
                     )
-                    and self.line._lost is None
+                    and self.line.lost is None
                     and not stop.is_set()
                 )
                 if not quick:
                     while not stop.is_set():
-                        if self.line._queued and not self.line._closing:
+                        if self.line.queued and not self.line.closing:
                             sends = self.callbacks._start_queued()  # a slot came free (or a barrier is due)
                         if (
                             sends
-                            or self.line._deferred
-                            or (not self.line._reading and self.line._background_needed())
+                            or self.line.deferred
+                            or (not self.line.reading and self.line.background_needed())
                         ):
                             break
-                        self.line._bg.wait(POLL)  # (queued requests: checked again at least every POLL)
-                        if self.line._notify and self.callbacks._late(time.monotonic()):
+                        self.line.bg.wait(POLL)  # (queued requests: checked again at least every POLL)
+                        if self.line.notify and self.callbacks._late(time.monotonic()):
                             break  # a callback request's deadline passed: timed out below
-                    if stop.is_set() or self.line._lost is not None:
+                    if stop.is_set() or self.line.lost is not None:
                         return  # what was opened here fails with the line (close(), _connection_lost)
-                    if self.line._deferred:
-                        deliveries, self.line._deferred = self.line._deferred, []
-                if not (sends or deliveries or self.line._reading):
-                    self.line._reading = me
-                    self.line._read_line(POLL)
+                    if self.line.deferred:
+                        deliveries, self.line.deferred = self.line.deferred, []
+                if not (sends or deliveries or self.line.reading):
+                    self.line.reading = me
+                    self.line.read_line(POLL)
                     answered = (
                         self.callbacks._take_callback_reply()
                     )  # else matched as usual: calls go to _deferred
@@ -206,7 +206,7 @@ class WsgConnection:
             if answered is not None:
                 # (it may submit the next request: read at once, above)
                 self._call_back(answered[0].reply, answered[1])
-            if self.line._notify:
+            if self.line.notify:
                 self.callbacks._expire(
                     time.monotonic()
                 )  # sent callback requests past their deadline (.callbacks)
@@ -250,11 +250,11 @@ class WsgConnection:
                 command=name,
             )
         sub = Subscription(self, cmd, int(period_ms), bool(changes_only), callback, maxsize, iter_timeout)
-        with self.line._lock:
+        with self.line.lock:
             self.exchanges._usable(name, False)
-            self.line._subs.setdefault(cmd, []).append(sub)
-            self.line._sub_params[cmd] = (int(period_ms), bool(changes_only))
-            self.line._session.subscribe(cmd)
+            self.line.subs.setdefault(cmd, []).append(sub)
+            self.line.sub_params[cmd] = (int(period_ms), bool(changes_only))
+            self.line.session.subscribe(cmd)
         try:
             payload = encode_request(
                 cmd, auto_update=True, changes_only=changes_only, period_ms=int(period_ms)
@@ -270,16 +270,16 @@ class WsgConnection:
     def _forget(self, sub: Subscription, *, switched_off: bool = True) -> bool:
         """Remove ``sub``; True when it was the last one of its command. ``switched_off=False``: the device
         still sends its updates until the switch-off request is answered (:meth:`_unsubscribe`)."""
-        with self.line._lock:
-            subs = self.line._subs.get(sub.command, [])
+        with self.line.lock:
+            subs = self.line.subs.get(sub.command, [])
             if sub in subs:
                 subs.remove(sub)
             if subs:
                 return False
-            self.line._subs.pop(sub.command, None)
-            self.line._sub_params.pop(sub.command, None)
+            self.line.subs.pop(sub.command, None)
+            self.line.sub_params.pop(sub.command, None)
             if switched_off:
-                self.line._session.unsubscribe(sub.command)
+                self.line.session.unsubscribe(sub.command)
             return True
 
     def _unsubscribe(self, sub: Subscription, timeout: float | None) -> None:
@@ -289,9 +289,9 @@ class WsgConnection:
         if not self._forget(sub, switched_off=False):
             return
         try:
-            if not (self.line._closing or self.line._closed or self.line._lost):
+            if not (self.line.closing or self.line.closed or self.line.lost):
                 self.exchanges._call(sub.command, timeout=timeout, payload=encode_request(sub.command))
         finally:
-            with self.line._lock:
-                if sub.command not in self.line._subs:  # not subscribed again meanwhile
-                    self.line._session.unsubscribe(sub.command)
+            with self.line.lock:
+                if sub.command not in self.line.subs:  # not subscribed again meanwhile
+                    self.line.session.unsubscribe(sub.command)

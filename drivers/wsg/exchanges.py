@@ -13,7 +13,7 @@ replies of exchanges nobody waits for (:mod:`.callbacks`: the same session, slot
 
 Ctrl-C (issue 13 item 1, issue 23 §3): a KeyboardInterrupt can arrive at any line of an exchange, also inside
 the wait for the lock or for a reply. Every step therefore leaves a trace the handler can finish from: the
-reading role records its owner, bytes read wait in ``_held_read`` until matched, the callers are a set (adding
+reading role records its owner, bytes read wait in ``held_read`` until matched, the callers are a set (adding
 or removing twice changes nothing) and the waits come back with the lock held (:mod:`.interrupts`). The
 handler (:meth:`Exchanges._rescue`) matches what was read, hands the role back and abandons the exchange
 as a timeout does (its late reply is swallowed, its id freed). A STOP can then go out at once.
@@ -81,14 +81,14 @@ class Exchanges:
         """Give up the call that thread ``thread_ident`` runs: its waits end now with GripperTimeout, as
         timeouts would (exchange abandoned, late reply swallowed), until :meth:`resume`. For a caller that
         stops waiting from another thread (an asyncio task cancelled); it does not wait for that thread."""
-        with self._line._lock:
-            self._line._abandoned.add(thread_ident)
-            self._line._cond.notify_all()
+        with self._line.lock:
+            self._line.abandoned.add(thread_ident)
+            self._line.cond.notify_all()
 
     def resume(self, thread_ident: int) -> None:
         """Thread ``thread_ident``'s next call is a new one: its waits are no longer given up."""
-        with self._line._lock:
-            self._line._abandoned.discard(thread_ident)
+        with self._line.lock:
+            self._line.abandoned.discard(thread_ident)
 
     def _given_up(self, cmd: int) -> GripperTimeout:
         return GripperTimeout(
@@ -96,9 +96,9 @@ class Exchanges:
         )
 
     def _usable(self, name: str, internal: bool) -> None:
-        if self._line._lost is not None:
-            raise ConnectionLost(self._line._lost.message, device=self._line.device, command=name)
-        if self._line._closed or (self._line._closing and not internal):
+        if self._line.lost is not None:
+            raise ConnectionLost(self._line.lost.message, device=self._line.device, command=name)
+        if self._line.closed or (self._line.closing and not internal):
             raise ConnectionLost("client is closed", device=self._line.device, command=name)
 
     def _check_supported(self, cmd: int) -> None:
@@ -116,35 +116,33 @@ class Exchanges:
             raise type(exc)(exc.message, device=self._line.device, command=command_name(cmd)) from None
 
     def _begin(self, cmd: int, payload: bytes, deadline: float, *, internal: bool = False) -> Exchange:
-        """Register and send a request; the caller is among ``_callers`` until its :meth:`_wait` ends.
+        """Register and send a request; the caller is among ``callers`` until its :meth:`_wait` ends.
 
         When nobody else reads and no subscription needs the reader thread, the caller also takes the reading
-        role here (``_reading`` is its id): in the same critical section as the send, that saves the lock
+        role here (``reading`` is its id): in the same critical section as the send, that saves the lock
         round trip before the read, a good part of a round trip's cost (docs/performance.md).
         """
         me = get_ident()
-        if me == self._line._reader_ident:
+        if me == self._line.reader_ident:
             raise GripperError(
                 "commands cannot be issued from a subscription callback (reader thread)",
                 device=self._line.device,
                 command=command_name(cmd),
             )
-        session = self._line._session
+        session = self._line.session
         exchange: Exchange | None = None
-        fence = self._line._stops_sent
+        fence = self._line.stops_sent
         try:
-            with self._line._lock:
+            with self._line.lock:
                 if cmd in STOPS:
-                    self._line._stops_sent += (
-                        1  # before the slot: motion requests queued from now on give way
-                    )
-                    self._line._cond.notify_all()
+                    self._line.stops_sent += 1  # before the slot: motion requests queued from now on give way
+                    self._line.cond.notify_all()
                 while True:
-                    if self._line._lost is not None or self._line._closing or self._line._closed:
+                    if self._line.lost is not None or self._line.closing or self._line.closed:
                         self._usable(command_name(cmd), internal)
-                    if self._line._abandoned and me in self._line._abandoned:
+                    if self._line.abandoned and me in self._line.abandoned:
                         raise self._given_up(cmd)
-                    if fence != self._line._stops_sent and cmd in MOTIONS:
+                    if fence != self._line.stops_sent and cmd in MOTIONS:
                         raise CommandFailed(
                             "aborted by a stop sent while it waited for its turn (not sent)",
                             status=int(Status.E_CMD_ABORTED),
@@ -152,8 +150,8 @@ class Exchanges:
                             device=self._line.device,
                             command=command_name(cmd),
                         )
-                    if not self._line._reading and not self._line._subs and self._line._ready(0):
-                        self._line._drain_line()
+                    if not self._line.reading and not self._line.subs and self._line.ready(0):
+                        self._line.drain_line()
                     now = time.monotonic()
                     before = session.seq
                     try:
@@ -163,33 +161,33 @@ class Exchanges:
                         raise
                     if opened is not None:
                         exchange, raw = opened
-                        self._line._callers[me] = exchange  # removed by the _wait that follows
-                        if not (self._line._reading or self._line._subs or self._line._closing):
-                            self._line._reading = me  # the role's owner: a rescue after Ctrl-C hands it back
+                        self._line.callers[me] = exchange  # removed by the _wait that follows
+                        if not (self._line.reading or self._line.subs or self._line.closing):
+                            self._line.reading = me  # the role's owner: a rescue after Ctrl-C hands it back
                         break
                     self._wait_for_slot(cmd, now, deadline, internal)
-            self._line._transport.send(raw)
+            self._line.wire.send(raw)
         except BaseException as exc:
             if exchange is None:
                 raise
-            with self._line._lock:
-                self._line._callers.pop(me, None)
-                if self._line._reading == me:  # never leave the reading role taken by a caller that is gone
-                    self._line._reading = 0
-                    self._line._cond.notify_all()
+            with self._line.lock:
+                self._line.callers.pop(me, None)
+                if self._line.reading == me:  # never leave the reading role taken by a caller that is gone
+                    self._line.reading = 0
+                    self._line.cond.notify_all()
                 if not isinstance(exc, ConnectionLost):
                     # Interrupted (KeyboardInterrupt) or refused: whether the bytes left is unknown, so the
                     # slot is held like a timed-out request's, long enough to swallow a late reply.
                     session.abandon(exchange, time.monotonic())
             if not isinstance(exc, ConnectionLost):
                 raise
-            self._line._connection_lost(exc)  # fails the exchange and wakes everybody
+            self._line.connection_lost(exc)  # fails the exchange and wakes everybody
             raise ConnectionLost(exc.message, device=self._line.device, command=command_name(cmd)) from None
         return exchange
 
     def _sleep(self, timeout: float) -> None:
-        """Wait on ``_cond`` (lock held once); an interrupt is raised with the lock held again."""
-        interrupt = self._line._cond.wait(timeout)
+        """Wait on ``cond`` (lock held once); an interrupt is raised with the lock held again."""
+        interrupt = self._line.cond.wait(timeout)
         if interrupt is not None:
             raise interrupt
 
@@ -202,11 +200,11 @@ class Exchanges:
                 device=self._line.device,
                 command=command_name(cmd),
             )
-        session = self._line._session
+        session = self._line.session
         if not session.needs_barrier(cmd, now):
             self._sleep(min(deadline - now, POLL))
             return
-        lock = self._line._lock
+        lock = self._line.lock
         error: BaseException | None = None
         try:
             lock.release()  # _begin holds it once (its own ``with``)
@@ -228,7 +226,7 @@ class Exchanges:
         """Prove a stale reply of ``cmd`` lost: a LOOP with a fresh nonce, answered after anything sent
         before it (the device answers in order). GripperTimeout when even that gets no reply."""
         self._line.stats["barriers"] += 1
-        nonce = self._line._session.barrier_payload()
+        nonce = self._line.session.barrier_payload()
         wait = max(deadline - time.monotonic(), 0.001)
         try:
             packet = self._exchange(Cmd.LOOP, nonce, wait, internal)
@@ -250,20 +248,20 @@ class Exchanges:
         exchange is done here without the general matching. Otherwise they are matched as usual and None sends
         the caller on to :meth:`_wait`, still among the callers.
         """
-        with self._line._lock:
-            interrupt = self._line._read_line(wait if wait < POLL else POLL)
-            held = self._line._held_read
+        with self._line.lock:
+            interrupt = self._line.read_line(wait if wait < POLL else POLL)
+            held = self._line.held_read
             if interrupt is None and held is not None and held[1]:
-                packet = self._line._session.take_reply(exchange, held[1])
+                packet = self._line.session.take_reply(exchange, held[1])
                 if packet is not None:
-                    self._line._held_read = None
-                    self._line._reading = 0  # (no _last_rx: it matters only while the parser holds bytes)
-                    self._line._cond.notify_all()  # the reading role is free
-                    self._line._callers.pop(get_ident(), None)
-                    if self._line._queued:
-                        self._line._bg.notify()  # a callback request may wait for this slot (.callbacks)
+                    self._line.held_read = None
+                    self._line.reading = 0  # (no _last_rx: it matters only while the parser holds bytes)
+                    self._line.cond.notify_all()  # the reading role is free
+                    self._line.callers.pop(get_ident(), None)
+                    if self._line.queued:
+                        self._line.bg.notify()  # a callback request may wait for this slot (.callbacks)
                     return packet
-            self._line._settle_read()
+            self._line.settle_read()
             if interrupt is not None:
                 raise interrupt
         return None
@@ -281,8 +279,8 @@ class Exchanges:
         """Wait for ``exchange``'s reply (``final``: past E_CMD_PENDING), reading the line when nobody else
         does. ``keep``: the caller stays registered with its exchange on success (a motion between its
         E_CMD_PENDING and the wait for its end: an interrupt there is still rescued)."""
-        with self._line._lock:
-            self._line._callers[get_ident()] = exchange
+        with self._line.lock:
+            self._line.callers[get_ident()] = exchange
             leave = False  # an interrupt leaves the caller registered: _rescue abandons its exchange
             try:
                 packet = self._await(exchange, deadline, final, abandon, waited)
@@ -312,56 +310,56 @@ class Exchanges:
             now = time.monotonic()
             if now >= deadline:
                 self._timed_out(exchange, now, abandon, waited)
-            if self._line._abandoned and get_ident() in self._line._abandoned:
+            if self._line.abandoned and get_ident() in self._line.abandoned:
                 if abandon:
-                    self._line._session.abandon(exchange, now, margin=0.0 if self._line._ordered else None)
-                    self._line._cond.notify_all()
+                    self._line.session.abandon(exchange, now, margin=0.0 if self._line.ordered else None)
+                    self._line.cond.notify_all()
                 raise self._given_up(exchange.command)
             if (
-                self._line._reading
-                or self._line._subs
-                or self._line._stop.is_set()
-                or self._line._lost is not None
+                self._line.reading
+                or self._line.subs
+                or self._line.quit.is_set()
+                or self._line.lost is not None
             ):
-                if not self._line._reading:
-                    self._line._bg.notify()  # subscriptions: the reader thread reads (and runs the callbacks)
+                if not self._line.reading:
+                    self._line.bg.notify()  # subscriptions: the reader thread reads (and runs the callbacks)
                 self._sleep(deadline - now)
                 continue
             # Nobody is reading and no subscription needs the reader thread: read for ourselves.
-            self._line._reading = get_ident()
-            interrupt = self._line._read_line(min(deadline - now, POLL))
-            self._line._settle_read()
+            self._line.reading = get_ident()
+            interrupt = self._line.read_line(min(deadline - now, POLL))
+            self._line.settle_read()
             if interrupt is not None:
                 raise interrupt
 
     def _leave(self) -> None:
         """A caller is done with its exchange (lock held)."""
-        self._line._callers.pop(get_ident(), None)
-        if self._line._queued or (not self._line._callers and self._line._background_needed()):
+        self._line.callers.pop(get_ident(), None)
+        if self._line.queued or (not self._line.callers and self._line.background_needed()):
             # e.g. a pending motion's final reply: nobody waits to read it; or a callback request waits for
             # the slot this exchange held (.callbacks)
-            self._line._bg.notify()
+            self._line.bg.notify()
 
     def _rescue(self, abandon: bool = True) -> None:
         """Ctrl-C (any BaseException but a GripperError) reached a caller between its steps: whatever step it
         hit, match what it read, give the reading role back and, unless told not to, abandon its exchange as
         a timeout does, so no command id and no reader stays taken (issue 13 item 1)."""
-        with self._line._lock:
-            self._line._settle_read()
-            exchange = self._line._callers.pop(get_ident(), None)
+        with self._line.lock:
+            self._line.settle_read()
+            exchange = self._line.callers.pop(get_ident(), None)
             if exchange is not None and abandon and not exchange.finished:
-                self._line._session.abandon(exchange, time.monotonic())
-                self._line._cond.notify_all()
-                self._line._bg.notify()  # the late reply: the reader thread reads it when nobody else does
+                self._line.session.abandon(exchange, time.monotonic())
+                self._line.cond.notify_all()
+                self._line.bg.notify()  # the late reply: the reader thread reads it when nobody else does
 
     def _raise_failed(self, exchange: Exchange) -> NoReturn:
-        raise self._line._failure(exchange)
+        raise self._line.failure(exchange)
 
     def _timed_out(self, exchange: Exchange, now: float, abandon: bool, waited: float | None) -> NoReturn:
         state = exchange.state
         if abandon:
-            self._line._session.abandon(exchange, now)
-            self._line._cond.notify_all()
+            self._line.session.abandon(exchange, now)
+            self._line.cond.notify_all()
         what = "final reply" if state is ExchangeState.PENDING else "reply"
         after = f" within {waited:g} s" if waited is not None else ""
         raise GripperTimeout(
@@ -408,7 +406,7 @@ class Exchanges:
         try:
             exchange = self._begin(cmd, payload, deadline, internal=internal)
             if (
-                self._line._reading == get_ident()
+                self._line.reading == get_ident()
                 and (packet := self._read_own_reply(exchange, wait)) is not None
             ):
                 return packet

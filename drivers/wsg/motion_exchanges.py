@@ -42,15 +42,15 @@ class MotionSteps:
         try:
             exchange = self._exchanges._begin(cmd, payload, start + ack_wait)
             first = None
-            if self._line._reading == get_ident():
+            if self._line.reading == get_ident():
                 first = self._exchanges._read_own_reply(exchange, ack_wait)
             if first is None:
                 first = self._exchanges._wait(
                     exchange, start + ack_wait, final=False, waited=ack_wait, keep=True
                 )
             else:
-                with self._line._lock:
-                    self._line._callers[get_ident()] = exchange  # kept until the motion's caller is done
+                with self._line.lock:
+                    self._line.callers[get_ident()] = exchange  # kept until the motion's caller is done
         except GripperError:
             raise
         except BaseException:
@@ -60,11 +60,11 @@ class MotionSteps:
 
     def motion_outstanding(self) -> bool:
         """Whether a motion command (20h, 21h, 25h, 26h) on this connection still waits for its end."""
-        return any(exchange.command in MOTIONS for exchange in self._line._session.outstanding())
+        return any(exchange.command in MOTIONS for exchange in self._line.session.outstanding())
 
     def _done(self) -> None:
         """The motion's caller returns without waiting for its end (or ends on its first reply)."""
-        with self._line._lock:
+        with self._line.lock:
             self._exchanges._leave()
 
     def _finish(self, exchange: Exchange, deadline: float, waited: float, abandon: bool = True) -> None:

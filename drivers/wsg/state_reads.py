@@ -54,7 +54,7 @@ class StateReads:
         """A state query's request: plain, or repeating a running subscription's parameters."""
         # A plain query (auto update off) would switch a running subscription off on the device, so while one
         # is active the query repeats its parameters.
-        params = self._line._sub_params.get(cmd)  # one dict read: atomic, no lock needed
+        params = self._line.sub_params.get(cmd)  # one dict read: atomic, no lock needed
         if params is None:
             return _PLAIN_QUERY[cmd]
         return encode_request(cmd, auto_update=True, changes_only=params[1], period_ms=params[0])
