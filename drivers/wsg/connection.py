@@ -189,7 +189,7 @@ class WsgConnection:
                         if self.line.notify and self.callbacks._late(time.monotonic()):
                             break  # a callback request's deadline passed: timed out below
                     if stop.is_set() or self.line.lost is not None:
-                        return  # what was opened here fails with the line (close(), _connection_lost)
+                        return  # what was opened here fails with the line (close(), Line.connection_lost)
                     if self.line.deferred:
                         deliveries, self.line.deferred = self.line.deferred, []
                 if not (sends or deliveries or self.line.reading):

@@ -272,14 +272,14 @@ class Line:
     def read_line(self, wait: float) -> BaseException | None:
         """One ``transport.recv`` by the reading role's holder, called with the lock held once: the lock is
         released for the read and held again on return, whatever interrupts land; what was read waits in
-        ``held_read`` (matched by :meth:`_settle_read`). Returns the interrupt that landed, if any."""
+        ``held_read`` (matched by :meth:`settle_read`). Returns the interrupt that landed, if any."""
         lock = self.lock
         me = self.reading
         interrupt: BaseException | None = None
         try:
             lock.release()
             self.held_read = (me, self.wire.recv(wait), None)  # one line: no interrupt in between
-        except Exception as exc:  # noqa: BLE001 - the line failed: _settle_read reports it
+        except Exception as exc:  # noqa: BLE001 - the line failed: settle_read reports it
             self.held_read = (me, None, exc)
         except BaseException as exc:  # noqa: BLE001 - KeyboardInterrupt: the caller re-raises it
             interrupt = exc
