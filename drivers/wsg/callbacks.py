@@ -63,7 +63,7 @@ class Callbacks:
             else:
                 lost = None
                 if not self._line.reading and not self._line.subs and self._line.ready(0):
-                    self._line.drain_line()  # what arrived is not this request's reply (as in _begin)
+                    self._line.drain_line()  # what arrived is no reply of this request (as in begin)
                 raw = None if cmd in self._line.queued else self._open(sub, time.monotonic())
                 if raw is None:
                     self._line.queued.setdefault(cmd, deque()).append(sub)
@@ -71,7 +71,7 @@ class Callbacks:
         if lost is not None:
             sub.done(None, lost)
         elif raw is not None:
-            self._send(sub, raw)
+            self.send(sub, raw)
             if self._line.bg.waiting:
                 # The reader reads the reply: woken once the request is out, so that on a busy machine the
                 # woken thread does not run first and delay the send. (A reader about to sleep saw the
@@ -108,11 +108,11 @@ class Callbacks:
             assert error is not None
             sub.done(None, error)
 
-    def _late(self, now: float) -> bool:
+    def late(self, now: float) -> bool:
         """A sent callback request's deadline has passed (lock held)."""
         return any(sub.deadline is not None and now >= sub.deadline for sub in self._line.notify.values())
 
-    def _expire(self, now: float) -> None:
+    def expire(self, now: float) -> None:
         """Time out the sent callback requests whose deadline passed (the reader thread, lock not held), in
         a blocking exchange's words; the exchange is abandoned as a timed-out one is."""
         with self._line.lock:
@@ -145,8 +145,8 @@ class Callbacks:
         )  # open() may have dropped a proved marker
         return raw
 
-    def _send(self, sub: Submitted, raw: bytes) -> None:
-        """Write an opened request (lock not held, as in ``_begin``); a failing line fails it."""
+    def send(self, sub: Submitted, raw: bytes) -> None:
+        """Write an opened request (lock not held, as in ``Exchanges.begin``); a failing line fails it."""
         try:
             self._line.wire.send(raw)
         except ConnectionLost as exc:
@@ -159,7 +159,7 @@ class Callbacks:
                     self._line.session.abandon(sub.exchange, time.monotonic())
             sub.fail(type(exc)(exc.message, device=self._line.device, command=command_name(sub.command)))
 
-    def _start_queued(self) -> list[tuple[Submitted, bytes]]:
+    def start_queued(self) -> list[tuple[Submitted, bytes]]:
         """Open every queued request whose slot is free now, or send the barrier that proves a stale reply
         lost (lock held; the reader thread calls it). Returns what to send once the lock is released."""
         session = self._line.session
@@ -186,13 +186,14 @@ class Callbacks:
             out.append((head, raw))
         return out
 
-    def _take_callback_reply(self) -> tuple[Submitted, Packet] | None:
+    def take_callback_reply(self) -> tuple[Submitted, Packet] | None:
         """After the reader thread's read (lock held): when the bytes are exactly the final reply of the one
         callback exchange out, which they nearly always are, complete it here and return it to be called
         back at once; otherwise match them as usual (:meth:`~.reading.Line.settle_read`) and return None.
 
-        Why: the same shortcut a blocking caller takes for its own reply (``_read_own_reply``): the general
-        matching and a turn of the reader's loop per reply would cost the callback path what it saves."""
+        Why: the same shortcut a blocking caller takes for its own reply (``Exchanges.read_own_reply``): the
+        general matching and a turn of the reader's loop per reply would cost the callback path what it
+        saves."""
         held = self._line.held_read
         notify = self._line.notify
         if held is not None and held[1] and len(notify) == 1 and held[0] == get_ident():

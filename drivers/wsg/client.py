@@ -89,8 +89,8 @@ class WsgClient:
         self._line = conn.line
         self._exchanges = ex = conn.exchanges
         self._motions = conn.motions
-        self._call = ex._call
-        self._check = ex._check
+        self._call = ex.call
+        self._check = ex.check
         # What other modules call on a client, the connection's own (one place each).
         self.request = ex.request
         self.abandon = ex.abandon
@@ -225,7 +225,7 @@ class WsgClient:
         return f"<{type(self).__name__} {self.device}{' closed' if self.closed else ''}>"
 
     def _finish(self, exchange: Any, deadline: float, waited: float, abandon: bool = True) -> None:
-        self._motions._finish(exchange, deadline, waited, abandon)
+        self._motions.finish(exchange, deadline, waited, abandon)
 
     # ------------------------------------------------------------------------------------------- commands
 
@@ -241,21 +241,21 @@ class WsgClient:
         return number
 
     def _motion(self, cmd: int, wait: bool, timeout: float | None, **fields: Any) -> Pending | None:
-        self._exchanges._check_supported(cmd)
-        payload = self._exchanges._encode(cmd, **fields)
+        self._exchanges.check_supported(cmd)
+        payload = self._exchanges.encode(cmd, **fields)
         try:
-            exchange, first, deadline, total = self._motions._start(cmd, payload, timeout)
+            exchange, first, deadline, total = self._motions.start(cmd, payload, timeout)
             if first.status != Status.E_CMD_PENDING or not wait:
-                self._motions._done()
+                self._motions.done()
                 if first.status != Status.E_CMD_PENDING:  # answered at once (an immediate error, or done)
                     self._check(cmd, first)
                     return None if wait else Pending(self, exchange)
                 return Pending(self, exchange)
-            self._motions._finish(exchange, deadline, total)
+            self._motions.finish(exchange, deadline, total)
         except GripperError:
             raise
         except BaseException:  # Ctrl-C between the steps: abandoned as a timeout is (see exchanges.py)
-            self._exchanges._rescue()
+            self._exchanges.rescue()
             raise
         return None
 

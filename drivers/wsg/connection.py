@@ -97,12 +97,12 @@ class WsgConnection:
         if healthy and threading.current_thread() is not self._reader:
             for cmd in list(self.line.sub_params):
                 try:
-                    self.exchanges._call(cmd, payload=encode_request(cmd), timeout=goodbye, internal=True)
+                    self.exchanges.call(cmd, payload=encode_request(cmd), timeout=goodbye, internal=True)
                 except GripperError:
                     pass
             if self.line.wire.connection_oriented:
                 try:
-                    self.exchanges._call(Cmd.DISCONNECT, timeout=goodbye, internal=True)
+                    self.exchanges.call(Cmd.DISCONNECT, timeout=goodbye, internal=True)
                 except GripperError:
                     pass
         self.line.quit.set()
@@ -178,7 +178,7 @@ class WsgConnection:
                 if not quick:
                     while not stop.is_set():
                         if self.line.queued and not self.line.closing:
-                            sends = self.callbacks._start_queued()  # a slot came free (or a barrier is due)
+                            sends = self.callbacks.start_queued()  # a slot came free (or a barrier is due)
                         if (
                             sends
                             or self.line.deferred
@@ -186,7 +186,7 @@ class WsgConnection:
                         ):
                             break
                         self.line.bg.wait(POLL)  # (queued requests: checked again at least every POLL)
-                        if self.line.notify and self.callbacks._late(time.monotonic()):
+                        if self.line.notify and self.callbacks.late(time.monotonic()):
                             break  # a callback request's deadline passed: timed out below
                     if stop.is_set() or self.line.lost is not None:
                         return  # what was opened here fails with the line (close(), Line.connection_lost)
@@ -196,18 +196,18 @@ class WsgConnection:
                     self.line.reading = me
                     self.line.read_line(POLL)
                     answered = (
-                        self.callbacks._take_callback_reply()
+                        self.callbacks.take_callback_reply()
                     )  # else matched as usual: calls go to _deferred
             # Outside the lock, before the next read; a delivery does not wait for the reading role.
             for sub, raw in sends:
-                self._call_back(self.callbacks._send, sub, raw)
+                self._call_back(self.callbacks.send, sub, raw)
             for call, value in deliveries:
                 self._call_back(call, value)
             if answered is not None:
                 # (it may submit the next request: read at once, above)
                 self._call_back(answered[0].reply, answered[1])
             if self.line.notify:
-                self.callbacks._expire(
+                self.callbacks.expire(
                     time.monotonic()
                 )  # sent callback requests past their deadline (.callbacks)
 
@@ -251,7 +251,7 @@ class WsgConnection:
             )
         sub = Subscription(self, cmd, int(period_ms), bool(changes_only), callback, maxsize, iter_timeout)
         with self.line.lock:
-            self.exchanges._usable(name, False)
+            self.exchanges.usable(name, False)
             self.line.subs.setdefault(cmd, []).append(sub)
             self.line.sub_params[cmd] = (int(period_ms), bool(changes_only))
             self.line.session.subscribe(cmd)
@@ -259,7 +259,7 @@ class WsgConnection:
             payload = encode_request(
                 cmd, auto_update=True, changes_only=changes_only, period_ms=int(period_ms)
             )
-            reply = self.exchanges._call(cmd, timeout=timeout, payload=payload)
+            reply = self.exchanges.call(cmd, timeout=timeout, payload=payload)
         except BaseException:
             self._forget(sub)
             sub._end()
@@ -290,7 +290,7 @@ class WsgConnection:
             return
         try:
             if not (self.line.closing or self.line.closed or self.line.lost):
-                self.exchanges._call(sub.command, timeout=timeout, payload=encode_request(sub.command))
+                self.exchanges.call(sub.command, timeout=timeout, payload=encode_request(sub.command))
         finally:
             with self.line.lock:
                 if sub.command not in self.line.subs:  # not subscribed again meanwhile

@@ -15,7 +15,7 @@ Ctrl-C (issue 13 item 1, issue 23 §3): a KeyboardInterrupt can arrive at any li
 the wait for the lock or for a reply. Every step therefore leaves a trace the handler can finish from: the
 reading role records its owner, bytes read wait in ``held_read`` until matched, the callers are a set (adding
 or removing twice changes nothing) and the waits come back with the lock held (:mod:`.interrupts`). The
-handler (:meth:`Exchanges._rescue`) matches what was read, hands the role back and abandons the exchange
+handler (:meth:`Exchanges.rescue`) matches what was read, hands the role back and abandons the exchange
 as a timeout does (its late reply is swallowed, its id freed). A STOP can then go out at once.
 
 Abandoned callers (issue 23 §3): :meth:`Exchanges.abandon` gives up the call a given thread runs
@@ -95,13 +95,13 @@ class Exchanges:
             "abandoned: the caller stopped waiting", device=self._line.device, command=command_name(cmd)
         )
 
-    def _usable(self, name: str, internal: bool) -> None:
+    def usable(self, name: str, internal: bool) -> None:
         if self._line.lost is not None:
             raise ConnectionLost(self._line.lost.message, device=self._line.device, command=name)
         if self._line.closed or (self._line.closing and not internal):
             raise ConnectionLost("client is closed", device=self._line.device, command=name)
 
-    def _check_supported(self, cmd: int) -> None:
+    def check_supported(self, cmd: int) -> None:
         if not available(cmd, self._line.firmware):
             raise NotSupported(
                 f"not available in firmware {self._line.firmware} (2.x has no 46h and no finger commands)",
@@ -109,14 +109,14 @@ class Exchanges:
                 command=command_name(cmd),
             )
 
-    def _encode(self, cmd: int, **fields: Any) -> bytes:
+    def encode(self, cmd: int, **fields: Any) -> bytes:
         try:
             return encode_request(cmd, **fields)
         except (LimitError, ProtocolError) as exc:
             raise type(exc)(exc.message, device=self._line.device, command=command_name(cmd)) from None
 
-    def _begin(self, cmd: int, payload: bytes, deadline: float, *, internal: bool = False) -> Exchange:
-        """Register and send a request; the caller is among ``callers`` until its :meth:`_wait` ends.
+    def begin(self, cmd: int, payload: bytes, deadline: float, *, internal: bool = False) -> Exchange:
+        """Register and send a request; the caller is among ``callers`` until its :meth:`wait` ends.
 
         When nobody else reads and no subscription needs the reader thread, the caller also takes the reading
         role here (``reading`` is its id): in the same critical section as the send, that saves the lock
@@ -139,7 +139,7 @@ class Exchanges:
                     self._line.cond.notify_all()
                 while True:
                     if self._line.lost is not None or self._line.closing or self._line.closed:
-                        self._usable(command_name(cmd), internal)
+                        self.usable(command_name(cmd), internal)
                     if self._line.abandoned and me in self._line.abandoned:
                         raise self._given_up(cmd)
                     if fence != self._line.stops_sent and cmd in MOTIONS:
@@ -207,7 +207,7 @@ class Exchanges:
         lock = self._line.lock
         error: BaseException | None = None
         try:
-            lock.release()  # _begin holds it once (its own ``with``)
+            lock.release()  # begin() holds it once (its own ``with``)
             self._barrier(cmd, deadline, internal)
         except BaseException as exc:  # noqa: BLE001 - raised below, once the lock is held again
             error = exc
@@ -229,7 +229,7 @@ class Exchanges:
         nonce = self._line.session.barrier_payload()
         wait = max(deadline - time.monotonic(), 0.001)
         try:
-            packet = self._exchange(Cmd.LOOP, nonce, wait, internal)
+            packet = self.exchange(Cmd.LOOP, nonce, wait, internal)
         except GripperTimeout:
             raise GripperTimeout(
                 "a previous exchange of this command is still outstanding (one per command id) and the "
@@ -242,11 +242,11 @@ class Exchanges:
 
     # ------------------------------------------------------------------------------------------- replies
 
-    def _read_own_reply(self, exchange: Exchange, wait: float) -> Packet | None:
-        """The first read of a caller that took the reading role in :meth:`_begin` (nothing can have arrived
+    def read_own_reply(self, exchange: Exchange, wait: float) -> Packet | None:
+        """The first read of a caller that took the reading role in :meth:`begin` (nothing can have arrived
         before): when the bytes are exactly its final reply, which they nearly always are on TCP and UDP, the
         exchange is done here without the general matching. Otherwise they are matched as usual and None sends
-        the caller on to :meth:`_wait`, still among the callers.
+        the caller on to :meth:`wait`, still among the callers.
         """
         with self._line.lock:
             interrupt = self._line.read_line(wait if wait < POLL else POLL)
@@ -266,7 +266,7 @@ class Exchanges:
                 raise interrupt
         return None
 
-    def _wait(
+    def wait(
         self,
         exchange: Exchange,
         deadline: float,
@@ -281,7 +281,7 @@ class Exchanges:
         E_CMD_PENDING and the wait for its end: an interrupt there is still rescued)."""
         with self._line.lock:
             self._line.callers[get_ident()] = exchange
-            leave = False  # an interrupt leaves the caller registered: _rescue abandons its exchange
+            leave = False  # an interrupt leaves the caller registered: rescue() abandons its exchange
             try:
                 packet = self._await(exchange, deadline, final, abandon, waited)
                 leave = not keep
@@ -291,7 +291,7 @@ class Exchanges:
                 raise
             finally:
                 if leave:
-                    self._leave()
+                    self.leave()
 
     def _await(
         self, exchange: Exchange, deadline: float, final: bool, abandon: bool, waited: float | None
@@ -332,7 +332,7 @@ class Exchanges:
             if interrupt is not None:
                 raise interrupt
 
-    def _leave(self) -> None:
+    def leave(self) -> None:
         """A caller is done with its exchange (lock held)."""
         self._line.callers.pop(get_ident(), None)
         if self._line.queued or (not self._line.callers and self._line.background_needed()):
@@ -340,7 +340,7 @@ class Exchanges:
             # the slot this exchange held (.callbacks)
             self._line.bg.notify()
 
-    def _rescue(self, abandon: bool = True) -> None:
+    def rescue(self, abandon: bool = True) -> None:
         """Ctrl-C (any BaseException but a GripperError) reached a caller between its steps: whatever step it
         hit, match what it read, give the reading role back and, unless told not to, abandon its exchange as
         a timeout does, so no command id and no reader stays taken (issue 13 item 1)."""
@@ -366,7 +366,7 @@ class Exchanges:
             f"no {what}{after}", device=self._line.device, command=command_name(exchange.command)
         )
 
-    def _check(self, cmd: int, packet: Packet) -> Reply:
+    def check(self, cmd: int, packet: Packet) -> Reply:
         try:
             reply = decode_reply(cmd, packet.payload)
         except ProtocolError as exc:
@@ -384,7 +384,7 @@ class Exchanges:
 
     # ---------------------------------------------------------------------------------------- exchanges
 
-    def _call(
+    def call(
         self,
         cmd: int,
         *,
@@ -393,28 +393,28 @@ class Exchanges:
         internal: bool = False,
         **fields: Any,
     ) -> Reply:
-        self._check_supported(cmd)
+        self.check_supported(cmd)
         if payload is None:
-            payload = self._encode(cmd, **fields)
-        return self._check(
-            cmd, self._exchange(cmd, payload, self._line.timeout if timeout is None else timeout, internal)
+            payload = self.encode(cmd, **fields)
+        return self.check(
+            cmd, self.exchange(cmd, payload, self._line.timeout if timeout is None else timeout, internal)
         )
 
-    def _exchange(self, cmd: int, payload: bytes, wait: float, internal: bool = False) -> Packet:
+    def exchange(self, cmd: int, payload: bytes, wait: float, internal: bool = False) -> Packet:
         """Send a request and return its final reply (past E_CMD_PENDING) within ``wait`` seconds."""
         deadline = time.monotonic() + wait
         try:
-            exchange = self._begin(cmd, payload, deadline, internal=internal)
+            exchange = self.begin(cmd, payload, deadline, internal=internal)
             if (
                 self._line.reading == get_ident()
-                and (packet := self._read_own_reply(exchange, wait)) is not None
+                and (packet := self.read_own_reply(exchange, wait)) is not None
             ):
                 return packet
-            return self._wait(exchange, deadline, final=True, waited=wait)
+            return self.wait(exchange, deadline, final=True, waited=wait)
         except GripperError:
             raise
         except BaseException:
-            self._rescue()
+            self.rescue()
             raise
 
     def request(
@@ -425,8 +425,8 @@ class Exchanges:
         With ``check`` a status other than E_SUCCESS raises CommandFailed; without, the caller reads
         ``packet.status``.
         """
-        self._check_supported(cmd)
-        packet = self._exchange(cmd, bytes(payload), self._line.timeout if timeout is None else timeout)
+        self.check_supported(cmd)
+        packet = self.exchange(cmd, bytes(payload), self._line.timeout if timeout is None else timeout)
         if check:
-            self._check(cmd, packet)
+            self.check(cmd, packet)
         return packet

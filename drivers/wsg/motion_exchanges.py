@@ -29,23 +29,21 @@ class MotionSteps:
         self._line = line
         self._exchanges = exchanges
 
-    def _start(
-        self, cmd: int, payload: bytes, timeout: float | None
-    ) -> tuple[Exchange, Packet, float, float]:
+    def start(self, cmd: int, payload: bytes, timeout: float | None) -> tuple[Exchange, Packet, float, float]:
         """Send a motion command and wait for its first reply: (exchange, first reply, deadline, total).
 
-        The caller stays registered with the exchange (an interrupt before :meth:`_finish` or :meth:`_done`
+        The caller stays registered with the exchange (an interrupt before :meth:`finish` or :meth:`done`
         is rescued like one inside them)."""
         start = time.monotonic()
         total = self._line.motion_timeout if timeout is None else timeout
         ack_wait = min(total, self._line.timeout)
         try:
-            exchange = self._exchanges._begin(cmd, payload, start + ack_wait)
+            exchange = self._exchanges.begin(cmd, payload, start + ack_wait)
             first = None
             if self._line.reading == get_ident():
-                first = self._exchanges._read_own_reply(exchange, ack_wait)
+                first = self._exchanges.read_own_reply(exchange, ack_wait)
             if first is None:
-                first = self._exchanges._wait(
+                first = self._exchanges.wait(
                     exchange, start + ack_wait, final=False, waited=ack_wait, keep=True
                 )
             else:
@@ -54,7 +52,7 @@ class MotionSteps:
         except GripperError:
             raise
         except BaseException:
-            self._exchanges._rescue()
+            self._exchanges.rescue()
             raise
         return exchange, first, start + total, total
 
@@ -62,18 +60,18 @@ class MotionSteps:
         """Whether a motion command (20h, 21h, 25h, 26h) on this connection still waits for its end."""
         return any(exchange.command in MOTIONS for exchange in self._line.session.outstanding())
 
-    def _done(self) -> None:
+    def done(self) -> None:
         """The motion's caller returns without waiting for its end (or ends on its first reply)."""
         with self._line.lock:
-            self._exchanges._leave()
+            self._exchanges.leave()
 
-    def _finish(self, exchange: Exchange, deadline: float, waited: float, abandon: bool = True) -> None:
+    def finish(self, exchange: Exchange, deadline: float, waited: float, abandon: bool = True) -> None:
         """Wait for a motion's final reply; CommandFailed unless it is E_SUCCESS."""
         try:
-            final = self._exchanges._wait(exchange, deadline, final=True, abandon=abandon, waited=waited)
+            final = self._exchanges.wait(exchange, deadline, final=True, abandon=abandon, waited=waited)
         except GripperError:
             raise
         except BaseException:
-            self._exchanges._rescue(abandon)
+            self._exchanges.rescue(abandon)
             raise
-        self._exchanges._check(exchange.command, final)
+        self._exchanges.check(exchange.command, final)

@@ -45,7 +45,7 @@ class StateReads:
 
     def query(self, cmd: int, timeout: float | None) -> Any:
         """The value of a state query (40h-45h: all firmware has them, so no firmware check)."""
-        packet = self._exchanges._exchange(
+        packet = self._exchanges.exchange(
             cmd, self._query_payload(cmd), self._line.timeout if timeout is None else timeout
         )
         return self._query_value(cmd, packet)
@@ -67,7 +67,7 @@ class StateReads:
                 return reply_value(cmd, data)
             except ProtocolError:
                 pass  # _check raises it with the device's name
-        return self._exchanges._check(cmd, packet).value
+        return self._exchanges.check(cmd, packet).value
 
     def queries(self, cmds: Sequence[int], *, timeout: float | None = None) -> list[Any]:
         """The values of state queries (40h-45h), one after another: what :meth:`start_queries` reads,
@@ -82,5 +82,5 @@ class StateReads:
         unless :meth:`Queries.cancel` came first). Each query times out as :meth:`queries`' do (the reader
         keeps the time)."""
         reads = Queries(self, cmds, done)
-        reads._next()
+        reads.send_next()
         return reads
