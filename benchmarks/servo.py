@@ -58,7 +58,8 @@ def target_mm(t: float) -> float:
 
 
 def _ideal_wsg(profile: Any, seconds: float, step: float) -> list[tuple[float, float]]:
-    from grippers.backends.wsg import SERVO_TOLERANCE, WsgBackend
+    from grippers.backends.wsg import WsgBackend
+    from grippers.backends.wsg_features import SERVO_TOLERANCE
     from grippers.settings import Settings
 
     server = WsgBackend().simulator(profile, Settings("bench", {}, {"time_scale": 1}))
