@@ -1,4 +1,4 @@
-"""A WSG connection: the exchange engine over one transport, its reader thread, its lifetime, subscriptions.
+"""A WSG connection (the exchanger): a Line and the parts sharing it, its reader thread, lifetime, subscriptions.
 
 The background reader reads only when nobody waits but bytes may still come: subscriptions (their callbacks
 always run on it), a pending motion's final reply, a half-received packet, a late reply to swallow, or the
