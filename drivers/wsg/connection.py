@@ -1,4 +1,4 @@
-"""A WSG connection (the exchanger): a Line and the parts sharing it, its reader thread, lifetime, subscriptions.
+"""A WSG connection (the exchanger): a Line and the parts sharing it, its reader thread, subscriptions.
 
 The background reader reads only when nobody waits but bytes may still come: subscriptions (their callbacks
 always run on it), a pending motion's final reply, a half-received packet, a late reply to swallow, or the
@@ -197,7 +197,7 @@ class WsgConnection:
                     self.line.read_line(POLL)
                     answered = (
                         self.callbacks.take_callback_reply()
-                    )  # else matched as usual: calls go to _deferred
+                    )  # else matched as usual: calls go to line.deferred
             # Outside the lock, before the next read; a delivery does not wait for the reading role.
             for sub, raw in sends:
                 self._call_back(self.callbacks.send, sub, raw)

@@ -161,7 +161,7 @@ class Exchanges:
                         raise
                     if opened is not None:
                         exchange, raw = opened
-                        self._line.callers[me] = exchange  # removed by the _wait that follows
+                        self._line.callers[me] = exchange  # removed by the wait() that follows
                         if not (self._line.reading or self._line.subs or self._line.closing):
                             self._line.reading = me  # the role's owner: a rescue after Ctrl-C hands it back
                         break

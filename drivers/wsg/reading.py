@@ -146,7 +146,7 @@ class Line:
         self.reading = 0
         # (reader, bytes, failure) a role holder read but has not matched yet: matched by whoever handles it.
         self.held_read: tuple[int, bytes | None, BaseException | None] | None = None
-        # The exchange of each caller thread between _begin and the end of its _wait (callers read for
+        # The exchange of each caller thread between begin() and the end of its wait() (callers read for
         # themselves): keyed by thread, so an interrupted step that adds or removes twice cannot skew a count,
         # and a handler finds the exchange even when Ctrl-C landed before the caller saw it returned.
         self.callers: dict[int, Exchange] = {}
@@ -301,7 +301,7 @@ class Line:
                 self.cond.notify_all()
                 self.line_failed(lost)
             elif data is not None:
-                self.absorb(data)  # _process hands the role back
+                self.absorb(data)  # process() hands the role back
                 return
         if self.reading == mine:
             self.reading = 0
