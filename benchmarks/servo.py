@@ -58,7 +58,8 @@ def target_mm(t: float) -> float:
 
 
 def _ideal_wsg(profile: Any, seconds: float, step: float) -> list[tuple[float, float]]:
-    from grippers.backends.wsg import WsgBackend, WsgGripper
+    from grippers.backends.wsg import WsgBackend
+    from grippers.backends.wsg_features import SERVO_TOLERANCE
     from grippers.settings import Settings
 
     server = WsgBackend().simulator(profile, Settings("bench", {}, {"time_scale": 1}))
@@ -72,7 +73,7 @@ def _ideal_wsg(profile: Any, seconds: float, step: float) -> list[tuple[float, f
     samples, k, t0 = [], 0, t
     aim: float | None = None
     deferred: float | None = None
-    tolerance = WsgGripper.servo_tolerance * 1000
+    tolerance = SERVO_TOLERANCE * 1000
     while k * (1 / RATE_HZ) < seconds:
         now = t0 + k / RATE_HZ
         offer = target_mm(k / RATE_HZ)

@@ -18,7 +18,7 @@ from typing import Any
 
 from benchmarks.common import Result, median, rss_bytes, us
 from benchmarks.simproc import WsgSimProcess
-from grippers.drivers.wsg.client import WsgClient
+from grippers.drivers.wsg.client import Submitted, WsgClient
 from grippers.drivers.wsg.commands import Cmd, decode_reply, encode_request
 from grippers.drivers.wsg.protocol import encode_packet
 
@@ -99,6 +99,33 @@ class ThreadedWidthClient(RawWidthClient):
         self.thread.join(2)
 
 
+class CallbackWidth:
+    """The one-reading-mode design on the library's own client: blocking = callback + event. The request
+    goes out by :meth:`WsgClient.submit`; the client's reader thread reads the reply and calls back, which
+    releases the waiting caller (issue 32 §2: the caller-reads fast path stays only if this costs more)."""
+
+    def __init__(self, client: WsgClient) -> None:
+        self.client = client
+        self.payload = encode_request(Cmd.GET_WIDTH)
+
+    def width(self) -> float:
+        signal = threading.Lock()
+        signal.acquire()
+        box: list[Any] = []
+
+        def back(packet: Any, error: Any) -> None:
+            box.append(packet if packet is not None else error)
+            signal.release()
+
+        self.client.submit(Submitted(Cmd.GET_WIDTH, self.payload, back, 1.0))
+        if not signal.acquire(timeout=2.0):
+            raise TimeoutError("no reply")
+        got = box[0]
+        if isinstance(got, Exception):
+            raise got
+        return struct.unpack_from("<f", got.payload, 2)[0]
+
+
 # The same pause after every exchange for every client: a control loop's own work between two requests.
 # Why: back to back, the simulator answers a request that follows its previous reply within ~3 us some
 # 13 us sooner (its process and the loopback path have not gone idle yet): 55 us against 67-70 us for the
@@ -123,13 +150,20 @@ def _timed(fn: Callable[[], object], n: int, out: list[float], pause: float) -> 
 
 def round_trip(quick: bool) -> Result:
     rounds, batch = (10, 100) if quick else (20, 250)
-    lat: dict[str, list[float]] = {k: [] for k in ("raw", "client", "threaded", "raw b2b", "client b2b")}
+    names = ("raw", "client", "threaded", "callback", "raw b2b", "client b2b")
+    lat: dict[str, list[float]] = {k: [] for k in names}
     cpu = {"raw b2b": 0.0, "client b2b": 0.0}
     with WsgSimProcess() as sim:
         raw = RawWidthClient(sim.port)
         threaded = ThreadedWidthClient(sim.port)
         client = WsgClient.tcp("127.0.0.1", sim.port)
-        clients = {"raw": raw.width, "client": client.width, "threaded": threaded.width}
+        callback = CallbackWidth(client)
+        clients = {
+            "raw": raw.width,
+            "client": client.width,
+            "threaded": threaded.width,
+            "callback": callback.width,
+        }
         try:
             for fn in clients.values():  # warm up: first packets, lazily built tables, TCP slow start
                 _timed(fn, 50, [], 0.0)
@@ -165,6 +199,9 @@ def round_trip(quick: bool) -> Result:
             f"{us(cpu['raw b2b'] / n)}",
             f"floor of any reader-thread design (raw client + reader thread + condition hand-over): "
             f"{us(m['threaded'])} = {m['threaded'] / ref:.2f}x raw",
+            f"this client with one reading mode (blocking = callback + event, the reader thread reads): "
+            f"{us(m['callback'])} = {m['callback'] / ref:.2f}x raw, against {ratio:.2f}x with the caller "
+            f"reading its own reply",
         ],
     )
 

@@ -228,6 +228,13 @@ class Device(ABC):
         """Clear a fast stop or a fault so the device takes motions again; by default nothing."""
         return None
 
+    def fast_stop_latched(self) -> bool:
+        """For a device that :attr:`reports_fast_stop`: whether a fast stop is latched now (one cheap read).
+        The gripper asks at open and after a reconnection, so motions are refused with FastStopActive from
+        the start (a WSG left in FAST STOP by a TCP connection dropped without 07h, manual 4.0.x §1.4.2).
+        Default: False (nothing latched, no traffic)."""
+        return False
+
     def supersede(self) -> None:
         """End the running motion before a newer one is sent: :meth:`stop` by default; nothing to send for a
         device that :attr:`moves_to_new_targets` (its blocked primitive must still end, e.g. a new

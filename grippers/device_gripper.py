@@ -40,6 +40,13 @@ class DeviceGripper(Gripper):
                 name=self.name, closed=lambda: self._closed, check_same_device=self._check_same_device
             )
         )
+        self._take_latch()
+
+    def _take_latch(self) -> None:
+        """A device that latches its fast stop itself: its latch is the gripper's from the start (and again
+        after a reconnection), before any state was read."""
+        if self.device.reports_fast_stop:
+            self._fast_stopped = self.device.fast_stop_latched()
 
     @property
     def driver(self) -> Any:
@@ -137,6 +144,7 @@ class DeviceGripper(Gripper):
         if r is None:
             raise NotSupported("this device cannot reconnect", device=self.name, command="reconnect")
         r.reconnect()
+        self._take_latch()
 
     def _servo_begin(self) -> None:
         if self.device.servo is None:

@@ -1,20 +1,22 @@
-"""The WSG client: typed command methods over a :class:`~.connection.WsgConnection`.
+"""The WSG client: typed command methods over the :class:`~.connection.WsgConnection` it holds.
 
 Each method is a thin layer over the command table (:mod:`.commands`): it checks its arguments with the
 library's one number check (:func:`grippers.drivers.numbers.finite`), names the device and the command in
-every error, and runs one exchange. The connection (transport, reader, exchange engine with its Ctrl-C
-recovery) lives in :mod:`.connection` and :mod:`.exchanges`; the matching rules in :mod:`.session`.
+every error, and runs one exchange. The client HAS a connection (the exchanger: transport, reader thread,
+exchanges with their Ctrl-C recovery; :mod:`.connection`, :mod:`.exchanges`), it is not one: no base class,
+so what the client is can be read in this file. The matching rules live in :mod:`.session`; the transports
+a client opens in :mod:`.opening`.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
-from typing import Any
+from typing import Any, Self
 
-from ..errors import GripperError, LimitError, ProtocolError
+from can import BusABC
+
+from ..errors import GripperError, LimitError
 from ..numbers import finite
 from .commands import (
-    AUTO_UPDATE_COMMANDS,
     Cmd,
     FingerFlags,
     FingerInfo,
@@ -25,29 +27,207 @@ from .commands import (
     SystemInfo,
     SystemLimits,
     command_name,
-    encode_request,
-    reply_value,
 )
 from .connection import WsgConnection
+from .exchanges import SILENT_GAP
 from .handles import Pending, Queries, Subscription
-from .protocol import Packet, Status
+from .opening import can_transport, serial_transport, transport_from_url
+from .protocol import Status
+from .reading import Submitted
+from .state_reads import StateReads
+from .transports import (
+    DEFAULT_BAUDRATE,
+    DEFAULT_CAN_RECV_ID,
+    DEFAULT_CAN_SEND_ID,
+    DEFAULT_TCP_PORT,
+    DEFAULT_UDP_LOCAL_PORT,
+    DEFAULT_UDP_PORT,
+    TcpTransport,
+    Transport,
+    UdpTransport,
+)
 
-__all__ = ["Pending", "Queries", "Subscription", "WsgClient"]
+__all__ = ["Pending", "Queries", "Submitted", "Subscription", "WsgClient"]
 
 _MAX_TAG = 64  # WSG manual 4.0.x §3.5.2
 _MAX_LOOP = 256  # WSG manual 4.0.x §3.1.1
 
-# The payload of a plain state query (auto update off), encoded once.
-_PLAIN_QUERY: dict[int, bytes] = {cmd: encode_request(cmd) for cmd in AUTO_UPDATE_COMMANDS}
 
-
-class WsgClient(WsgConnection):
+class WsgClient:
     """A WSG gripper over one transport. Units are the device's: mm, mm/s, mm/s², N, °C.
 
     Every method takes ``timeout`` (seconds; default ``timeout`` for state and settings, ``motion_timeout``
     for motions). A device status other than E_SUCCESS raises CommandFailed; a lost line raises
     ConnectionLost for every waiter at once.
     """
+
+    limits: SystemLimits | None = None  # the device's 53h answer, once read
+
+    def __init__(
+        self,
+        transport: Transport,
+        *,
+        device: str | None = None,
+        timeout: float = 1.0,
+        motion_timeout: float = 60.0,
+        verify_checksum: bool = True,
+        stale_ttl: float = 2.0,
+        stale_final_ttl: float = 60.0,
+        silent_gap: float = SILENT_GAP,
+    ) -> None:
+        self.connection = WsgConnection(
+            transport,
+            device=device,
+            timeout=timeout,
+            motion_timeout=motion_timeout,
+            verify_checksum=verify_checksum,
+            stale_ttl=stale_ttl,
+            stale_final_ttl=stale_final_ttl,
+            silent_gap=silent_gap,
+        )
+        conn = self.connection
+        self._line = conn.line
+        self._exchanges = ex = conn.exchanges
+        self._motions = conn.motions
+        self._call = ex.call
+        self._check = ex.check
+        # What other modules call on a client, the connection's own (one place each).
+        self.request = ex.request
+        self.abandon = ex.abandon
+        self.resume = ex.resume
+        self.submit = conn.callbacks.submit
+        self.withdraw = conn.callbacks.withdraw
+        self.callbacks_waiting = conn.callbacks.waiting
+        self.motion_outstanding = conn.motions.motion_outstanding
+        self._reads = StateReads(self._line, ex, conn.callbacks)
+        self._query = self._reads.query
+        self.queries = self._reads.queries
+        self.start_queries = self._reads.start_queries
+        self.outstanding = conn.outstanding
+        self.subscribe = conn.subscribe
+        self.close = conn.close
+
+    # ------------------------------------------------------------------------------------------ factories
+
+    @classmethod
+    def tcp(
+        cls, host: str, port: int = DEFAULT_TCP_PORT, *, connect_timeout: float | None = None, **kw: Any
+    ) -> Self:
+        wait = connect_timeout if connect_timeout is not None else kw.get("timeout", 5.0)
+        return cls(TcpTransport(host, port, connect_timeout=wait), **kw)
+
+    @classmethod
+    def udp(
+        cls, host: str, port: int = DEFAULT_UDP_PORT, *, local_port: int = DEFAULT_UDP_LOCAL_PORT, **kw: Any
+    ) -> Self:
+        return cls(UdpTransport(host, port, local_port=local_port), **kw)
+
+    @classmethod
+    def serial(
+        cls,
+        port: str,
+        *,
+        baudrate: int = DEFAULT_BAUDRATE,
+        bytesize: int = 8,
+        parity: str = "N",
+        stopbits: float = 1,
+        **kw: Any,
+    ) -> Self:
+        t = serial_transport(port, baudrate=baudrate, bytesize=bytesize, parity=parity, stopbits=stopbits)
+        return cls(t, **kw)
+
+    @classmethod
+    def can(
+        cls,
+        *,
+        bus: BusABC | None = None,
+        interface: str | None = None,
+        channel: str | int | None = None,
+        bitrate: int | None = None,
+        send_id: int = DEFAULT_CAN_SEND_ID,
+        recv_id: int = DEFAULT_CAN_RECV_ID,
+        extended_id: bool | None = None,
+        port: int | None = None,
+        **kw: Any,
+    ) -> Self:
+        link = can_transport(
+            bus=bus,
+            interface=interface,
+            channel=channel,
+            bitrate=bitrate,
+            send_id=send_id,
+            recv_id=recv_id,
+            extended_id=extended_id,
+            port=port,
+        )
+        return cls(link, **kw)
+
+    @classmethod
+    def from_url(cls, url: str, **kw: Any) -> Self:
+        """A client on ``url`` (:func:`.opening.transport_from_url`: tcp, udp, serial or can)."""
+        return cls(transport_from_url(url, connect_timeout=kw.get("timeout", 5.0)), **kw)
+
+    # ------------------------------------------------------------------------------ the connection's state
+
+    @property
+    def device(self) -> str:
+        return self._line.device
+
+    @property
+    def timeout(self) -> float:
+        return self._line.timeout
+
+    @timeout.setter
+    def timeout(self, value: float) -> None:
+        self._line.timeout = value
+
+    @property
+    def motion_timeout(self) -> float:
+        return self._line.motion_timeout
+
+    @motion_timeout.setter
+    def motion_timeout(self, value: float) -> None:
+        self._line.motion_timeout = value
+
+    @property
+    def firmware(self) -> Any:
+        """The FirmwareVersion of 50h, once read: decides which commands are refused locally."""
+        return self._line.firmware
+
+    @firmware.setter
+    def firmware(self, value: Any) -> None:
+        self._line.firmware = value
+
+    @property
+    def stats(self) -> dict[str, int]:
+        return self._line.stats
+
+    @property
+    def transport(self) -> Transport:
+        """The byte line under the connection (as opened, without the wire log)."""
+        return self._line.transport
+
+    @property
+    def closed(self) -> bool:
+        return self.connection.closed
+
+    @property
+    def connection_lost(self) -> Any:
+        return self.connection.connection_lost
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def __repr__(self) -> str:
+        return f"<{type(self).__name__} {self.device}{' closed' if self.closed else ''}>"
+
+    def _finish(self, exchange: Any, deadline: float, waited: float, abandon: bool = True) -> None:
+        self._motions.finish(exchange, deadline, waited, abandon)
+
+    # ------------------------------------------------------------------------------------------- commands
 
     def _number(
         self, value: Any, what: str, cmd: int, *, positive: bool = False, low: float | None = None
@@ -61,21 +241,21 @@ class WsgClient(WsgConnection):
         return number
 
     def _motion(self, cmd: int, wait: bool, timeout: float | None, **fields: Any) -> Pending | None:
-        self._check_supported(cmd)
-        payload = self._encode(cmd, **fields)
+        self._exchanges.check_supported(cmd)
+        payload = self._exchanges.encode(cmd, **fields)
         try:
-            exchange, first, deadline, total = self._start(cmd, payload, timeout)
+            exchange, first, deadline, total = self._motions.start(cmd, payload, timeout)
             if first.status != Status.E_CMD_PENDING or not wait:
-                self._done()
+                self._motions.done()
                 if first.status != Status.E_CMD_PENDING:  # answered at once (an immediate error, or done)
                     self._check(cmd, first)
                     return None if wait else Pending(self, exchange)
                 return Pending(self, exchange)
-            self._finish(exchange, deadline, total)
+            self._motions.finish(exchange, deadline, total)
         except GripperError:
             raise
         except BaseException:  # Ctrl-C between the steps: abandoned as a timeout is (see exchanges.py)
-            self._rescue()
+            self._exchanges.rescue()
             raise
         return None
 
@@ -192,46 +372,6 @@ class WsgClient(WsgConnection):
         self._call(Cmd.TARE, timeout=timeout)
 
     # -------------------------------------------------------------------------------------------- state
-
-    def _query(self, cmd: int, timeout: float | None) -> Any:
-        """The value of a state query (40h-45h: all firmware has them, so no firmware check)."""
-        packet = self._exchange(cmd, self._query_payload(cmd), self.timeout if timeout is None else timeout)
-        return self._query_value(cmd, packet)
-
-    def _query_payload(self, cmd: int) -> bytes:
-        """A state query's request: plain, or repeating a running subscription's parameters."""
-        # A plain query (auto update off) would switch a running subscription off on the device, so while one
-        # is active the query repeats its parameters.
-        params = self._sub_params.get(cmd)  # one dict read: atomic, no lock needed
-        if params is None:
-            return _PLAIN_QUERY[cmd]
-        return encode_request(cmd, auto_update=True, changes_only=params[1], period_ms=params[0])
-
-    def _query_value(self, cmd: int, packet: Packet) -> Any:
-        """A state query's reply decoded; CommandFailed or ProtocolError naming the device and command."""
-        data = packet.payload  # a completed exchange's reply has its status (session)
-        if not (data[0] | data[1]):  # E_SUCCESS
-            try:
-                return reply_value(cmd, data)
-            except ProtocolError:
-                pass  # _check raises it with the device's name
-        return self._check(cmd, packet).value
-
-    def queries(self, cmds: Sequence[int], *, timeout: float | None = None) -> list[Any]:
-        """The values of state queries (40h-45h), one after another: what :meth:`start_queries` reads,
-        with this thread waiting (and reading its own replies, the cheapest way for a thread)."""
-        return [self._query(cmd, timeout) for cmd in cmds]
-
-    def start_queries(
-        self, cmds: Sequence[int], done: Callable[[list[Any] | None, GripperError | None], None]
-    ) -> Queries:
-        """:meth:`queries` with no thread waiting: each query is sent when the previous one's reply came,
-        from the reader thread, which then calls ``done(values, None)`` or ``done(None, error)`` (once,
-        unless :meth:`Queries.cancel` came first). Each query times out as :meth:`queries`' do (the reader
-        keeps the time)."""
-        reads = Queries(self, cmds, done)
-        reads._next()
-        return reads
 
     def system_state(self, *, timeout: float | None = None) -> SystemFlags:
         return self._query(Cmd.GET_SYSTEM_STATE, timeout)

@@ -1,4 +1,4 @@
-"""A WSG connection: the exchange engine over one transport, its reader thread, its lifetime, subscriptions.
+"""A WSG connection (the exchanger): a Line and the parts sharing it, its reader thread, subscriptions.
 
 The background reader reads only when nobody waits but bytes may still come: subscriptions (their callbacks
 always run on it), a pending motion's final reply, a half-received packet, a late reply to swallow, or the
@@ -16,50 +16,30 @@ from collections.abc import Callable
 from threading import get_ident
 from typing import Any, Self
 
-from can import BusABC
-
 from ..errors import ConnectionLost, GripperError, LimitError, NotSupported
-from ..urls import TRANSPORTS, parse_url, refuse_unknown, shown, to_bool, to_float, to_int
-from .callbacks import CallbackEngine
+from .callbacks import Callbacks
 from .commands import AUTO_UPDATE_COMMANDS, Cmd, command_name, encode_request
-from .exchanges import POLL, SILENT_GAP
+from .exchanges import POLL, SILENT_GAP, Exchanges
 from .handles import Subscription
-from .motion_exchanges import MotionExchanges
-from .reading import Submitted
-from .transports import (
-    DEFAULT_BAUDRATE,
-    DEFAULT_CAN_RECV_ID,
-    DEFAULT_CAN_SEND_ID,
-    DEFAULT_TCP_PORT,
-    DEFAULT_UDP_LOCAL_PORT,
-    DEFAULT_UDP_PORT,
-    CanTransport,
-    SerialTransport,
-    TcpTransport,
-    Transport,
-    UdpTransport,
-)
+from .motion_exchanges import MotionSteps
+from .reading import Line, Submitted
+from .transports import Transport
 
 __all__ = ["WsgConnection"]
 
 log = logging.getLogger(__name__)
 
-# The query parameters from_url takes, per transport (the client's framing and ids; the API's settings are
-# grippers.open's business).
-_FROM_URL_PARAMETERS: dict[str, tuple[str, ...]] = {
-    "tcp": (),
-    "udp": ("local_port",),
-    "serial": ("baudrate", "bytesize", "parity", "stopbits"),
-    "can": ("bitrate", "extended", "port", "recv_id", "send_id"),
-}
 _MIN_PERIOD_MS = 10  # docs/protocols.md §1: auto-update period minimum
 
 
-class WsgConnection(CallbackEngine, MotionExchanges):
-    """One connection to a WSG: requests from any thread, a reader thread for what nobody waits for.
+class WsgConnection:
+    """One connection to a WSG (the exchanger): requests from any thread, a reader thread for what nobody
+    waits for.
 
-    Both bases extend the one :class:`~.exchanges.ExchangeEngine`: exchanges answered by callback, and
-    the steps of a motion command."""
+    Composed, not inherited (issue 32 §2; httpcore's connection = h11 state machine + network stream): one
+    :class:`~.reading.Line` (transport, sans-IO session, lock, reading role) shared by the blocking side
+    (:attr:`exchanges`), the callback side (:attr:`callbacks`), the motion steps (:attr:`motions`) and the
+    one reader thread here, which also runs the subscriptions (python-can's Notifier)."""
 
     def __init__(
         self,
@@ -73,7 +53,7 @@ class WsgConnection(CallbackEngine, MotionExchanges):
         stale_final_ttl: float = 60.0,
         silent_gap: float = SILENT_GAP,
     ) -> None:
-        super().__init__(
+        self.line = Line(
             transport,
             device=device,
             timeout=timeout,
@@ -83,114 +63,23 @@ class WsgConnection(CallbackEngine, MotionExchanges):
             stale_final_ttl=stale_final_ttl,
             silent_gap=silent_gap,
         )
-        self._sub_params: dict[int, tuple[int, bool]] = {}
-        self._reader = threading.Thread(target=self._read_loop, name=f"{self.device} reader", daemon=True)
+        self.exchanges = Exchanges(self.line)
+        self.callbacks = Callbacks(self.line)
+        self.motions = MotionSteps(self.line, self.exchanges)
+        self._reader = threading.Thread(
+            target=self._read_loop, name=f"{self.line.device} reader", daemon=True
+        )
         self._reader.start()
-        self._reader_ident = self._reader.ident
+        self.line.reader_ident = self._reader.ident
 
-    # ------------------------------------------------------------------------------------------ factories
+    @property
+    def device(self) -> str:
+        return self.line.device
 
-    @classmethod
-    def tcp(
-        cls, host: str, port: int = DEFAULT_TCP_PORT, *, connect_timeout: float | None = None, **kw: Any
-    ) -> Self:
-        wait = connect_timeout if connect_timeout is not None else kw.get("timeout", 5.0)
-        return cls(TcpTransport(host, port, connect_timeout=wait), **kw)
-
-    @classmethod
-    def udp(
-        cls, host: str, port: int = DEFAULT_UDP_PORT, *, local_port: int = DEFAULT_UDP_LOCAL_PORT, **kw: Any
-    ) -> Self:
-        return cls(UdpTransport(host, port, local_port=local_port), **kw)
-
-    @classmethod
-    def serial(
-        cls,
-        port: str,
-        *,
-        baudrate: int = DEFAULT_BAUDRATE,
-        bytesize: int = 8,
-        parity: str = "N",
-        stopbits: float = 1,
-        **kw: Any,
-    ) -> Self:
-        return cls(
-            SerialTransport(port, baudrate=baudrate, bytesize=bytesize, parity=parity, stopbits=stopbits),
-            **kw,
-        )
-
-    @classmethod
-    def can(
-        cls,
-        *,
-        bus: BusABC | None = None,
-        interface: str | None = None,
-        channel: str | int | None = None,
-        bitrate: int | None = None,
-        send_id: int = DEFAULT_CAN_SEND_ID,
-        recv_id: int = DEFAULT_CAN_RECV_ID,
-        extended_id: bool | None = None,
-        port: int | None = None,
-        **kw: Any,
-    ) -> Self:
-        transport = CanTransport(
-            bus,
-            interface=interface,
-            channel=channel,
-            bitrate=bitrate,
-            send_id=send_id,
-            recv_id=recv_id,
-            extended_id=extended_id,
-            port=port,
-        )
-        return cls(transport, **kw)
-
-    @classmethod
-    def from_url(cls, url: str, **kw: Any) -> Self:
-        """``[wsg+]tcp://H:P``, ``[wsg+]udp://H:P?local_port=N``,
-        ``[wsg+]serial://PATH-OR-PYSERIAL-URL?baudrate=..``,
-        ``[wsg+]can://INTERFACE/CHANNEL?send_id=..&recv_id=..&bitrate=..`` (the simulator's ``.url``), read by
-        the one grammar (``drivers/urls.py``). A scheme of another family is a LimitError (not a WSG); a URL
-        the grammar refuses, or an unknown parameter, a URLError."""
-        scheme = url.partition("://")[0].lower() if isinstance(url, str) else ""
-        if scheme.removeprefix("wsg+") not in TRANSPORTS:
-            raise LimitError(f"unsupported WSG URL {shown(url)} (tcp, udp, serial or can)")
-        u = parse_url(url, bare_family="wsg")
-        refuse_unknown(url, u.params, _FROM_URL_PARAMETERS[u.transport])
-        query = u.params
-
-        def num(key: str, default: int) -> int:
-            return to_int(query[key], key, url) if key in query else default
-
-        if u.transport == "tcp":
-            return cls.tcp(u.host or "127.0.0.1", u.port or DEFAULT_TCP_PORT, **kw)
-        if u.transport == "udp":
-            return cls.udp(
-                u.host or "127.0.0.1",
-                u.port or DEFAULT_UDP_PORT,
-                local_port=num("local_port", DEFAULT_UDP_LOCAL_PORT),
-                **kw,
-            )
-        if u.transport == "serial":
-            framing: dict[str, Any] = {"baudrate": num("baudrate", DEFAULT_BAUDRATE)}
-            if "parity" in query:
-                framing["parity"] = query["parity"]
-            if "stopbits" in query:
-                framing["stopbits"] = to_float(query["stopbits"], "stopbits", url)
-            if "bytesize" in query:
-                framing["bytesize"] = num("bytesize", 8)
-            assert u.serial_port is not None  # the grammar refuses a serial URL without a port
-            return cls.serial(u.serial_port, **framing, **kw)
-        return cls.can(
-            interface=u.interface,
-            channel=u.channel,
-            bitrate=num("bitrate", 0) if "bitrate" in query else None,
-            send_id=num("send_id", DEFAULT_CAN_SEND_ID),
-            recv_id=num("recv_id", DEFAULT_CAN_RECV_ID),
-            extended_id=to_bool(query["extended"], "extended", url) if "extended" in query else None,
-            port=num("port", 0) if "port" in query else None,
-            **kw,
-        )
+    def outstanding(self) -> list[int]:
+        """The command ids whose exchanges still wait for a reply (the sans-IO session's view)."""
+        with self.line.lock:
+            return [exchange.command for exchange in self.line.session.outstanding()]
 
     # -------------------------------------------------------------------------------------------- lifetime
 
@@ -199,41 +88,41 @@ class WsgConnection(CallbackEngine, MotionExchanges):
 
         Idempotent; never raises for a line that is already gone.
         """
-        with self._lock:
-            if self._closing or self._closed:
+        with self.line.lock:
+            if self.line.closing or self.line.closed:
                 return
-            self._closing = True
-            healthy = self._lost is None
-        goodbye = min(self.timeout, 0.5) if timeout is None else timeout
+            self.line.closing = True
+            healthy = self.line.lost is None
+        goodbye = min(self.line.timeout, 0.5) if timeout is None else timeout
         if healthy and threading.current_thread() is not self._reader:
-            for cmd in list(self._sub_params):
+            for cmd in list(self.line.sub_params):
                 try:
-                    self._call(cmd, payload=encode_request(cmd), timeout=goodbye, internal=True)
+                    self.exchanges.call(cmd, payload=encode_request(cmd), timeout=goodbye, internal=True)
                 except GripperError:
                     pass
-            if self._transport.connection_oriented:
+            if self.line.wire.connection_oriented:
                 try:
-                    self._call(Cmd.DISCONNECT, timeout=goodbye, internal=True)
+                    self.exchanges.call(Cmd.DISCONNECT, timeout=goodbye, internal=True)
                 except GripperError:
                     pass
-        self._stop.set()
-        with self._lock:
-            self._bg.notify()
+        self.line.quit.set()
+        with self.line.lock:
+            self.line.bg.notify()
         if threading.current_thread() is not self._reader:
             self._reader.join(timeout=2.0)
         try:
-            self._transport.close()
+            self.line.wire.close()
         except Exception:  # noqa: BLE001 - closing must not fail
-            log.debug("closing %s failed", self.device, exc_info=True)
-        error = ConnectionLost("client closed", device=self.device)
-        with self._lock:
-            self._closed = True
-            self._session.fail_all(error)
-            orphans = self._orphans(error)
-            subs = [s for lst in self._subs.values() for s in lst]
-            self._subs.clear()
-            self._sub_params.clear()
-            self._cond.notify_all()
+            log.debug("closing %s failed", self.line.device, exc_info=True)
+        error = ConnectionLost("client closed", device=self.line.device)
+        with self.line.lock:
+            self.line.closed = True
+            self.line.session.fail_all(error)
+            orphans = self.line.orphans(error)
+            subs = [s for lst in self.line.subs.values() for s in lst]
+            self.line.subs.clear()
+            self.line.sub_params.clear()
+            self.line.cond.notify_all()
         for sub in subs:
             sub._end()
         for fail, exc in orphans:
@@ -241,11 +130,11 @@ class WsgConnection(CallbackEngine, MotionExchanges):
 
     @property
     def closed(self) -> bool:
-        return self._closed
+        return self.line.closed
 
     @property
     def connection_lost(self) -> ConnectionLost | None:
-        return self._lost
+        return self.line.lost
 
     def __enter__(self) -> Self:
         return self
@@ -254,7 +143,7 @@ class WsgConnection(CallbackEngine, MotionExchanges):
         self.close()
 
     def __repr__(self) -> str:
-        return f"<{type(self).__name__} {self.device}{' closed' if self._closed else ''}>"
+        return f"<{type(self).__name__} {self.line.device}{' closed' if self.line.closed else ''}>"
 
     # ------------------------------------------------------------------------------------------- reader
 
@@ -264,9 +153,9 @@ class WsgConnection(CallbackEngine, MotionExchanges):
 
         The calls and sends happen outside the lock and before the next read, and they do not wait for the
         reading role: a callback that submits the next request has it on the line at once."""
-        lock = self._lock
+        lock = self.line.lock
         me = get_ident()
-        stop = self._stop
+        stop = self.line.quit
         while True:
             sends: list[tuple[Submitted, bytes]] = []
             deliveries: list[tuple[Callable[[Any], None], Any]] = []
@@ -275,38 +164,52 @@ class WsgConnection(CallbackEngine, MotionExchanges):
                 # The usual turn while callback exchanges run: one is out, nobody else reads, nothing else
                 # to do: straight to the line (each check below costs a callback round trip time).
                 quick = (
-                    self._notify
-                    and not (self._reading or self._deferred or self._queued or self._callers or self._subs)
-                    and self._lost is None
+                    self.line.notify
+                    and not (
+                        self.line.reading
+                        or self.line.deferred
+                        or self.line.queued
+                        or self.line.callers
+                        or self.line.subs
+                    )
+                    and self.line.lost is None
                     and not stop.is_set()
                 )
                 if not quick:
                     while not stop.is_set():
-                        if self._queued and not self._closing:
-                            sends = self._start_queued()  # a slot came free (or a barrier is due)
-                        if sends or self._deferred or (not self._reading and self._background_needed()):
+                        if self.line.queued and not self.line.closing:
+                            sends = self.callbacks.start_queued()  # a slot came free (or a barrier is due)
+                        if (
+                            sends
+                            or self.line.deferred
+                            or (not self.line.reading and self.line.background_needed())
+                        ):
                             break
-                        self._bg.wait(POLL)  # (queued requests: checked again at least every POLL)
-                        if self._notify and self._late(time.monotonic()):
+                        self.line.bg.wait(POLL)  # (queued requests: checked again at least every POLL)
+                        if self.line.notify and self.callbacks.late(time.monotonic()):
                             break  # a callback request's deadline passed: timed out below
-                    if stop.is_set() or self._lost is not None:
-                        return  # what was opened here fails with the line (close(), _connection_lost)
-                    if self._deferred:
-                        deliveries, self._deferred = self._deferred, []
-                if not (sends or deliveries or self._reading):
-                    self._reading = me
-                    self._read_line(POLL)
-                    answered = self._take_callback_reply()  # else matched as usual: calls go to _deferred
+                    if stop.is_set() or self.line.lost is not None:
+                        return  # what was opened here fails with the line (close(), Line.connection_lost)
+                    if self.line.deferred:
+                        deliveries, self.line.deferred = self.line.deferred, []
+                if not (sends or deliveries or self.line.reading):
+                    self.line.reading = me
+                    self.line.read_line(POLL)
+                    answered = (
+                        self.callbacks.take_callback_reply()
+                    )  # else matched as usual: calls go to line.deferred
             # Outside the lock, before the next read; a delivery does not wait for the reading role.
             for sub, raw in sends:
-                self._call_back(self._send, sub, raw)
+                self._call_back(self.callbacks.send, sub, raw)
             for call, value in deliveries:
                 self._call_back(call, value)
             if answered is not None:
                 # (it may submit the next request: read at once, above)
                 self._call_back(answered[0].reply, answered[1])
-            if self._notify:
-                self._expire(time.monotonic())  # sent callback requests past their deadline (.callbacks)
+            if self.line.notify:
+                self.callbacks.expire(
+                    time.monotonic()
+                )  # sent callback requests past their deadline (.callbacks)
 
     def _call_back(self, call: Callable[..., None], *args: Any) -> None:
         """A call the reader thread makes for others: a bug in it is logged, never the end of the reading
@@ -314,7 +217,7 @@ class WsgConnection(CallbackEngine, MotionExchanges):
         try:
             call(*args)
         except Exception:  # noqa: BLE001 - see the docstring
-            log.exception("%s: a callback raised on the reader thread", self.device)
+            log.exception("%s: a callback raised on the reader thread", self.line.device)
 
     # ------------------------------------------------------------------------------------ subscriptions
 
@@ -338,25 +241,25 @@ class WsgConnection(CallbackEngine, MotionExchanges):
         name = command_name(cmd)
         if cmd not in AUTO_UPDATE_COMMANDS:
             raise NotSupported(
-                "has no auto update (40h, 41h, 43h, 44h, 45h have)", device=self.device, command=name
+                "has no auto update (40h, 41h, 43h, 44h, 45h have)", device=self.line.device, command=name
             )
         if not _MIN_PERIOD_MS <= int(period_ms) <= 0xFFFF:
             raise LimitError(
                 f"period must be {_MIN_PERIOD_MS}..65535 ms, not {period_ms!r}",
-                device=self.device,
+                device=self.line.device,
                 command=name,
             )
         sub = Subscription(self, cmd, int(period_ms), bool(changes_only), callback, maxsize, iter_timeout)
-        with self._lock:
-            self._usable(name, False)
-            self._subs.setdefault(cmd, []).append(sub)
-            self._sub_params[cmd] = (int(period_ms), bool(changes_only))
-            self._session.subscribe(cmd)
+        with self.line.lock:
+            self.exchanges.usable(name, False)
+            self.line.subs.setdefault(cmd, []).append(sub)
+            self.line.sub_params[cmd] = (int(period_ms), bool(changes_only))
+            self.line.session.subscribe(cmd)
         try:
             payload = encode_request(
                 cmd, auto_update=True, changes_only=changes_only, period_ms=int(period_ms)
             )
-            reply = self._call(cmd, timeout=timeout, payload=payload)
+            reply = self.exchanges.call(cmd, timeout=timeout, payload=payload)
         except BaseException:
             self._forget(sub)
             sub._end()
@@ -367,16 +270,16 @@ class WsgConnection(CallbackEngine, MotionExchanges):
     def _forget(self, sub: Subscription, *, switched_off: bool = True) -> bool:
         """Remove ``sub``; True when it was the last one of its command. ``switched_off=False``: the device
         still sends its updates until the switch-off request is answered (:meth:`_unsubscribe`)."""
-        with self._lock:
-            subs = self._subs.get(sub.command, [])
+        with self.line.lock:
+            subs = self.line.subs.get(sub.command, [])
             if sub in subs:
                 subs.remove(sub)
             if subs:
                 return False
-            self._subs.pop(sub.command, None)
-            self._sub_params.pop(sub.command, None)
+            self.line.subs.pop(sub.command, None)
+            self.line.sub_params.pop(sub.command, None)
             if switched_off:
-                self._session.unsubscribe(sub.command)
+                self.line.session.unsubscribe(sub.command)
             return True
 
     def _unsubscribe(self, sub: Subscription, timeout: float | None) -> None:
@@ -386,9 +289,9 @@ class WsgConnection(CallbackEngine, MotionExchanges):
         if not self._forget(sub, switched_off=False):
             return
         try:
-            if not (self._closing or self._closed or self._lost):
-                self._call(sub.command, timeout=timeout, payload=encode_request(sub.command))
+            if not (self.line.closing or self.line.closed or self.line.lost):
+                self.exchanges.call(sub.command, timeout=timeout, payload=encode_request(sub.command))
         finally:
-            with self._lock:
-                if sub.command not in self._subs:  # not subscribed again meanwhile
-                    self._session.unsubscribe(sub.command)
+            with self.line.lock:
+                if sub.command not in self.line.subs:  # not subscribed again meanwhile
+                    self.line.session.unsubscribe(sub.command)

@@ -127,7 +127,7 @@ class Queries:
         self._cancelled = False
         self._over = False
 
-    def _next(self) -> None:
+    def send_next(self) -> None:
         cmd = self._cmds[len(self._values)]
         sub = Submitted(cmd, self._client._query_payload(cmd), self._step, self._client.timeout)
         # Set before the request goes out (its reply may come back on the reader at once), and checked after:
@@ -150,7 +150,7 @@ class Queries:
         elif len(self._values) == len(self._cmds):
             self._finish(self._values, None)
         else:
-            self._next()
+            self.send_next()
 
     def _finish(self, values: list[Any] | None, error: GripperError | None) -> None:
         if self._over:

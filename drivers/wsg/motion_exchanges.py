@@ -13,59 +13,65 @@ import time
 from threading import get_ident
 
 from ..errors import GripperError
-from .exchanges import MOTIONS, ExchangeEngine
+from .exchanges import MOTIONS, Exchanges
 from .protocol import Packet
+from .reading import Line
 from .session import Exchange
 
-__all__ = ["MotionExchanges"]
+__all__ = ["MotionSteps"]
 
 
-class MotionExchanges(ExchangeEngine):
-    """:class:`~.exchanges.ExchangeEngine` plus the steps of a motion command (see the module docstring)."""
+class MotionSteps:
+    """The steps of a motion command (see the module docstring), built from an :class:`~.exchanges.Exchanges`
+    over the same :class:`~.reading.Line`."""
 
-    def _start(
-        self, cmd: int, payload: bytes, timeout: float | None
-    ) -> tuple[Exchange, Packet, float, float]:
+    def __init__(self, line: Line, exchanges: Exchanges) -> None:
+        self._line = line
+        self._exchanges = exchanges
+
+    def start(self, cmd: int, payload: bytes, timeout: float | None) -> tuple[Exchange, Packet, float, float]:
         """Send a motion command and wait for its first reply: (exchange, first reply, deadline, total).
 
-        The caller stays registered with the exchange (an interrupt before :meth:`_finish` or :meth:`_done`
+        The caller stays registered with the exchange (an interrupt before :meth:`finish` or :meth:`done`
         is rescued like one inside them)."""
         start = time.monotonic()
-        total = self.motion_timeout if timeout is None else timeout
-        ack_wait = min(total, self.timeout)
+        total = self._line.motion_timeout if timeout is None else timeout
+        ack_wait = min(total, self._line.timeout)
         try:
-            exchange = self._begin(cmd, payload, start + ack_wait)
+            exchange = self._exchanges.begin(cmd, payload, start + ack_wait)
             first = None
-            if self._reading == get_ident():
-                first = self._read_own_reply(exchange, ack_wait)
+            if self._line.reading == get_ident():
+                first = self._exchanges.read_own_reply(exchange, ack_wait)
             if first is None:
-                first = self._wait(exchange, start + ack_wait, final=False, waited=ack_wait, keep=True)
+                first = self._exchanges.wait(
+                    exchange, start + ack_wait, final=False, waited=ack_wait, keep=True
+                )
             else:
-                with self._lock:
-                    self._callers[get_ident()] = exchange  # kept until the motion's caller is done
+                with self._line.lock:
+                    self._line.callers[get_ident()] = exchange  # kept until the motion's caller is done
         except GripperError:
             raise
         except BaseException:
-            self._rescue()
+            self._exchanges.rescue()
             raise
         return exchange, first, start + total, total
 
     def motion_outstanding(self) -> bool:
         """Whether a motion command (20h, 21h, 25h, 26h) on this connection still waits for its end."""
-        return any(exchange.command in MOTIONS for exchange in self._session.outstanding())
+        return any(exchange.command in MOTIONS for exchange in self._line.session.outstanding())
 
-    def _done(self) -> None:
+    def done(self) -> None:
         """The motion's caller returns without waiting for its end (or ends on its first reply)."""
-        with self._lock:
-            self._leave()
+        with self._line.lock:
+            self._exchanges.leave()
 
-    def _finish(self, exchange: Exchange, deadline: float, waited: float, abandon: bool = True) -> None:
+    def finish(self, exchange: Exchange, deadline: float, waited: float, abandon: bool = True) -> None:
         """Wait for a motion's final reply; CommandFailed unless it is E_SUCCESS."""
         try:
-            final = self._wait(exchange, deadline, final=True, abandon=abandon, waited=waited)
+            final = self._exchanges.wait(exchange, deadline, final=True, abandon=abandon, waited=waited)
         except GripperError:
             raise
         except BaseException:
-            self._rescue(abandon)
+            self._exchanges.rescue(abandon)
             raise
-        self._check(exchange.command, final)
+        self._exchanges.check(exchange.command, final)

@@ -1,8 +1,8 @@
 """The input side of a WSG connection: one reader at a time, bytes matched under the lock (sans-IO session).
 
 Who reads (leader/follower): at most one thread is inside ``transport.recv`` at a time, the holder of the
-reading role (``_reading``: the thread id of a caller or of the connection's reader thread). What it
-read is parked in ``_held_read`` before anything else happens, so whoever handles an interrupt (Ctrl-C) can
+reading role (``reading``: the thread id of a caller or of the connection's reader thread). What it
+read is parked in ``held_read`` before anything else happens, so whoever handles an interrupt (Ctrl-C) can
 still match it and hand the role back (:mod:`.exchanges`).
 """
 
@@ -34,7 +34,7 @@ from .session import (
 )
 from .transports import Transport
 
-__all__ = ["POLL", "SILENT_GAP", "LineReader", "Submitted"]
+__all__ = ["POLL", "SILENT_GAP", "Line", "Submitted"]
 
 log = logging.getLogger(__name__)
 
@@ -81,21 +81,28 @@ def _always(_timeout: float) -> bool:
     return True
 
 
-class LineReader:
-    """The input side of a connection: who reads, and what the bytes read mean (lock, session, role)."""
+class Line:
+    """One connection's shared state and its input side: who reads, and what the bytes read mean (lock,
+    session, reading role). The parts of the connection (:class:`~.exchanges.Exchanges`,
+    :class:`~.callbacks.Callbacks`, :class:`~.motion_exchanges.MotionSteps`, the reader thread of
+    :class:`~.connection.WsgConnection`) each hold this one object: they share its lock and its state, not
+    a base class."""
 
     def __init__(
         self,
         transport: Transport,
         *,
         device: str | None,
+        timeout: float,
+        motion_timeout: float,
         verify_checksum: bool,
         stale_ttl: float,
         stale_final_ttl: float,
         silent_gap: float,
     ) -> None:
         self.device = device or f"wsg {transport.name}"
-        self._transport = wire_tap(transport, self.device)  # DEBUG on grippers.wire: every packet, decoded
+        self.transport = transport  # as opened (the client shows it); reads and writes go through the tap
+        self.wire = wire_tap(transport, self.device)  # DEBUG on grippers.wire: every packet, decoded
         self.stats: dict[str, int] = dict.fromkeys(
             (
                 "checksum_errors",
@@ -109,86 +116,98 @@ class LineReader:
             ),
             0,
         )
-        self._session = Session(
+        self.session = Session(
             verify_checksum=verify_checksum, stale_ttl=stale_ttl, stale_final_ttl=stale_final_ttl
         )
-        self._silent_gap = silent_gap
+        self.silent_gap = silent_gap
         # docs/protocols.md §1: only a serial line ends a packet by a pause. A TCP stream may pause 40 ms
         # inside a reply (delayed ACK) and CAN frames may be spaced: there the size field and the parser's
         # per-id bound end a packet, never a gap.
-        self._gap_rule = bool(getattr(transport, "silent_gap", False))
-        self._drain = getattr(transport, "recv_nowait", None)
+        self.gap_rule = bool(getattr(transport, "silent_gap", False))
+        self.drain = getattr(transport, "recv_nowait", None)
         # Whether anything may have arrived: a poll() bound method where the transport has one, so the drain
         # before each request costs one call into C when nothing did, which is nearly always
         # (docs/performance.md, target 2); without recv_nowait there is nothing to drain with.
         ready = getattr(transport, "ready", None)
-        if self._drain is None:
+        if self.drain is None:
             ready = _never
-        self._ready: Callable[[int], Any] = ready if ready is not None else _always
-        self._lock = threading.RLock()
-        self._cond = Waiters(self._lock)  # callers wait here for their replies or their slot
+        self.ready: Callable[[int], Any] = ready if ready is not None else _always
+        self.lock = threading.RLock()
+        self.cond = Waiters(self.lock)  # callers wait here for their replies or their slot
         # The background reader waits apart (same lock), so the notifications that wake callers on every reply
         # do not also wake it: a thread wake-up per exchange is what the leader/follower reading avoids.
-        self._bg = Waiters(self._lock)
-        self._subs: dict[int, list[Any]] = {}  # command -> Subscription (the connection manages them)
-        self._lost: ConnectionLost | None = None
-        self._closing = False
-        self._closed = False
-        self._stop = threading.Event()
+        self.bg = Waiters(self.lock)
+        self.subs: dict[int, list[Any]] = {}  # command -> Subscription (the connection manages them)
+        self.lost: ConnectionLost | None = None
+        self.closing = False
+        self.closed = False
+        self.quit = threading.Event()
         # One thread at a time is inside transport.recv: 0 for nobody, else the holder's thread id.
-        self._reading = 0
+        self.reading = 0
         # (reader, bytes, failure) a role holder read but has not matched yet: matched by whoever handles it.
-        self._held_read: tuple[int, bytes | None, BaseException | None] | None = None
-        # The exchange of each caller thread between _begin and the end of its _wait (callers read for
+        self.held_read: tuple[int, bytes | None, BaseException | None] | None = None
+        # The exchange of each caller thread between begin() and the end of its wait() (callers read for
         # themselves): keyed by thread, so an interrupted step that adds or removes twice cannot skew a count,
         # and a handler finds the exchange even when Ctrl-C landed before the caller saw it returned.
-        self._callers: dict[int, Exchange] = {}
-        self._last_rx = time.monotonic()
+        self.callers: dict[int, Exchange] = {}
+        self.last_rx = time.monotonic()
         # Calls for the reader thread to make outside the lock: subscription values a caller happened to read,
         # replies of callback exchanges (:mod:`.callbacks`), as (function, argument).
-        self._deferred: list[tuple[Callable[[Any], None], Any]] = []
+        self.deferred: list[tuple[Callable[[Any], None], Any]] = []
         # Callback exchanges (:mod:`.callbacks`): the sent ones by their exchange, and those waiting for their
         # command's slot, per command in order of submission. Kept here: matching completes them.
-        self._notify: dict[Exchange, Submitted] = {}
-        self._queued: dict[int, deque[Submitted]] = {}
-        self._reader_ident: int | None = None
+        self.notify: dict[Exchange, Submitted] = {}
+        self.queued: dict[int, deque[Submitted]] = {}
+        self.reader_ident: int | None = None
+        self.timeout = timeout
+        self.motion_timeout = motion_timeout
+        self.firmware: Any = None  # FirmwareVersion once 50h was read: decides what is refused locally
+        self.stops_sent = 0  # the fence of queued motion requests (exchanges.py, "Stops first")
+        # Threads whose caller gave up (exchanges.py, "Abandoned callers"); read without the lock on the
+        # hot path: an empty set costs one truth test per step.
+        self.abandoned: set[int] = set()
+        # Whether replies keep their order on this line: then an abandoned reply needs no reorder margin. A
+        # transport that does not say (a plugin's) keeps the margin.
+        self.ordered = bool(getattr(transport, "ordered", False))
+        # Running subscriptions' (period_ms, changes_only) per command: a plain query repeats them.
+        self.sub_params: dict[int, tuple[int, bool]] = {}
 
     # ----------------------------------------------------------------------------------- matching input
 
-    def _background_needed(self) -> bool:
+    def background_needed(self) -> bool:
         """Whether bytes may arrive that no waiting caller will read (lock held)."""
-        if self._subs or self._deferred or self._session.parser.buffered:
+        if self.subs or self.deferred or self.session.parser.buffered:
             return True
         # (a caller interrupted right after its request went out may be left in the set: a finished
         # exchange there waits for nobody)
-        if any(not exchange.finished for exchange in self._callers.values()):
+        if any(not exchange.finished for exchange in self.callers.values()):
             return False
-        return self._session.expecting(time.monotonic())
+        return self.session.expecting(time.monotonic())
 
-    def _process(self, data: bytes) -> list[tuple[Any, Any]]:
+    def process(self, data: bytes) -> list[tuple[Any, Any]]:
         """Match received bytes and hand the reading role back (lock held); returns subscription values."""
-        self._reading = 0
+        self.reading = 0
         now = time.monotonic()
         try:
-            session = self._session
+            session = self.session
             if data:
-                self._last_rx = now
+                self.last_rx = now
                 events = session.receive(data, now)
-            elif self._gap_rule and session.parser.buffered and now - self._last_rx >= self._silent_gap:
+            elif self.gap_rule and session.parser.buffered and now - self.last_rx >= self.silent_gap:
                 events = session.reset_parser(now)
             else:
                 events = []
-            return self._dispatch(events) if events else []
+            return self.dispatch(events) if events else []
         except Exception:  # noqa: BLE001 - garbage on the line never kills the reading
             log.exception("%s: reader ignored an unexpected error", self.device)
             return []
         finally:
-            self._cond.notify_all()  # replies may have arrived, and the reading role is free
+            self.cond.notify_all()  # replies may have arrived, and the reading role is free
 
-    def _dispatch(self, events: list[Any]) -> list[tuple[Any, Any]]:
+    def dispatch(self, events: list[Any]) -> list[tuple[Any, Any]]:
         deliveries: list[tuple[Any, Any]] = []
         stats = self.stats
-        notify = self._notify
+        notify = self.notify
         for ev in events:
             if type(ev) is Completed:  # the common case: the waiter picks its reply from the exchange
                 if notify and (sub := notify.pop(ev.exchange, None)) is not None:
@@ -196,11 +215,11 @@ class LineReader:
                 continue
             if isinstance(ev, ExchangeFailed):
                 if notify and (sub := notify.pop(ev.exchange, None)) is not None:
-                    deliveries.append((sub.fail, self._failure(ev.exchange)))
+                    deliveries.append((sub.fail, self.failure(ev.exchange)))
                 continue
             if isinstance(ev, AutoUpdate):
                 stats["updates"] += 1
-                subs = self._subs.get(ev.packet.command)
+                subs = self.subs.get(ev.packet.command)
                 if not subs:
                     continue
                 try:
@@ -224,7 +243,7 @@ class LineReader:
                 stats["discarded_bytes"] += len(ev.raw)
         return deliveries
 
-    def _failure(self, exchange: Exchange) -> GripperError:
+    def failure(self, exchange: Exchange) -> GripperError:
         """The error a failed or abandoned exchange ends with, naming the device and the command."""
         name = command_name(exchange.command)
         if exchange.state is ExchangeState.ABANDONED:
@@ -233,35 +252,35 @@ class LineReader:
         cls = type(err) if isinstance(err, ConnectionLost | ProtocolError) else GripperError
         return cls(err.message if err else "failed", device=self.device, command=name)
 
-    def _orphans(self, error: ConnectionLost) -> list[tuple[Callable[[Any], None], Any]]:
+    def orphans(self, error: ConnectionLost) -> list[tuple[Callable[[Any], None], Any]]:
         """The line is gone (lock held): every callback exchange, sent or waiting for its slot, fails with
         ``error`` naming its command. The calls are made by the caller once the lock is released."""
-        subs = [*self._notify.values(), *(sub for queue in self._queued.values() for sub in queue)]
-        self._notify.clear()
-        self._queued.clear()
+        subs = [*self.notify.values(), *(sub for queue in self.queued.values() for sub in queue)]
+        self.notify.clear()
+        self.queued.clear()
         return [
             (sub.fail, ConnectionLost(error.message, device=self.device, command=command_name(sub.command)))
             for sub in subs
         ]
 
-    def _absorb(self, data: bytes | None) -> None:
+    def absorb(self, data: bytes | None) -> None:
         """Match bytes a caller read (lock held); updates among them go to the reader thread's callbacks."""
-        if data is not None and (found := self._process(data)):
-            self._deferred.extend(found)
-            self._bg.notify()
+        if data is not None and (found := self.process(data)):
+            self.deferred.extend(found)
+            self.bg.notify()
 
-    def _read_line(self, wait: float) -> BaseException | None:
+    def read_line(self, wait: float) -> BaseException | None:
         """One ``transport.recv`` by the reading role's holder, called with the lock held once: the lock is
         released for the read and held again on return, whatever interrupts land; what was read waits in
-        ``_held_read`` (matched by :meth:`_settle_read`). Returns the interrupt that landed, if any."""
-        lock = self._lock
-        me = self._reading
+        ``held_read`` (matched by :meth:`settle_read`). Returns the interrupt that landed, if any."""
+        lock = self.lock
+        me = self.reading
         interrupt: BaseException | None = None
         try:
             lock.release()
-            self._held_read = (me, self._transport.recv(wait), None)  # one line: no interrupt in between
-        except Exception as exc:  # noqa: BLE001 - the line failed: _settle_read reports it
-            self._held_read = (me, None, exc)
+            self.held_read = (me, self.wire.recv(wait), None)  # one line: no interrupt in between
+        except Exception as exc:  # noqa: BLE001 - the line failed: settle_read reports it
+            self.held_read = (me, None, exc)
         except BaseException as exc:  # noqa: BLE001 - KeyboardInterrupt: the caller re-raises it
             interrupt = exc
         try:
@@ -270,56 +289,56 @@ class LineReader:
             late = hold(lock) or exc
         return interrupt or late
 
-    def _settle_read(self) -> None:
-        """Match what this thread read (``_held_read``) and hand its reading role back (lock held)."""
+    def settle_read(self) -> None:
+        """Match what this thread read (``held_read``) and hand its reading role back (lock held)."""
         mine = get_ident()
-        held = self._held_read
+        held = self.held_read
         if held is not None and held[0] == mine:
-            self._held_read = None
+            self.held_read = None
             _, data, lost = held
             if lost is not None:
-                self._reading = 0
-                self._cond.notify_all()
-                self._line_failed(lost)
+                self.reading = 0
+                self.cond.notify_all()
+                self.line_failed(lost)
             elif data is not None:
-                self._absorb(data)  # _process hands the role back
+                self.absorb(data)  # process() hands the role back
                 return
-        if self._reading == mine:
-            self._reading = 0
-            self._cond.notify_all()
+        if self.reading == mine:
+            self.reading = 0
+            self.cond.notify_all()
 
-    def _line_failed(self, exc: BaseException) -> None:
+    def line_failed(self, exc: BaseException) -> None:
         """The transport failed under a reader: every waiter fails with ConnectionLost (unless closing)."""
-        if self._stop.is_set():
+        if self.quit.is_set():
             return
         lost = (
             exc
             if isinstance(exc, ConnectionLost)
             else ConnectionLost(f"reader failed: {exc!r}", device=self.device)
         )
-        self._connection_lost(lost)
+        self.connection_lost(lost)
 
-    def _connection_lost(self, error: ConnectionLost) -> None:
-        with self._lock:
-            if self._lost is None:
-                self._lost = error
-            self._session.fail_all(error)
-            orphans = self._orphans(error)
-            subs = [s for lst in self._subs.values() for s in lst]
-            self._cond.notify_all()
+    def connection_lost(self, error: ConnectionLost) -> None:
+        with self.lock:
+            if self.lost is None:
+                self.lost = error
+            self.session.fail_all(error)
+            orphans = self.orphans(error)
+            subs = [s for lst in self.subs.values() for s in lst]
+            self.cond.notify_all()
         for sub in subs:
             sub._end(error)
         for fail, exc in orphans:
             fail(exc)
 
-    def _drain_line(self) -> None:
+    def drain_line(self) -> None:
         """Match what already arrived before a new request is registered (lock held, nobody reading).
 
         Why: a packet nobody waits for (a duplicated reply, a reply whose marker a proof removed) must be
         consumed and counted now; read after the new request went out it would look like that request's
         reply. One non-blocking read: the line is idle, so it nearly always returns nothing.
         """
-        drain = self._drain
+        drain = self.drain
         if drain is None:
             return
         try:
@@ -327,4 +346,4 @@ class LineReader:
         except ConnectionLost:
             return  # the next read reports it to everybody
         if data:
-            self._absorb(data)
+            self.absorb(data)

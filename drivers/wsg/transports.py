@@ -207,6 +207,11 @@ class UdpTransport(_SocketTransport):
         self.local_port = self._sock.getsockname()[1]
         self.name = f"udp://{host}:{port}"
 
+    @property
+    def local_address(self) -> tuple[Any, ...]:
+        """The address this end is bound to (the one that reaches the gripper, not every interface)."""
+        return tuple(self._sock.getsockname())
+
     def send(self, data: bytes) -> None:
         try:
             self._sock.sendto(data, self._peer)
@@ -296,6 +301,14 @@ class SerialTransport:
         except (serial.SerialException, ValueError, OSError) as exc:
             raise ConnectionLost(f"cannot open serial port: {exc}", device=self.name) from None
         self._timeout = 0.05
+        self.port = port
+
+    @property
+    def framing(self) -> dict[str, Any]:
+        """The line's framing as opened (baudrate, bytesize, parity, stopbits): a reconnection reopens the
+        port with it."""
+        settings = self._port.get_settings()
+        return {key: settings[key] for key in ("baudrate", "bytesize", "parity", "stopbits")}
 
     def send(self, data: bytes) -> None:
         try:

@@ -1,4 +1,6 @@
-"""The WSG backend: :class:`grippers.drivers.wsg.client.WsgClient` behind the SI :class:`grippers.Gripper`.
+"""The WSG backend: :class:`WsgDevice`, a :class:`grippers.device.Device` over a WSG client, in SI units.
+
+:meth:`WsgBackend.open` returns the :class:`~grippers.device_gripper.DeviceGripper` holding it.
 
 The driver speaks mm, mm/s and N; the conversion happens here and nowhere else. The device's own Get System
 Limits (53h) answer narrows the profile's limits at connect time, so a profile with optimistic datasheet
@@ -13,7 +15,7 @@ import time
 import uuid
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from grippers.drivers.errors import CommandFailed, GripperError
 from grippers.drivers.wsg.client import WsgClient
@@ -27,22 +29,18 @@ from grippers.drivers.wsg.commands import (
 )
 from grippers.drivers.wsg.protocol import Status
 
+from ..device import Device, StartedRead, StateCallback
+from ..device_gripper import DeviceGripper
 from ..errors import MotionBlocked, NotReferenced, URLError
-from ..gripper import (
-    Capability,
-    DeviceInfo,
-    GraspResult,
-    GraspState,
-    Gripper,
-    GripperState,
-    MotionResult,
-    StartedRead,
-    StateCallback,
-)
 from ..profiles import Limits, ProfileBase, load_profile
 from ..settings import Settings
+from ..states import Capability, DeviceInfo, GraspResult, GraspState, GripperState, MotionResult
 from ..urls import ConnectionURL
+from .wsg_features import WsgDeviceTag, WsgReconnection, WsgServo, WsgSoftLimits, WsgTemperature
 from .wsg_profile import WsgProfile, WsgTransport, wsg_profile_for_device_type
+
+if TYPE_CHECKING:
+    pass
 
 # WSG grasping states (manual 4.0.x §3.4.2) onto the common enum: the names match one to one.
 _GRASP: dict[int, GraspState] = {
@@ -100,23 +98,31 @@ def _state_of(values: list[Any]) -> GripperState:
     )
 
 
-class WsgGripper(Gripper):
+class WsgDevice(Device):
+    """A WSG over a :class:`~grippers.drivers.wsg.client.WsgClient`, in SI units (the contract's primitives).
+
+    The device latches its own FAST STOP and reports it in the system state (SF_FAST_STOP), so the gripper
+    takes its word (:attr:`reports_fast_stop`). Optional features are the objects below, each over the
+    client in use (a reconnection swaps it in)."""
+
+    reports_fast_stop = True
+
     def __init__(
         self,
         client: WsgClient,
         profile: WsgProfile,
         url: str,
         *,
-        timeout: float,
         system_info: SystemInfo,
         device_limits: SystemLimits | None,
+        connect: Callable[[], WsgClient],
     ) -> None:
-        super().__init__(profile, url, timeout=timeout)
         self._client = client
-        self._system_info = system_info
-        # A gripper left in FAST STOP (a dropped TCP connection, another program) refuses motion until it
-        # is acknowledged: know it from the start, so motion calls say so instead of E_ACCESS_DENIED.
-        self._fast_stopped = bool(client.system_state() & SystemFlags.SF_FAST_STOP)
+        self.profile = profile
+        self.url = url
+        self.system_info = system_info
+        #: The profile's limits within the device's own 53h answer (the gripper enforces these).
+        self.limits = profile.limits()
         #: Human-readable lines for probe/info (``DeviceInfo.extra["warnings"]``).
         self.warnings: list[str] = []
         if device_limits is not None:
@@ -132,18 +138,32 @@ class WsgGripper(Gripper):
             Capability.PUSH_UPDATES,
         }
         # The command table decides which firmware has 46h and the finger commands (2.x has neither).
-        firmware = self._system_info.firmware
+        firmware = system_info.firmware
         if available(Cmd.GET_TEMPERATURE, firmware):
             caps.add(Capability.TEMPERATURE)
         if available(Cmd.GET_FINGER1_DATA, firmware):
             caps.add(Capability.FINGER_DATA)
         self.capabilities = frozenset(caps)
+        self.reconnection = WsgReconnection(self, connect)
+        self._servo = WsgServo(self)
+        self.servo = self._servo
+        self.soft_limits = WsgSoftLimits(self)
+        self.temperature = WsgTemperature(self) if Capability.TEMPERATURE in caps else None
+        self.device_tag = WsgDeviceTag(self)
 
     @property
     def driver(self) -> WsgClient:
         return self._client
 
-    def _home(self, timeout: float) -> None:
+    def swap(self, client: WsgClient, system_info: SystemInfo) -> None:
+        """A reconnection's new client (and what it reported) replaces the old one."""
+        self._client = client
+        self.system_info = system_info
+        self._servo.reset()
+
+    # -- the primitives (mm, mm/s and N on the wire; m, m/s and N here) ----------------------------------
+
+    def home(self, timeout: float) -> None:
         self._client.home(timeout=timeout)
 
     @contextmanager
@@ -171,59 +191,64 @@ class WsgGripper(Gripper):
                 raise MotionBlocked(width=width, target=target, **kw) from exc
             raise
 
-    def _move(self, width: float, speed: float, timeout: float) -> MotionResult:
+    def _where(self) -> MotionResult:
+        c = self._client
+        return MotionResult(c.width() / 1000, _GRASP.get(c.grasping_state(), GraspState.IDLE))
+
+    def move(self, width: float, speed: float, timeout: float) -> MotionResult:
         with self._typed("move", width):
             self._client.preposition(width * 1000, speed * 1000, timeout=timeout)
-        return MotionResult(
-            self._client.width() / 1000, _GRASP.get(self._client.grasping_state(), GraspState.IDLE)
-        )
+        return self._where()
 
-    def _grasp(self, width: float, speed: float, force: float, timeout: float) -> GraspResult:
+    def grasp(self, width: float, speed: float, force: float, timeout: float) -> GraspResult:
+        c = self._client
         try:
             with self._typed("grasp"):
-                self._client.grip(width * 1000, speed * 1000, force=force, timeout=timeout)
+                c.grip(width * 1000, speed * 1000, force=force, timeout=timeout)
         except CommandFailed as exc:
             if exc.status != Status.E_CMD_FAILED:
                 raise
             # E_CMD_FAILED is the manual's "no part found": an outcome, not an error (§3.2.6).
             return GraspResult(
                 False,
-                self._client.width() / 1000,
+                c.width() / 1000,
                 None,
                 GraspState.NO_PART,
                 reason=f"no part found within the clamping travel ({exc.status_name})",
             )
-        state = _GRASP.get(self._client.grasping_state(), GraspState.ERROR)
+        state = _GRASP.get(c.grasping_state(), GraspState.ERROR)
         held = state is GraspState.HOLDING
         return GraspResult(
             held,
-            self._client.width() / 1000,
-            self._client.force() if held else None,
+            c.width() / 1000,
+            c.force() if held else None,
             state,
             reason=None if held else f"grasping state is {state.value}",
         )
 
-    def _release(self, width: float, speed: float, timeout: float) -> MotionResult:
+    def release(self, width: float, speed: float, timeout: float) -> MotionResult:
         with self._typed("release", width):
             self._client.release(width * 1000, speed * 1000, timeout=timeout)
-        return MotionResult(
-            self._client.width() / 1000, _GRASP.get(self._client.grasping_state(), GraspState.IDLE)
-        )
+        return self._where()
 
-    def _stop(self) -> None:
+    def stop(self) -> None:
         self._client.stop()
 
-    def _fast_stop(self) -> None:
+    def fast_stop(self) -> None:
         self._client.fast_stop()
 
-    def _acknowledge(self) -> None:
+    def acknowledge(self) -> None:
         self._client.acknowledge_fast_stop()
 
-    def _state(self) -> GripperState:
+    def fast_stop_latched(self) -> bool:
+        # Manual 4.0.x §1.4.2: a TCP connection closed without 07h leaves the gripper in FAST STOP.
+        return bool(self._client.system_state() & SystemFlags.SF_FAST_STOP)
+
+    def read_state(self) -> GripperState:
         return _state_of(self._client.queries(_STATE_READS))
 
-    def _start_state(self, done: StateCallback) -> StartedRead:
-        """The same reads as :meth:`_state`, sent by callback from the driver's reader thread (no thread
+    def start_read(self, done: StateCallback) -> StartedRead:
+        """The same reads as :meth:`read_state`, sent by callback from the driver's reader thread (no thread
         waits; every transport: the driver's callback exchanges do not depend on it)."""
 
         def finished(values: list[Any] | None, error: GripperError | None) -> None:
@@ -242,8 +267,14 @@ class WsgGripper(Gripper):
         # caller timer.
         return StartedRead(cancel=reads.cancel, timeout=None)
 
-    def _info(self) -> DeviceInfo:
-        si = self._system_info
+    def abandon(self, thread_ident: int) -> None:
+        self._client.abandon(thread_ident)
+
+    def resume(self, thread_ident: int) -> None:
+        self._client.resume(thread_ident)
+
+    def info(self) -> DeviceInfo:
+        si = self.system_info
         return DeviceInfo(
             family="wsg",
             vendor=self.profile.vendor,
@@ -257,136 +288,8 @@ class WsgGripper(Gripper):
             extra={"device_type": int(si.device_type), "warnings": list(self.warnings)},
         )
 
-    def _temperature(self) -> float:
-        return self._client.temperature()
-
-    def _set_soft_limits(self, min_width: float | None, max_width: float | None) -> None:
-        if min_width is None or max_width is None:
-            self._client.clear_soft_limits()
-        else:
-            self._client.set_soft_limits(min_width * 1000, max_width * 1000)
-
-    def _device_tag(self, tag: str | None) -> str:
-        if tag is None:
-            return self._client.device_tag()
-        self._client.set_device_tag(tag)
-        return tag
-
-    def _close(self) -> None:
+    def close(self) -> None:
         self._client.close()
-
-    # -- streamed targets and reconnection (hooks of grippers/servo.py and grippers/reconnect.py) -------
-
-    # A running servo motion is not interrupted for a new target within this distance (m) of its own: STOP
-    # halts the fingers at once (manual §3.2.3), so re-targeting every control step would restart from rest
-    # each time and never reach speed. The new target is offered again when the motion ends (latest wins).
-    servo_tolerance = 0.002
-
-    def _servo_begin(self) -> None:
-        self._servo_pending: Any = None
-        self._servo_aim: tuple[float, float] | None = None  # (width, speed) of the running servo motion
-        self._servo_force: float | None = None
-
-    def _servo(self, target: Any) -> bool | None:
-        c = self._client
-        if target.force is not None and target.force != self._servo_force:
-            c.set_force_limit(target.force)  # 32h: preposition itself has no force argument
-            self._servo_force = target.force
-        pending = self._servo_pending
-        running = pending is not None and not pending.done()
-        if running and self._servo_aim is not None:
-            width, speed = self._servo_aim
-            if abs(target.width - width) <= self.servo_tolerance and target.speed == speed:
-                return None  # heading close by already; offered again once this motion has ended
-        elif not running and self._servo_aim == (target.width, target.speed):
-            return False  # already there
-        if not running and c.motion_outstanding():
-            # A motion of another call (move(), grasp()) holds the motion slot: put the target off (offered
-            # again shortly) instead of blocking this thread behind it, since stop() ends servoing by
-            # waiting for this thread before its STOP goes out (issue 23 §1: the jaws travelled 15 mm more).
-            return None
-        if running:
-            # WSG manual 4.0.x and 2.2.0 §3.2.2: a motion command while another runs is refused with
-            # E_ALREADY_RUNNING ("Issue a STOP command, first"). STOP (22h, §3.2.3) ends the running one at
-            # once; its final reply (E_CMD_ABORTED) comes before STOP's own, so the 21h slot is free after it.
-            c.stop()
-        try:
-            self._servo_pending = c.preposition(target.width * 1000, target.speed * 1000, wait=False)
-        except CommandFailed as exc:
-            if exc.status != Status.E_ALREADY_RUNNING:
-                raise
-            c.stop()  # a motion we did not start (another program, the web interface) was running
-            self._servo_pending = c.preposition(target.width * 1000, target.speed * 1000, wait=False)
-        self._servo_aim = (target.width, target.speed)
-        return True
-
-    def _servo_end(self) -> None:
-        pending = getattr(self, "_servo_pending", None)
-        if pending is not None and not pending.done():
-            self._client.stop()  # the next motion command would meet E_ALREADY_RUNNING otherwise
-        self._servo_pending = None
-
-    def _identity(self) -> dict[str, str]:
-        return _identity(self._system_info)
-
-    def _abandon(self, thread_ident: int) -> None:
-        self._client.abandon(thread_ident)
-
-    def _resume(self, thread_ident: int) -> None:
-        self._client.resume(thread_ident)
-
-    def _link_alive(self) -> bool:
-        return self._client.connection_lost is None and not self._client.closed
-
-    def _reconnect(self) -> None:
-        old = self._client
-        if old.connection_lost is None and not old.closed:
-            # UDP, CAN, or a serial line that is still open: the link never broke, the device went silent.
-            # It answering again is the reconnection; the same client (and its bound port) carries on.
-            new = old
-        else:
-            old.close()  # a serial port must be free before it is opened again
-            new = self._reopen(old)
-        try:
-            found = new.system_info()  # the firmware version decides which commands exist
-            self._check_same_device(_identity(found))  # never drive another gripper with this one's limits
-            # Manual 4.0.x §1.4.2: a TCP connection closed without 07h leaves the gripper in FAST STOP.
-            fast = bool(new.system_state() & SystemFlags.SF_FAST_STOP)
-        except BaseException:
-            if new is not old:
-                new.close()
-            raise
-        self._client = new
-        self._fast_stopped = fast
-        self._servo_pending = None
-
-    _connect: Callable[[], WsgClient]  # set by WsgBackend.open: the client as it was opened
-
-    def _reopen(self, old: WsgClient) -> WsgClient:
-        """A client like ``old`` on the same URL (a serial port keeps the framing ``old`` used)."""
-        common: dict[str, Any] = {
-            "device": old.device,
-            "timeout": old.timeout,
-            "motion_timeout": old.motion_timeout,
-        }
-        t: Any = old._transport
-        port = getattr(t, "_port", None)
-        if port is not None and hasattr(port, "get_settings"):  # pyserial: keep the framing that was used
-            framing = port.get_settings()
-            return WsgClient.serial(
-                port.port,
-                baudrate=framing["baudrate"],
-                bytesize=framing["bytesize"],
-                parity=framing["parity"],
-                stopbits=framing["stopbits"],
-                **common,
-            )
-        return self._connect()
-
-
-def _identity(info: SystemInfo) -> dict[str, str]:
-    """What tells one WSG from another: device type and serial of 50h (WSG manual 4.0.x §3.5.1)."""
-    return {"device type": str(int(info.device_type)), "serial": str(info.serial)}
 
 
 def _narrow(limits: Limits, device: SystemLimits, profile: str) -> tuple[Limits, list[str]]:
@@ -494,7 +397,7 @@ class WsgBackend:
 
         return raw_probe(transport)
 
-    def open(self, url: ConnectionURL, profile: ProfileBase | None, settings: Settings) -> WsgGripper:
+    def open(self, url: ConnectionURL, profile: ProfileBase | None, settings: Settings) -> DeviceGripper:
         t = profile.transport if isinstance(profile, WsgProfile) else WsgTransport()
         timeout = settings.positive("timeout", t.timeout_s)
         common = {
@@ -543,10 +446,16 @@ class WsgBackend:
                 profile = wsg_profile_for_device_type(int(info.device_type)) or load_profile(FALLBACK_PROFILE)
             device_limits = client.system_limits()
             assert isinstance(profile, WsgProfile)
-            gripper = WsgGripper(
-                client, profile, url.url, timeout=timeout, system_info=info, device_limits=device_limits
+            device = WsgDevice(
+                client,
+                profile,
+                url.url,
+                system_info=info,
+                device_limits=device_limits,
+                connect=connect,
             )
-            gripper._connect = connect
+            gripper = DeviceGripper(device, profile, url.url, timeout=timeout)
+            gripper.limits = device.limits  # narrowed by the device's 53h answer
             return gripper
         except BaseException:
             client.close()

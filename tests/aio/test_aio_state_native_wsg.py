@@ -44,7 +44,7 @@ def same(a: GripperState, b: GripperState) -> bool:
 
 async def outstanding(g: grippers.aio.AsyncGripper) -> None:
     """Until a callback exchange of the native read is on the wire (bounded by the caller's wait_for)."""
-    while not g.sync.driver._notify:
+    while not g.sync.driver.callbacks_waiting():
         await asyncio.sleep(0.001)
 
 
@@ -160,7 +160,7 @@ def test_a_cancel_mid_read_abandons_the_exchange_out() -> None:
             task.cancel()
             with pytest.raises(asyncio.CancelledError):
                 await task
-            assert not driver._notify and not driver._queued  # nothing left outstanding or queued
+            assert not driver.callbacks_waiting()  # nothing left outstanding or queued
             assert (await asyncio.wait_for(g.state(), TIMEOUT / 2)).width >= 0
 
     run(main())

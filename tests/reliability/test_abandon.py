@@ -63,7 +63,7 @@ def _until_outstanding(c: Any, cmd: int) -> None:
     """Until the client has sent its request of ``cmd`` (its session holds the exchange), so the give-up
     below meets an exchange on the wire on any machine, not a caller still on its way to the send."""
     deadline = time.monotonic() + 5.0
-    while not any(e.command == cmd for e in c._session.outstanding()):
+    while cmd not in c.outstanding():
         assert time.monotonic() < deadline, "the request never went out"
         time.sleep(0.005)
 

@@ -261,7 +261,7 @@ def test_false_header_during_10_ms_updates_is_dropped_at_once(wsg_sim, wsg_conne
 def test_udp_client_binds_the_address_that_reaches_the_gripper(wsg_sim, wsg_connect) -> None:
     server = wsg_sim("udp://127.0.0.1:0")
     c = wsg_connect(server.url)
-    assert c._transport._sock.getsockname()[0] == "127.0.0.1"  # was 0.0.0.0: every interface
+    assert c.transport.local_address[0] == "127.0.0.1"  # was 0.0.0.0: every interface
     assert c.loop(b"x") == b"x"
 
 
@@ -341,7 +341,7 @@ def test_tcp_connection_closed_without_07h_leaves_fast_stop_for_the_next_connect
     server = wsg_sim("tcp://127.0.0.1:0")
     with WsgClient.from_url(server.url, timeout=1.0) as first:
         first.home()
-        first._transport.close()  # the process dies: no 07h
+        first.transport.close()  # the process dies: no 07h
     with WsgClient.from_url(server.url, timeout=1.0) as second:
         assert _wait_for(lambda: bool(second.system_state() & SystemFlags.SF_FAST_STOP))
         second.acknowledge_fast_stop()

@@ -12,9 +12,10 @@ import pytest
 
 import grippers
 from grippers.drivers.errors import CommandFailed
+from grippers.drivers.wsg.client import WsgClient
 from grippers.drivers.wsg.protocol import Status
 from grippers.drivers.wsg.sim import WsgModel, serve
-from grippers.gripper import GraspState
+from grippers.gripper import FastStopActive, GraspState
 
 
 def _big_endian_as_float(value: int) -> float:
@@ -128,3 +129,27 @@ def test_stop_is_sent_at_once_while_a_motion_exchange_is_pending_on_the_client()
         assert int(g.driver.grasping_state()) == 0  # IDLE, as the device reports
     finally:
         g.close()
+
+
+def test_a_gripper_left_in_fast_stop_refuses_motion_from_open() -> None:
+    """Manual 4.0.x §1.4.2: a TCP connection dropped without 07h leaves the WSG in FAST STOP. The next
+    ``open()`` takes the device's latch before any state was read (``Device.fast_stop_latched``), so a motion
+    says FastStopActive at once instead of reaching the device; acknowledge() clears it."""
+    server = serve(WsgModel(), "tcp://127.0.0.1:0", time_scale=50.0)
+    try:
+        first = WsgClient.from_url(server.url, timeout=1.0)
+        first.transport.close()  # the process dies: no 07h
+        first.close()
+        deadline = time.monotonic() + 5.0
+        while not server.model.fast_stop:  # the simulator has seen the drop (its observable state)
+            assert time.monotonic() < deadline, "the simulator never entered FAST STOP"
+            time.sleep(0.005)
+        with grippers.open(server.url, profile="wsg50") as g:
+            with pytest.raises(FastStopActive):
+                g.move(0.05)
+            assert server.model.fast_stop  # refused here: nothing reached the device
+            g.acknowledge()
+            g.home()
+            assert g.move(0.05, speed=0.05).width == pytest.approx(0.05, abs=1e-4)
+    finally:
+        server.close()

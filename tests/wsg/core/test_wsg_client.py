@@ -350,7 +350,7 @@ def test_callback_cannot_deadlock_the_reader(connect) -> None:
 def test_close_joins_the_reader_and_ends_subscriptions(connect) -> None:
     server, c = connect("udp")
     sub = c.subscribe(Cmd.GET_FORCE, period_ms=50)
-    reader = c._reader
+    (reader,) = [t for t in threading.enumerate() if t.name == f"{c.device} reader"]
     c.close()
     assert not reader.is_alive()
     assert sub.closed
@@ -386,7 +386,7 @@ def test_serial_framing_options_over_loop_url() -> None:
     with WsgClient.serial("loop://", baudrate=9600, parity="E", stopbits=2) as c:
         packet = c.request(Cmd.GET_WIDTH, b"\x00\x00\x00")
         assert packet.payload == b"\x00\x00\x00"
-        assert c._transport._port.parity == "E" and c._transport._port.stopbits == 2
+        assert c.transport.framing["parity"] == "E" and c.transport.framing["stopbits"] == 2
 
 
 def test_url_factories_refuse_unknown_schemes() -> None:
