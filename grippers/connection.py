@@ -13,8 +13,23 @@ from .parts import GripperPart
 
 if TYPE_CHECKING:
     from .errors import GripperError
-    from .reconnect import ReconnectPolicy
     from .states import GripperState
+
+
+class Policy(Protocol):
+    """The reconnection policy a watch follows (grippers/reconnect.py's ReconnectPolicy), as users read it."""
+
+    @property
+    def backoff_s(self) -> float: ...
+
+    @property
+    def backoff_max_s(self) -> float: ...
+
+    @property
+    def heartbeat_s(self) -> float: ...
+
+    @property
+    def acknowledge_on_reconnect(self) -> bool: ...
 
 
 class Watch(Protocol):
@@ -39,7 +54,7 @@ class Watch(Protocol):
 
     # Read by users and tests through Gripper.link_watch: what the watch does, never how.
     @property
-    def policy(self) -> ReconnectPolicy: ...
+    def policy(self) -> Policy: ...
 
     epoch: int
     """Reconnections so far (a stream that saw another epoch missed states)."""

@@ -370,33 +370,6 @@ class WsgBackend:
 
         selftest_checks(gripper, add)
 
-    def dissector(self) -> Any:
-        """``grippers monitor``: WSG packets from bytes (captures, the TCP proxy) or CAN frames."""
-        from grippers.drivers.wsg.dissect import PROTOCOL, WsgCanDissector, WsgStream
-
-        from . import Dissector
-
-        return Dissector(
-            PROTOCOL,
-            stream=WsgStream,
-            can=lambda o: WsgCanDissector(o.get("wsg_id", 0x000), bool(o.get("only"))),
-            tcp_port=WsgTransport().tcp_port,
-            bytes_default=True,
-        )
-
-    factory_address = "tcp://192.168.1.20:1000"  # set-up default (docs/protocols.md §1): the machine scan
-
-    def probe_candidates(self, transport: str, where: ConnectionURL, options: dict[str, Any]) -> list[Any]:
-        """``grippers probe`` on a bare transport: the WSG's ports, its serial speed, its CAN id pairs."""
-        from .wsg_cli import probe_candidates
-
-        return probe_candidates(transport, where, options)
-
-    def raw_probe(self, transport: str) -> Any:
-        from .wsg_cli import raw_probe
-
-        return raw_probe(transport)
-
     def open(self, url: ConnectionURL, profile: ProfileBase | None, settings: Settings) -> DeviceGripper:
         t = profile.transport if isinstance(profile, WsgProfile) else WsgTransport()
         timeout = settings.positive("timeout", t.timeout_s)
