@@ -35,6 +35,7 @@ class DeviceGripper(Gripper):
         self.device = device
         self.capabilities = frozenset(device.capabilities)
         super().__init__(profile, url, timeout=timeout)
+        self.limits = device.limits(self.limits)
         device.bind(
             DeviceContext(
                 name=self.name, closed=lambda: self._closed, check_same_device=self._check_same_device
@@ -96,6 +97,9 @@ class DeviceGripper(Gripper):
         self.device.close()
 
     # -- optional hooks ------------------------------------------------------------------------------------
+
+    def _motion_timeout(self, distance: float, speed: float) -> float:
+        return self.device.motion_timeout(super()._motion_timeout(distance, speed))
 
     def _settle_time(self) -> float:
         return self.device.settle_time(self.timeout)
