@@ -53,7 +53,6 @@ from .can_protocol import (
     MAX_NODE,
     CanFrame,
     Cmd,
-    Detection,
     DeviceInfo,
     EncoderData,
     ErrorState,
@@ -77,7 +76,7 @@ from .can_session import (
     is_stepfoc_frame,
 )
 from .dissect import log_can_frame
-from .motion import CalibrationTracker, Reading, Verdict
+from .motion import STALL_MIN_S, CalibrationTracker, MotionTracker, Reading, Verdict
 from .node_setup import NodeSetup
 
 __all__ = ["CalibrationWatch", "StepfocBus", "StepfocNode", "open_node", "parse_url"]
@@ -966,9 +965,20 @@ class StepfocNode(NodeSetup, Closing):
         read.start()
         return read
 
-    def wait_motion(self, *, timeout: float = 10.0, poll_interval: float = 0.01) -> GripperStatus:
-        """Poll until detection is not MOVING. Call after :meth:`command`: the poll that follows a command
-        already reflects it (only the command's own reply carries the stale detection value)."""
+    def wait_motion(
+        self, *, timeout: float = 10.0, poll_interval: float = 0.01, stall_s: float = STALL_MIN_S
+    ) -> GripperStatus:
+        """Poll until the last motion command (:attr:`last_command`) has ended, by the one rule of
+        :class:`~grippers.drivers.stepfoc.motion.MotionTracker`: detection 3 only at its target byte (the
+        latch can say 3 early), 1/2 once the jaws moved or it lasted. CommandFailed when the jaws stood still
+        ``stall_s`` short of the target (idled or stopped elsewhere), when the action bit was cleared, or
+        for a device error. Call after :meth:`command` (the poll that follows already reflects it)."""
+        last = self.last_command
+        if last is None:
+            raise self._failed("no motion command was sent to wait for", "aborted", "move")
+        tracker = MotionTracker(
+            None, last.position, time.monotonic(), stall_s=stall_s, limit_ma=last.current_ma
+        )
 
         def ended(st: GripperStatus, cause: str | None) -> bool:
             if cause is not None:
@@ -979,7 +989,15 @@ class StepfocNode(NodeSetup, Closing):
                     "aborted",
                     "move",
                 )
-            return st.detection is not Detection.MOVING
+            reading = Reading(st.position, int(st.detection), st.calibrated, st.current_ma)
+            verdict = tracker.update(reading, time.monotonic())
+            if verdict is Verdict.STALLED:
+                raise self._failed(
+                    f"motion aborted: the jaws stopped at position {st.position} short of {last.position}",
+                    "aborted",
+                    "move",
+                )
+            return verdict in (Verdict.ARRIVED, Verdict.OBJECT)
 
         return self._poll_until(ended, timeout, poll_interval, "still moving", "move")
 
@@ -993,8 +1011,8 @@ class StepfocNode(NodeSetup, Closing):
         timeout: float = 10.0,
         poll_interval: float = 0.01,
     ) -> GripperStatus:
-        """Go to ``position`` (0 open .. 255 closed); with ``wait`` return the status once detection says
-        at position (3) or object found (1 closing / 2 opening)."""
+        """Go to ``position`` (0 open .. 255 closed); with ``wait`` return the status once the motion has
+        ended at its target or on an object (:meth:`wait_motion`)."""
         st = self.command(position, speed, current_ma)
         if not st.calibrated:
             raise self._failed(

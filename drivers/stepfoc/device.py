@@ -28,7 +28,7 @@ from ..errors import CommandFailed, ConnectionLost, GripperTimeout
 from ..motion_epochs import MotionEpochs
 from .can_protocol import Detection
 from .device_links import CanLink, Link, Status, StatusCallback, UartLink
-from .motion import MotionTracker, Verdict
+from .motion import STALL_MIN_S, MotionTracker, Verdict
 
 if TYPE_CHECKING:
     import asyncio
@@ -36,11 +36,8 @@ if TYPE_CHECKING:
 __all__ = ["FAST_STOP", "NOT_CALIBRATED", "CanLink", "Link", "Status", "StepfocDevice", "UartLink"]
 
 POLL_PERIOD = 0.01  # s between status polls while waiting for a motion; a CAN round trip is ~0.2 ms
-# A motion that reports "moving" while the jaws stand still has ended without its target: the driver was idled
-# (clear error, idle, watchdog from elsewhere; the 60 frame cannot show the driver mode) or it pushes below
-# the firmware's contact current. Stalled for this long (and at least STALL_STEPS position steps at the
-# commanded speed), the wait ends with "aborted".
-STALL_MIN_S = 0.5
+# Stalled for STALL_MIN_S (motion.py) and at least STALL_STEPS position steps at the commanded speed, a
+# motion's wait ends with "aborted".
 STALL_STEPS = 4
 # moving(): the bits alone would say "moving" for ever once the driver was idled (clear error, idle,
 # watchdog) with the stored 61's activate and action bits still set and detection 0 (the firmware's "idle or
