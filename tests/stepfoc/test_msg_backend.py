@@ -168,6 +168,9 @@ def test_command_0_from_another_host_is_a_fast_stop_and_acknowledge_recovers() -
             send_raw(g, Cmd.ESTOP)
         with pytest.raises(FastStopActive, match="e-stop"):
             handle.wait(5.0)
+        # latched by the motion that saw it: refused before anything is sent, no state read needed
+        with pytest.raises(FastStopActive, match="call acknowledge"):
+            g.move(0.03)
         assert g.state().fast_stopped
         g.acknowledge()
         assert not g.state().faults
