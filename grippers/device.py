@@ -176,6 +176,10 @@ class Device(ABC):
     :meth:`supersede`); False: it calls :meth:`stop` first (the WSG refuses a motion while one runs,
     E_ALREADY_RUNNING, WSG manual 4.0.x §3.2.2)."""
 
+    profile_assumed: bool = False
+    """True when the device cannot report its model and none was named, so the profile is a guess (an MSG
+    cannot report its rail length): ``grippers.open`` then warns with ``ProfileAssumed``."""
+
     reconnection: Reconnection | None = None
     servo: Servo | None = None
     soft_limits: SoftLimits | None = None

@@ -38,6 +38,7 @@ class DeviceGripper(Gripper):
         self.capabilities = frozenset(device.capabilities)
         super().__init__(profile, url, timeout=timeout)
         self.limits = device.limits(self.limits)
+        self._profile_assumed = device.profile_assumed  # what grippers.open warns of (ProfileAssumed)
         device.bind(
             DeviceContext(
                 name=self.name, closed=lambda: self._closed, check_same_device=self._check_same_device
