@@ -47,6 +47,7 @@ from ..errors import (
     LimitError,
     ProtocolError,
 )
+from . import can_waits
 from .can_protocol import (
     COMMANDS,
     DEFAULT_BITRATE,
@@ -75,8 +76,9 @@ from .can_session import (
     NodeFacts,
     is_stepfoc_frame,
 )
+from .can_waits import CalibrationWatch
 from .dissect import log_can_frame
-from .motion import STALL_MIN_S, CalibrationTracker, MotionTracker, Reading, Verdict
+from .motion import STALL_MIN_S, CalibrationTracker
 from .node_setup import NodeSetup
 
 __all__ = ["CalibrationWatch", "StepfocBus", "StepfocNode", "open_node", "parse_url"]
@@ -92,28 +94,6 @@ _SETTLE_S = 5.0  # bound on a wait for an outcome another thread is storing (mic
 # 200 us on Spectral Micro); a poll that reaches the node before that tick cancels the reset and the motion
 # reports detection 3 throughout (docs/protocols.md §2). A node handle waits this long before its next poll.
 LATCH_GUARD_S = 0.0005
-
-
-class CalibrationWatch:
-    """Tells from successive 60 frames when a calibration the host started has ended: the sans-IO
-    :class:`~grippers.drivers.stepfoc.motion.CalibrationTracker` with this client's clock."""
-
-    def __init__(self, was_calibrated: bool) -> None:
-        self.was_calibrated = was_calibrated
-        self.tracker = CalibrationTracker(was_calibrated, time.monotonic())
-
-    def update(self, st: GripperStatus) -> bool | str:
-        """True when done, False while running, a reason (str) when the calibration ended without success."""
-        verdict = self.tracker.update(
-            Reading(st.position, int(st.detection), st.calibrated, st.current_ma), time.monotonic()
-        )
-        if verdict is Verdict.RETRY:
-            return (
-                "the calibrated bit dropped (the firmware's calibration time-out)"
-                if self.was_calibrated and not st.calibrated
-                else f"the jaws rest at position {st.position} without a completed calibration"
-            )
-        return verdict is Verdict.ENDED
 
 
 def _status_fault(st: GripperStatus) -> tuple[str | None, list[str] | None]:
@@ -817,29 +797,6 @@ class StepfocNode(NodeSetup, Closing):
         """The CommandFailed of a refused or ended command, naming this node (``raise self._failed(...)``)."""
         return CommandFailed(message, status_name=status, device=self.device, command=command)
 
-    def _poll_until(
-        self,
-        ended: Callable[[GripperStatus, str | None], bool],
-        timeout: float,
-        poll_interval: float,
-        late: str,
-        command: str,
-    ) -> GripperStatus:
-        """Poll until ``ended(status, fault)`` is true (it raises for an end that is a failure); after
-        ``timeout`` wall seconds, GripperTimeout saying ``late``. Every poll waits within the deadline."""
-        deadline = time.monotonic() + timeout
-        while True:
-            st = self.poll(timeout=min(self.timeout, max(0.01, deadline - time.monotonic())))
-            if ended(st, self.fault(st)):
-                return st
-            if time.monotonic() >= deadline:
-                raise GripperTimeout(
-                    f"{late} after {timeout:g} s (position {st.position})",
-                    device=self.device,
-                    command=command,
-                )
-            time.sleep(poll_interval)
-
     def _status_request(self, data: bytes, timeout: float | None, name: str) -> GripperStatus:
         frame = CanFrame(pack_id(self._node, Cmd.GRIPPER_COMMAND), data, False)
         msg = self.bus.request(
@@ -968,38 +925,9 @@ class StepfocNode(NodeSetup, Closing):
     def wait_motion(
         self, *, timeout: float = 10.0, poll_interval: float = 0.01, stall_s: float = STALL_MIN_S
     ) -> GripperStatus:
-        """Poll until the last motion command (:attr:`last_command`) has ended, by the one rule of
-        :class:`~grippers.drivers.stepfoc.motion.MotionTracker`: detection 3 only at its target byte (the
-        latch can say 3 early), 1/2 once the jaws moved or it lasted. CommandFailed when the jaws stood still
-        ``stall_s`` short of the target (idled or stopped elsewhere), when the action bit was cleared, or
-        for a device error. Call after :meth:`command` (the poll that follows already reflects it)."""
-        last = self.last_command
-        if last is None:
-            raise self._failed("no motion command was sent to wait for", "aborted", "move")
-        tracker = MotionTracker(
-            None, last.position, time.monotonic(), stall_s=stall_s, limit_ma=last.current_ma
-        )
-
-        def ended(st: GripperStatus, cause: str | None) -> bool:
-            if cause is not None:
-                raise self._failed(f"motion aborted by a device error: {cause}", cause, "move")
-            if not (st.activated and st.action):
-                raise self._failed(
-                    "motion aborted: the action bit was cleared (a stop, maybe from another host)",
-                    "aborted",
-                    "move",
-                )
-            reading = Reading(st.position, int(st.detection), st.calibrated, st.current_ma)
-            verdict = tracker.update(reading, time.monotonic())
-            if verdict is Verdict.STALLED:
-                raise self._failed(
-                    f"motion aborted: the jaws stopped at position {st.position} short of {last.position}",
-                    "aborted",
-                    "move",
-                )
-            return verdict in (Verdict.ARRIVED, Verdict.OBJECT)
-
-        return self._poll_until(ended, timeout, poll_interval, "still moving", "move")
+        """Poll until the last motion command (:attr:`last_command`) has ended, by the trackers' one rule
+        (:func:`.can_waits.wait_motion`). Call after :meth:`command`: the poll that follows reflects it."""
+        return can_waits.wait_motion(self, timeout=timeout, poll_interval=poll_interval, stall_s=stall_s)
 
     def move(
         self,
@@ -1029,23 +957,15 @@ class StepfocNode(NodeSetup, Closing):
         """Send 62 and (``wait``) poll with empty 61 frames, which do not abort it, until it has ended.
 
         On a gripper that is already calibrated the calibrated bit stays set throughout, so the end is read
-        from the jaws (:class:`CalibrationWatch`). ``last_command`` is kept: the node keeps the last 61's
-        bytes over a calibration, and :meth:`send_command` makes the next motion differ from them.
+        from the jaws (:class:`~.can_waits.CalibrationWatch`). ``last_command`` is kept: the node keeps the
+        last 61's bytes over a calibration, and :meth:`send_command` makes the next motion differ from them.
         ``timeout`` is wall time; calibration takes seconds on the device."""
         tracker = self.start_calibration()
-        watch = CalibrationWatch(tracker.was_calibrated)
         if not wait:
             return None
-
-        def ended(st: GripperStatus, cause: str | None) -> bool:
-            if cause is not None:
-                raise self._failed(f"calibration refused or stopped: {cause}", cause, "calibrate")
-            done = watch.update(st)
-            if isinstance(done, str):
-                raise self._failed(f"calibration failed: {done}", "failed", "calibrate")
-            return done
-
-        return self._poll_until(ended, timeout, poll_interval, "calibration not finished", "calibrate")
+        return can_waits.wait_calibration(
+            self, tracker.was_calibrated, timeout=timeout, poll_interval=poll_interval
+        )
 
     def start_calibration(
         self, timeout: float | None = None, *, command: str = "calibrate"
