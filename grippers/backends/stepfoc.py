@@ -70,7 +70,7 @@ class MsgDevice(Device):
         self.temperature = _Temperature(self.msg) if link.has_temperature else None
         self.reconnection = _Reconnection(self)
         self.servo = _Servo(self)
-        self._limits = self.limits(profile.limits())  # the gripper asks again, with the same answer
+        self._limits = self.limits(profile.limits())  # what the gripper enforces (it asks the same)
         self.mode = "idle"  # what the last motion was, to name what the detection bits mean
         self.held = False  # a grasp found its part; detection 3 afterwards means the part was lost
 
@@ -110,13 +110,12 @@ class MsgDevice(Device):
         # Force is a current limit here: the forces between the stable minimum current and the (safety)
         # current limit, so a force outside is a LimitError up front instead of a silent change.
         npa = self.maps.newton_per_amp
-        self._limits = limits.model_copy(
+        return limits.model_copy(
             update={
                 "max_force": min(limits.max_force, self.profile.effective_max_current_ma / 1000 * npa),
                 "min_force": max(limits.min_force, self.maps.min_current_ma / 1000 * npa),
             }
         )
-        return self._limits
 
     def motion_timeout(self, default: float) -> float:
         return max(default, CALIBRATION_BOUND_S)
@@ -130,7 +129,7 @@ class MsgDevice(Device):
             yield
         except CommandFailed as exc:
             if exc.status_name == FAST_STOP:
-                raise FastStopActive(str(exc.args[0]), device=self.name, command=exc.command) from exc
+                raise FastStopActive(exc.message, device=self.name, command=exc.command) from exc
             if exc.status_name == NOT_CALIBRATED:
                 raise NotReferenced(device=self.name, command=exc.command) from exc
             raise

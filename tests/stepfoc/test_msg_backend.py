@@ -166,8 +166,9 @@ def test_command_0_from_another_host_is_a_fast_stop_and_acknowledge_recovers() -
             handle = g.move(0.09, 0.0025, wait=False)
             step_until(clock, under_way(g, FIRST), "the move under way")
             send_raw(g, Cmd.ESTOP)
-        with pytest.raises(FastStopActive, match="e-stop"):
+        with pytest.raises(FastStopActive, match="e-stop") as stopped:
             handle.wait(5.0)
+        assert str(stopped.value).count(g.name) == 1  # named once, not with the driver's prefix again
         # latched by the motion that saw it: refused before anything is sent, no state read needed
         with pytest.raises(FastStopActive, match="call acknowledge"):
             g.move(0.03)
