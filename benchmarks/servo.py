@@ -132,8 +132,10 @@ def _ideal_msg(g: Any, seconds: float, step: float) -> list[tuple[float, float]]
     current = g.profile.maps.default_current_ma
 
     def command(mm: float, now: float) -> None:
-        position = g._position_byte(mm / 1000)
-        model.on_command(GripperCommand(position, g._speed_byte(SPEED), current, True, True, False), now)
+        position = g.device.position_byte(mm / 1000)
+        model.on_command(
+            GripperCommand(position, g.device.speed_byte(SPEED), current, True, True, False), now
+        )
 
     command(target_mm(0.0), t)
     for _ in range(2000):

@@ -33,6 +33,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
+from .profile_model import Limits
 from .states import Capability, DeviceInfo, GraspResult, GripperState, MotionResult
 
 if TYPE_CHECKING:
@@ -175,6 +176,10 @@ class Device(ABC):
     :meth:`supersede`); False: it calls :meth:`stop` first (the WSG refuses a motion while one runs,
     E_ALREADY_RUNNING, WSG manual 4.0.x §3.2.2)."""
 
+    profile_assumed: bool = False
+    """True when the device cannot report its model and none was named, so the profile is a guess (an MSG
+    cannot report its rail length): ``grippers.open`` then warns with ``ProfileAssumed``."""
+
     reconnection: Reconnection | None = None
     servo: Servo | None = None
     soft_limits: SoftLimits | None = None
@@ -254,6 +259,16 @@ class Device(ABC):
         """Release the transport; the gripper has ended motions, streams and servoing before."""
 
     # -- optional hooks with defaults -------------------------------------------------------------------
+
+    def limits(self, limits: Limits) -> Limits:
+        """The limits the gripper enforces, given the profile's: narrow them where the device can do less
+        (an MSG's force is a current limit: the forces its current range gives). The profile's by default."""
+        return limits
+
+    def motion_timeout(self, default: float) -> float:
+        """The bound on a motion the caller gave no timeout for; ``default`` is twice the travel time plus
+        slack. A device whose referencing takes longer (an MSG's calibration may run twice) raises it."""
+        return default
 
     def settle_time(self, timeout: float) -> float:
         """How long a stop and the end of the motion it stops may take (``timeout`` is the exchange

@@ -11,10 +11,10 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 from .device import Device, DeviceContext, StartedRead, StateCallback
-from .errors import NotSupported
+from .errors import FastStopActive, NotSupported
 from .gripper import Gripper
 from .profile_model import ProfileBase
 from .states import DeviceInfo, GraspResult, GripperState, MotionResult
@@ -23,6 +23,8 @@ if TYPE_CHECKING:
     import asyncio
 
     from .servo import ServoTarget
+
+T = TypeVar("T")
 
 FAST_STOP_FAULT = "fast_stop"
 """The fault a gripper adds to the states of a device that does not report its fast stop itself."""
@@ -35,6 +37,8 @@ class DeviceGripper(Gripper):
         self.device = device
         self.capabilities = frozenset(device.capabilities)
         super().__init__(profile, url, timeout=timeout)
+        self.limits = device.limits(self.limits)
+        self._profile_assumed = device.profile_assumed  # what grippers.open warns of (ProfileAssumed)
         device.bind(
             DeviceContext(
                 name=self.name, closed=lambda: self._closed, check_same_device=self._check_same_device
@@ -54,17 +58,27 @@ class DeviceGripper(Gripper):
 
     # -- the primitives ------------------------------------------------------------------------------------
 
+    def _latching(self, call: Callable[[], T]) -> T:
+        """A motion the device ended with FastStopActive (an e-stop raised by another program, seen
+        mid-motion) latches the gripper at once, as fast_stop() does: the next motion is refused until
+        acknowledge(), not sent into the stop."""
+        try:
+            return call()
+        except FastStopActive:
+            self._fast_stopped = True
+            raise
+
     def _home(self, timeout: float) -> None:
-        self.device.home(timeout)
+        self._latching(lambda: self.device.home(timeout))
 
     def _move(self, width: float, speed: float, timeout: float) -> MotionResult:
-        return self.device.move(width, speed, timeout)
+        return self._latching(lambda: self.device.move(width, speed, timeout))
 
     def _grasp(self, width: float, speed: float, force: float, timeout: float) -> GraspResult:
-        return self.device.grasp(width, speed, force, timeout)
+        return self._latching(lambda: self.device.grasp(width, speed, force, timeout))
 
     def _release(self, width: float, speed: float, timeout: float) -> MotionResult:
-        return self.device.release(width, speed, timeout)
+        return self._latching(lambda: self.device.release(width, speed, timeout))
 
     def _stop(self) -> None:
         self.device.stop()
@@ -103,6 +117,9 @@ class DeviceGripper(Gripper):
         self.device.close()
 
     # -- optional hooks ------------------------------------------------------------------------------------
+
+    def _motion_timeout(self, distance: float, speed: float) -> float:
+        return self.device.motion_timeout(super()._motion_timeout(distance, speed))
 
     def _settle_time(self) -> float:
         return self.device.settle_time(self.timeout)

@@ -1,7 +1,8 @@
 """Source Robotics MSG grippers on STEPFOC / Spectral Micro BLDC drivers.
 
 Two ways in: CAN (:mod:`.can_protocol`, sans-IO; :mod:`.can_client`, python-can) and the UART text protocol
-(:mod:`.uart_protocol`, :mod:`.uart_client`). :mod:`.sim` holds the device model both simulators share.
+(:mod:`.uart_protocol`, :mod:`.uart_client`); :class:`~.device.StepfocDevice` is one gripper over either, with
+the one motion-end rule (:mod:`.motion`). :mod:`.sim` holds the device model both simulators share.
 docs/protocols.md §2 overrides the MSG document on byte order, bit order and the object-detection bits.
 """
 
@@ -28,9 +29,11 @@ from .can_protocol import (
     pack_id,
     unpack_id,
 )
+from .device import CanLink, StepfocDevice, UartLink
 
 __all__ = [
     "COMMANDS",
+    "CanLink",
     "Cmd",
     "Detection",
     "DeviceInfo",
@@ -40,7 +43,9 @@ __all__ = [
     "GripperCommand",
     "GripperStatus",
     "StepfocBus",
+    "StepfocDevice",
     "StepfocNode",
+    "UartLink",
     "Watchdog",
     "WatchdogAction",
     "decode_command",

@@ -47,13 +47,13 @@ from ..errors import (
     LimitError,
     ProtocolError,
 )
+from . import can_waits
 from .can_protocol import (
     COMMANDS,
     DEFAULT_BITRATE,
     MAX_NODE,
     CanFrame,
     Cmd,
-    Detection,
     DeviceInfo,
     EncoderData,
     ErrorState,
@@ -76,8 +76,9 @@ from .can_session import (
     NodeFacts,
     is_stepfoc_frame,
 )
+from .can_waits import CalibrationWatch
 from .dissect import log_can_frame
-from .motion import CalibrationTracker, Reading, Verdict
+from .motion import STALL_MIN_S, CalibrationTracker
 from .node_setup import NodeSetup
 
 __all__ = ["CalibrationWatch", "StepfocBus", "StepfocNode", "open_node", "parse_url"]
@@ -93,28 +94,6 @@ _SETTLE_S = 5.0  # bound on a wait for an outcome another thread is storing (mic
 # 200 us on Spectral Micro); a poll that reaches the node before that tick cancels the reset and the motion
 # reports detection 3 throughout (docs/protocols.md §2). A node handle waits this long before its next poll.
 LATCH_GUARD_S = 0.0005
-
-
-class CalibrationWatch:
-    """Tells from successive 60 frames when a calibration the host started has ended: the sans-IO
-    :class:`~grippers.drivers.stepfoc.motion.CalibrationTracker` with this client's clock."""
-
-    def __init__(self, was_calibrated: bool) -> None:
-        self.was_calibrated = was_calibrated
-        self.tracker = CalibrationTracker(was_calibrated, time.monotonic())
-
-    def update(self, st: GripperStatus) -> bool | str:
-        """True when done, False while running, a reason (str) when the calibration ended without success."""
-        verdict = self.tracker.update(
-            Reading(st.position, int(st.detection), st.calibrated, st.current_ma), time.monotonic()
-        )
-        if verdict is Verdict.RETRY:
-            return (
-                "the calibrated bit dropped (the firmware's calibration time-out)"
-                if self.was_calibrated and not st.calibrated
-                else f"the jaws rest at position {st.position} without a completed calibration"
-            )
-        return verdict is Verdict.ENDED
 
 
 def _status_fault(st: GripperStatus) -> tuple[str | None, list[str] | None]:
@@ -818,29 +797,6 @@ class StepfocNode(NodeSetup, Closing):
         """The CommandFailed of a refused or ended command, naming this node (``raise self._failed(...)``)."""
         return CommandFailed(message, status_name=status, device=self.device, command=command)
 
-    def _poll_until(
-        self,
-        ended: Callable[[GripperStatus, str | None], bool],
-        timeout: float,
-        poll_interval: float,
-        late: str,
-        command: str,
-    ) -> GripperStatus:
-        """Poll until ``ended(status, fault)`` is true (it raises for an end that is a failure); after
-        ``timeout`` wall seconds, GripperTimeout saying ``late``. Every poll waits within the deadline."""
-        deadline = time.monotonic() + timeout
-        while True:
-            st = self.poll(timeout=min(self.timeout, max(0.01, deadline - time.monotonic())))
-            if ended(st, self.fault(st)):
-                return st
-            if time.monotonic() >= deadline:
-                raise GripperTimeout(
-                    f"{late} after {timeout:g} s (position {st.position})",
-                    device=self.device,
-                    command=command,
-                )
-            time.sleep(poll_interval)
-
     def _status_request(self, data: bytes, timeout: float | None, name: str) -> GripperStatus:
         frame = CanFrame(pack_id(self._node, Cmd.GRIPPER_COMMAND), data, False)
         msg = self.bus.request(
@@ -966,22 +922,12 @@ class StepfocNode(NodeSetup, Closing):
         read.start()
         return read
 
-    def wait_motion(self, *, timeout: float = 10.0, poll_interval: float = 0.01) -> GripperStatus:
-        """Poll until detection is not MOVING. Call after :meth:`command`: the poll that follows a command
-        already reflects it (only the command's own reply carries the stale detection value)."""
-
-        def ended(st: GripperStatus, cause: str | None) -> bool:
-            if cause is not None:
-                raise self._failed(f"motion aborted by a device error: {cause}", cause, "move")
-            if not (st.activated and st.action):
-                raise self._failed(
-                    "motion aborted: the action bit was cleared (a stop, maybe from another host)",
-                    "aborted",
-                    "move",
-                )
-            return st.detection is not Detection.MOVING
-
-        return self._poll_until(ended, timeout, poll_interval, "still moving", "move")
+    def wait_motion(
+        self, *, timeout: float = 10.0, poll_interval: float = 0.01, stall_s: float = STALL_MIN_S
+    ) -> GripperStatus:
+        """Poll until the last motion command (:attr:`last_command`) has ended, by the trackers' one rule
+        (:func:`.can_waits.wait_motion`). Call after :meth:`command`: the poll that follows reflects it."""
+        return can_waits.wait_motion(self, timeout=timeout, poll_interval=poll_interval, stall_s=stall_s)
 
     def move(
         self,
@@ -993,8 +939,8 @@ class StepfocNode(NodeSetup, Closing):
         timeout: float = 10.0,
         poll_interval: float = 0.01,
     ) -> GripperStatus:
-        """Go to ``position`` (0 open .. 255 closed); with ``wait`` return the status once detection says
-        at position (3) or object found (1 closing / 2 opening)."""
+        """Go to ``position`` (0 open .. 255 closed); with ``wait`` return the status once the motion has
+        ended at its target or on an object (:meth:`wait_motion`)."""
         st = self.command(position, speed, current_ma)
         if not st.calibrated:
             raise self._failed(
@@ -1011,23 +957,15 @@ class StepfocNode(NodeSetup, Closing):
         """Send 62 and (``wait``) poll with empty 61 frames, which do not abort it, until it has ended.
 
         On a gripper that is already calibrated the calibrated bit stays set throughout, so the end is read
-        from the jaws (:class:`CalibrationWatch`). ``last_command`` is kept: the node keeps the last 61's
-        bytes over a calibration, and :meth:`send_command` makes the next motion differ from them.
+        from the jaws (:class:`~.can_waits.CalibrationWatch`). ``last_command`` is kept: the node keeps the
+        last 61's bytes over a calibration, and :meth:`send_command` makes the next motion differ from them.
         ``timeout`` is wall time; calibration takes seconds on the device."""
         tracker = self.start_calibration()
-        watch = CalibrationWatch(tracker.was_calibrated)
         if not wait:
             return None
-
-        def ended(st: GripperStatus, cause: str | None) -> bool:
-            if cause is not None:
-                raise self._failed(f"calibration refused or stopped: {cause}", cause, "calibrate")
-            done = watch.update(st)
-            if isinstance(done, str):
-                raise self._failed(f"calibration failed: {done}", "failed", "calibrate")
-            return done
-
-        return self._poll_until(ended, timeout, poll_interval, "calibration not finished", "calibrate")
+        return can_waits.wait_calibration(
+            self, tracker.was_calibrated, timeout=timeout, poll_interval=poll_interval
+        )
 
     def start_calibration(
         self, timeout: float | None = None, *, command: str = "calibrate"

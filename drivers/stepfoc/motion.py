@@ -32,6 +32,7 @@ __all__ = [
     "CAL_REST_S",
     "CONFIRM_S",
     "IDLE_CURRENT_MA",
+    "STALL_MIN_S",
     "CalibrationTracker",
     "MotionTracker",
     "Reading",
@@ -47,6 +48,10 @@ CAL_CLOSED_BYTE = 254  # the calibrated closed stop reads 255; allow one byte of
 CAL_IDLE_CURRENT_MA = 300  # half the calibration current: no longer pushing on the stop
 RAMP_MA_PER_S_AT_0 = 800.0 / 2.5  # blocked current rise at speed byte 0 (the slowest)
 ARRIVED_BYTES = 2  # detection 3 with the jaws this close to the target byte: arrived
+# A motion that reports "moving" while the jaws stand still has ended without its target: the driver was idled
+# (clear error, idle, watchdog from elsewhere; the 60 frame cannot show the driver mode) or it pushes below
+# the firmware's contact current. The least stall_s a caller gives MotionTracker (a slow motion: more).
+STALL_MIN_S = 0.5
 
 
 def ramp_bound_s(limit_ma: int) -> float:

@@ -126,6 +126,11 @@ class StepfocUart(Closing):
     def closed(self) -> bool:
         return self._closed
 
+    @property
+    def baudrate(self) -> int:
+        """The port's speed (a reconnection opens the port again at it)."""
+        return int(self._ser.baudrate)
+
     def close(self) -> None:
         with self._lock:
             if self._closed:

@@ -1,8 +1,7 @@
-"""Moved to :mod:`grippers.kit.motion` (the backend kit, public); re-exported here for the backends that
-still import it from this place."""
+"""The supersede rule's counter lives with the drivers (grippers/drivers/motion_epochs.py): the MSG's driver
+device (drivers/stepfoc/device.py) runs it below the API layer; plugins take it from :mod:`grippers.kit`.
+Re-exported here for the backends that import it from this place."""
 
-from __future__ import annotations
-
-from grippers.kit.motion import MotionEpochs
+from grippers.drivers.motion_epochs import MotionEpochs
 
 __all__ = ["MotionEpochs"]

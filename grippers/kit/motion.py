@@ -23,12 +23,12 @@ context=self.context, command=..., timeout=..., epochs=epochs, motion=motion)`` 
 
 from __future__ import annotations
 
-import threading
 import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING, TypeVar
 
-from grippers.drivers.errors import CommandFailed, ConnectionLost, GripperError, GripperTimeout
+from grippers.drivers.errors import ConnectionLost, GripperError, GripperTimeout
+from grippers.drivers.motion_epochs import MotionEpochs
 
 if TYPE_CHECKING:
     from grippers.device import DeviceContext
@@ -40,35 +40,6 @@ S = TypeVar("S")
 POLL_PERIOD = 0.005
 """Seconds between two status reads of a wait: an exchange at 115200 baud takes about as long, so a serial
 device is polled back to back, and a TCP one is not flooded."""
-
-
-class MotionEpochs:
-    """The current motion's number and the cause that ended the older ones; thread-safe."""
-
-    def __init__(self) -> None:
-        self._lock = threading.Lock()
-        self._current = 0
-        self._cause = ""
-
-    def begin(self, cause: str) -> int:
-        """A new motion (or stop): the waits of older ones end with ``cause``; returns the new number."""
-        with self._lock:
-            self._current += 1
-            self._cause = cause
-            return self._current
-
-    def current(self) -> int:
-        """The number of the newest motion (or stop)."""
-        with self._lock:
-            return self._current
-
-    def check(self, motion: int, *, command: str, device: str) -> None:
-        """Return while ``motion`` is current; else raise ``CommandFailed`` ("aborted") naming the cause."""
-        with self._lock:
-            if motion == self._current:
-                return
-            cause = self._cause
-        raise CommandFailed(f"{command} {cause}", status_name="aborted", device=device, command=command)
 
 
 def poll_until(

@@ -18,7 +18,7 @@ from typing import Any
 import pytest
 
 import grippers.aio
-from grippers.backends.stepfoc import _CanLink
+from grippers.drivers.stepfoc.device import CanLink
 from grippers.drivers.stepfoc.sim import MsgModel, serve_can
 from tests.aio.test_aio_state_native_msg import NODE, udp_multicast_bus, without_time
 
@@ -152,7 +152,7 @@ def test_closing_gives_the_bus_back_then_releases_it(sim: tuple[str, Any]) -> No
         assert loop_reads(b)
         await b.close()
         assert not readers(bus)
-        assert not [key for key in _CanLink._buses if key[0] == "udp_multicast" and bus in f"{key[1]}"]
+        assert not [key for key in CanLink.shared_buses() if key[0] == "udp_multicast" and bus in f"{key[1]}"]
 
     run(main())
 

@@ -30,8 +30,8 @@ def _no_io(*_args: Any, **_kwargs: Any) -> Any:
 def no_io(monkeypatch: pytest.MonkeyPatch) -> None:
     for name in ("tcp", "udp", "serial", "can"):
         monkeypatch.setattr(WsgClient, name, staticmethod(_no_io))
-    monkeypatch.setattr(stepfoc_backend, "_CanLink", _no_io)
-    monkeypatch.setattr(stepfoc_backend, "_UartLink", _no_io)
+    monkeypatch.setattr(stepfoc_backend, "CanLink", _no_io)
+    monkeypatch.setattr(stepfoc_backend, "UartLink", _no_io)
     try:
         from grippers.remote import client as remote_client
     except ImportError:  # pragma: no cover - the remote extra is part of the test environment

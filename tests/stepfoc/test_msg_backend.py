@@ -130,6 +130,31 @@ def test_the_client_never_repeats_a_motion_61_byte_for_byte() -> None:
         assert abs(st.position - 100) <= 1 and server.model.opening_mm < 70  # ... and the jaws really moved
 
 
+def test_wait_motion_ends_by_the_tracker_not_at_someone_else_s_target() -> None:
+    """Issue 32: ``wait_motion`` said "done" at any detection but MOVING, so a motion another host sent
+    elsewhere (detection 3 at ITS target) ended ours as arrived. The tracker's rule: 3 counts only at our
+    target; jaws at rest elsewhere are a motion stopped by someone else."""
+    elsewhere = GripperCommand(180, 255, 500, activate=True, action=True, estop=False)
+    with calibrated_node() as (server, node):
+        with held(server, creep=MSG_CREEP_S) as clock:
+            start = node.poll().position
+            node.command(0, 5)  # a slow open: seconds of device time
+            step_until(clock, lambda: node.poll().position != start, "the motion under way", step=0.1)
+            other = can.Bus(interface="virtual", channel=server.channel)  # another host on the bus
+            try:
+                frame = encode_command(elsewhere)
+                other.send(
+                    can.Message(
+                        arbitration_id=pack_id(0, Cmd.GRIPPER_COMMAND), data=frame, is_extended_id=False
+                    )
+                )
+            finally:
+                other.shutdown()
+        with pytest.raises(CommandFailed, match="stopped at position"):
+            node.wait_motion(timeout=10.0)
+        assert abs(server.model.position - 180) <= 2
+
+
 # ------------------------------------------------------------------------------ e-stop from anywhere (§2)
 
 
@@ -141,8 +166,12 @@ def test_command_0_from_another_host_is_a_fast_stop_and_acknowledge_recovers() -
             handle = g.move(0.09, 0.0025, wait=False)
             step_until(clock, under_way(g, FIRST), "the move under way")
             send_raw(g, Cmd.ESTOP)
-        with pytest.raises(FastStopActive, match="e-stop"):
+        with pytest.raises(FastStopActive, match="e-stop") as stopped:
             handle.wait(5.0)
+        assert str(stopped.value).count(g.name) == 1  # named once, not with the driver's prefix again
+        # latched by the motion that saw it: refused before anything is sent, no state read needed
+        with pytest.raises(FastStopActive, match="call acknowledge"):
+            g.move(0.03)
         assert g.state().fast_stopped
         g.acknowledge()
         assert not g.state().faults
