@@ -260,7 +260,7 @@ class Device(ABC):
 
     # -- optional hooks with defaults -------------------------------------------------------------------
 
-    def limits(self, limits: Limits) -> Limits:
+    def narrow_limits(self, limits: Limits) -> Limits:
         """The limits the gripper enforces, given the profile's: narrow them where the device can do less
         (an MSG's force is a current limit: the forces its current range gives). The profile's by default."""
         return limits

@@ -37,7 +37,7 @@ class DeviceGripper(Gripper):
         self.device = device
         self.capabilities = frozenset(device.capabilities)
         super().__init__(profile, url, timeout=timeout)
-        self.limits = device.limits(self.limits)
+        self.limits = device.narrow_limits(self.limits)
         self._profile_assumed = device.profile_assumed  # what grippers.open warns of (ProfileAssumed)
         device.bind(
             DeviceContext(

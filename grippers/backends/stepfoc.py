@@ -70,7 +70,7 @@ class MsgDevice(Device):
         self.temperature = _Temperature(self.msg) if link.has_temperature else None
         self.reconnection = _Reconnection(self)
         self.servo = _Servo(self)
-        self._limits = self.limits(profile.limits())  # what the gripper enforces (it asks the same)
+        self._limits = self.narrow_limits(profile.limits())  # what the gripper enforces (it asks the same)
         self.mode = "idle"  # what the last motion was, to name what the detection bits mean
         self.held = False  # a grasp found its part; detection 3 afterwards means the part was lost
 
@@ -106,7 +106,7 @@ class MsgDevice(Device):
             self.maps.default_current_ma if force is None else round(force / self.maps.newton_per_amp * 1000)
         )
 
-    def limits(self, limits: Limits) -> Limits:
+    def narrow_limits(self, limits: Limits) -> Limits:
         # Force is a current limit here: the forces between the stable minimum current and the (safety)
         # current limit, so a force outside is a LimitError up front instead of a silent change.
         npa = self.maps.newton_per_amp
