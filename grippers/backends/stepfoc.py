@@ -342,8 +342,6 @@ class _Reconnection:
         d.mode, d.held = "idle", False  # a power-cycled gripper lost anything it held
 
 
-UART_BAUD = 256000  # docs/protocols.md §2: the probe's speed on a bare serial port
-PROBE_NODES = 16  # 4-bit node id (MSG manual, "Bits 10 - 7 of CAN ID")
 
 
 class StepfocBackend:
@@ -379,19 +377,6 @@ class StepfocBackend:
         from . import Dissector
 
         return Dissector(StepfocCanDissector.protocol, can=lambda _o: StepfocCanDissector())
-
-    def probe_candidates(self, transport: str, where: ConnectionURL, options: dict[str, Any]) -> list[Any]:
-        """``grippers probe`` on a bare transport: the UART on a serial port, nodes 0-15 on a CAN bus."""
-        from . import ProbeCandidate, bus_query
-
-        if transport == "serial":
-            return [ProbeCandidate(f"stepfoc+serial://{where.serial_port}?baudrate={UART_BAUD}", order=20)]
-        if transport == "can":
-            extra = bus_query(options)
-            base = f"stepfoc+can://{where.interface}/{where.channel}"
-            # Each node gets its own bus connection, so the nodes are asked in parallel.
-            return [ProbeCandidate(f"{base}?node={node}{extra}", order=10) for node in range(PROBE_NODES)]
-        return []
 
     def raw_probe(self, transport: str) -> Any:
         if transport != "serial":
