@@ -32,16 +32,12 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Annotated, Any, Literal
-
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from typing import TYPE_CHECKING, Any
 
 from grippers.drivers.errors import CommandFailed
 from grippers.drivers.robotiq.client import RobotiqClient
 from grippers.drivers.robotiq.registers import (
-    BAUDRATE,
     DEFAULT_SLAVE,
-    FORWARDER_PORT,
     MAJOR_FAULTS,
     URCAP_PORT,
     ActivationState,
@@ -59,8 +55,9 @@ from ..device import Device
 from ..device_gripper import DeviceGripper
 from ..errors import MotionBlocked, NotReferenced, URLError
 from ..kit.motion import MotionEpochs, poll_until
-from ..profiles import Length, ProfileBase, Timeout, TimeScale
+from ..profiles import ProfileBase
 from ..states import Capability, DeviceInfo, GraspResult, GraspState, GripperState, MotionResult
+from .robotiq_profile import RobotiqProfile, RobotiqTransport
 
 if TYPE_CHECKING:
     from ..servo import ServoTarget
@@ -84,68 +81,26 @@ class RobotiqFault(CommandFailed):
     """The gripper reports a fault (gFLT): ``status`` is the code, ``status_name`` its name."""
 
 
-# -- the profile's family section --------------------------------------------------------------------------
-
-
-class _Section(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
-
-Byte = Annotated[int, Field(ge=0, le=255)]
-
-
-class RobotiqTransport(_Section):
-    timeout_s: Timeout = 1.0
-    slave: Annotated[int, Field(ge=1, le=247)] = DEFAULT_SLAVE
-    baudrate: Annotated[int, Field(gt=0)] = BAUDRATE
-    tcp_port: Annotated[int, Field(ge=1, le=65535)] = FORWARDER_PORT
-    read_function: Literal[3, 4] = 3  # READ_HOLDING, as the manuals and the SDK read the status
-
-
-class RobotiqMaps(_Section):
-    """The unit's byte maps. Positions: gPO of this unit fully open and fully closed (measured with nothing
-    between the fingers: command rPR 0 and 255 and read gPO back), and the widths there. Speed and force:
-    linear between the mechanics' minimum (byte 0) and maximum (byte 255); the force map is approximate."""
-
-    open_count: Byte
-    closed_count: Byte
-    open_width_mm: Length
-    closed_width_mm: Length = 0.0
-    force_approximate: bool = True  # the grip force depends on speed, fingers and part, not only rFR
-    grasp_travel_mm: Length = 10.0  # grasp() commands this far past the part's nominal width
-
-    @model_validator(mode="after")
-    def _ordered(self) -> RobotiqMaps:
-        if self.open_count >= self.closed_count:
-            raise ValueError("needs open_count < closed_count (gPO grows as the fingers close)")
-        if self.open_width_mm <= self.closed_width_mm:
-            raise ValueError("needs open_width_mm > closed_width_mm")
-        return self
-
-
-class RobotiqSimulator(_Section):
-    activation_s: Annotated[float, Field(gt=0, le=60)] = 1.0
-    part_width_mm: Length | None = None
-    time_scale: TimeScale = 1.0
-    watchdog_s: Annotated[float, Field(gt=0, le=60)] | None = None
-    activated: bool = False  # start activated (a demo); the real gripper powers up not activated
-
-
-class RobotiqProfile(ProfileBase):
-    family: Literal["robotiq"] = "robotiq"
-    transport: RobotiqTransport = RobotiqTransport()
-    robotiq: RobotiqMaps
-    simulator: RobotiqSimulator = RobotiqSimulator()
-
-    @model_validator(mode="after")
-    def _maps_fit_the_mechanics(self) -> RobotiqProfile:
-        m, r = self.mechanics, self.robotiq
-        if abs(m.min_width_mm - r.closed_width_mm) > 1e-6 or abs(m.max_width_mm - r.open_width_mm) > 1e-6:
-            raise ValueError(
-                f"robotiq: open_width_mm/closed_width_mm ({r.open_width_mm:g}/{r.closed_width_mm:g}) must be "
-                f"the mechanics' max and min width ({m.max_width_mm:g}/{m.min_width_mm:g})"
-            )
-        return self
+def fault_error(st: Status, *, device: str, command: str) -> CommandFailed | None:
+    """The typed error for the fault ``st`` shows, or None where the wait goes on (a delayed action, the
+    watchdog's note, which the next write clears): drivers/robotiq/session.py classifies."""
+    kind = classify_fault(st.fault)
+    if kind in (FaultClass.NONE, FaultClass.TRANSIENT):
+        return None
+    if kind is FaultClass.NOT_ACTIVATED:
+        return not_activated_error(
+            "the gripper is not activated (gFLT 0x07): call home() to activate it",
+            device=device,
+            command=command,
+        )
+    hint = " (acknowledge() re-activates the gripper)" if kind is FaultClass.MAJOR else ""
+    return RobotiqFault(
+        f"gripper fault 0x{st.fault:02X}: {fault_text(st.fault)}{hint}",
+        status=st.fault,
+        status_name=fault_name(st.fault),
+        device=device,
+        command=command,
+    )
 
 
 # -- the device ----------------------------------------------------------------------------------------------
@@ -190,61 +145,12 @@ class RobotiqDevice(Device):
     def driver(self) -> RobotiqClient | UrcapClient:
         return self.client
 
-    # -- maps --------------------------------------------------------------------------------------------
-
-    def _count_per_mm(self) -> float:
-        m = self.maps
-        return (m.closed_count - m.open_count) / (m.open_width_mm - m.closed_width_mm)
-
-    def position_byte(self, width: float) -> int:
-        """rPR for ``width`` (m), by the unit's own open and closed counts."""
-        m = self.maps
-        return max(0, min(255, round(m.open_count + (m.open_width_mm - width * 1000) * self._count_per_mm())))
-
-    def width_of(self, position: int) -> float:
-        """The width (m) at gPO ``position``."""
-        m = self.maps
-        return (m.open_width_mm - (position - m.open_count) / self._count_per_mm()) / 1000
-
-    @staticmethod
-    def _scale(value: float, lo: float, hi: float) -> int:
-        return 255 if hi <= lo else max(0, min(255, round((value - lo) / (hi - lo) * 255)))
-
-    def speed_byte(self, speed: float) -> int:
-        m = self.profile.mechanics
-        return self._scale(speed * 1000, m.min_speed_mm_s, m.max_speed_mm_s)
-
-    def force_byte(self, force: float) -> int:
-        m = self.profile.mechanics
-        return self._scale(force, m.min_force_n, m.max_force_n)
-
     # -- faults and waits ----------------------------------------------------------------------------------
-
-    def fault_error(self, st: Status, command: str) -> CommandFailed | None:
-        """The typed error for the fault ``st`` shows, or None where the wait goes on (a delayed action, the
-        watchdog's note, which the next write clears): drivers/robotiq/session.py classifies."""
-        kind = classify_fault(st.fault)
-        if kind in (FaultClass.NONE, FaultClass.TRANSIENT):
-            return None
-        if kind is FaultClass.NOT_ACTIVATED:
-            return not_activated_error(
-                "the gripper is not activated (gFLT 0x07): call home() to activate it",
-                device=self.name,
-                command=command,
-            )
-        hint = " (acknowledge() re-activates the gripper)" if kind is FaultClass.MAJOR else ""
-        return RobotiqFault(
-            f"gripper fault 0x{st.fault:02X}: {fault_text(st.fault)}{hint}",
-            status=st.fault,
-            status_name=fault_name(st.fault),
-            device=self.name,
-            command=command,
-        )
 
     def _ready(self, command: str) -> Status:
         """The status before a motion: activated and without a fault, or a clear error."""
         st = self.client.read_status(command=command)
-        error = self.fault_error(st, command)
+        error = fault_error(st, device=self.name, command=command)
         if error is not None:
             raise error
         if not st.activated:
@@ -263,13 +169,13 @@ class RobotiqDevice(Device):
         rGTO or rACT cleared by someone else, close(), or the timeout (grippers.kit.motion.poll_until)."""
 
         def fault(st: Status) -> CommandFailed | None:
-            error = self.fault_error(st, command)
+            error = fault_error(st, device=self.name, command=command)
             if error is None and (
                 not st.act or (not activating and not (st.gto and st.sta == ActivationState.COMPLETE))
             ):
                 error = CommandFailed(
                     f"{command} aborted: rGTO or rACT was cleared (another program?) at "
-                    f"{self.width_of(st.position) * 1000:.1f} mm",
+                    f"{self.profile.width_of(st.position) * 1000:.1f} mm",
                     status_name="aborted",
                     device=self.name,
                     command=command,
@@ -289,8 +195,8 @@ class RobotiqDevice(Device):
 
     def _go(self, command: str, position: int, speed: float, force: float | None, timeout: float) -> Status:
         self._ready(command)
-        f = self._last.force if force is None else self.force_byte(force)
-        cmd = Command(act=True, gto=True, position=position, speed=self.speed_byte(speed), force=f)
+        f = self._last.force if force is None else self.profile.force_byte(force)
+        cmd = Command(act=True, gto=True, position=position, speed=self.profile.speed_byte(speed), force=f)
         motion = self.epochs.begin(f"superseded by a newer motion before it ended ({command})")
         self.client.write_command(cmd, command=command)
         self._last = cmd
@@ -318,7 +224,7 @@ class RobotiqDevice(Device):
         if st.activated and st.fault not in MAJOR_FAULTS and st.fault != Fault.ACTIVATION_BIT:
             return  # active already: nothing is toggled (see the module's docstring)
         if st.fault in MAJOR_FAULTS and st.act:
-            error = self.fault_error(st, "home")
+            error = fault_error(st, device=self.name, command="home")
             assert error is not None
             raise error
         motion = self.epochs.begin("superseded by a newer motion before it ended (home)")
@@ -329,9 +235,9 @@ class RobotiqDevice(Device):
 
     def move(self, width: float, speed: float, timeout: float) -> MotionResult:
         self._mode, self._held = "move", False
-        st = self._go("move", self.position_byte(width), speed, None, timeout)
+        st = self._go("move", self.profile.position_byte(width), speed, None, timeout)
         self._mode = "idle"
-        at = self.width_of(st.position)
+        at = self.profile.width_of(st.position)
         contact = st.obj in (ObjectDetection.CONTACT_CLOSING, ObjectDetection.CONTACT_OPENING)
         if contact and abs(at - width) > MotionBlocked.MARGIN:  # the rule every family follows (errors.py)
             raise MotionBlocked(width=at, target=width, status=int(st.obj), device=self.name, command="move")
@@ -341,9 +247,9 @@ class RobotiqDevice(Device):
         m = self.maps
         self._mode, self._held = "grasp", False
         beyond = width * 1000 - m.grasp_travel_mm
-        target = 255 if beyond <= m.closed_width_mm else self.position_byte(beyond / 1000)
+        target = 255 if beyond <= m.closed_width_mm else self.profile.position_byte(beyond / 1000)
         st = self._go("grasp", target, speed, force, timeout)
-        at = self.width_of(st.position)
+        at = self.profile.width_of(st.position)
         held = st.obj in (ObjectDetection.CONTACT_CLOSING, ObjectDetection.CONTACT_OPENING)
         self._held = held
         if held:
@@ -358,10 +264,10 @@ class RobotiqDevice(Device):
 
     def release(self, width: float, speed: float, timeout: float) -> MotionResult:
         self._mode, self._held = "release", False
-        target = 0 if width >= self.limits.max_width else self.position_byte(width)
+        target = 0 if width >= self.limits.max_width else self.profile.position_byte(width)
         st = self._go("release", target, speed, None, timeout)
         self._mode = "idle"
-        return MotionResult(self.width_of(st.position), GraspState.IDLE)
+        return MotionResult(self.profile.width_of(st.position), GraspState.IDLE)
 
     def _halt(self, cause: str, command: str) -> None:
         self.epochs.begin(cause)
@@ -411,7 +317,7 @@ class RobotiqDevice(Device):
     def read_state(self) -> GripperState:
         st = self.client.read_status(command="state")
         return GripperState(
-            width=self.width_of(st.position),
+            width=self.profile.width_of(st.position),
             speed=None,
             force=None,
             current=st.current_ma / 1000,
@@ -490,12 +396,12 @@ class RobotiqServo:
 
     def send(self, target: ServoTarget) -> bool | None:
         d = self._device
-        force = d._last.force if target.force is None else d.force_byte(target.force)
+        force = d._last.force if target.force is None else d.profile.force_byte(target.force)
         cmd = Command(
             act=True,
             gto=True,
-            position=d.position_byte(target.width),
-            speed=d.speed_byte(target.speed),
+            position=d.profile.position_byte(target.width),
+            speed=d.profile.speed_byte(target.speed),
             force=force,
         )
         if cmd == d._last:

@@ -342,8 +342,6 @@ class _Reconnection:
         d.mode, d.held = "idle", False  # a power-cycled gripper lost anything it held
 
 
-
-
 class StepfocBackend:
     family = "stepfoc"
     profile_model = MsgProfile

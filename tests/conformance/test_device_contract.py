@@ -149,7 +149,7 @@ def test_a_newer_motion_supersedes_without_a_stop(g: Any) -> None:
         older.wait(10)
     if robotiq:
         model = g.simulator.model
-        _until("the newer target written", lambda: model.command.position == g.device.position_byte(target))
+        _until("the newer target written", lambda: model.command.position == g.profile.position_byte(target))
         assert model.writes == writes + 1 and model.command.gto  # one write, rGTO kept set: no stop
     else:
         _until("the newer target taken", lambda: g.simulator.model.target == pytest.approx(target * 1000))

@@ -11,7 +11,7 @@ import pytest
 
 import grippers
 from grippers import MotionBlocked, NotReferenced
-from grippers.backends.robotiq import RobotiqFault
+from grippers.backends.robotiq import RobotiqFault, fault_error
 from grippers.drivers.robotiq.registers import MAJOR_FAULTS, ActivationState, Command, Fault
 from grippers.errors import CommandFailed, FastStopActive, GripperTimeout, URLError
 from grippers.gripper import GraspState
@@ -263,7 +263,7 @@ def test_every_gflt_code_maps_to_one_typed_outcome(code: int) -> None:
         timeout=0.5,
     )
     st = Status(True, True, ActivationState.COMPLETE, ObjectDetection.MOVING, code, 0, 0, 3, 0)
-    err = g.device.fault_error(st, "move")
+    err = fault_error(st, device=g.name, command="move")
     if code in (Fault.ACTION_DELAYED, Fault.NO_COMMUNICATION):
         assert err is None  # transient: the wait goes on
     elif code == Fault.ACTIVATION_BIT:
