@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import os
 import warnings
 from typing import Any
 
-from .backends import get_backend
+from .backends import find_backend, get_backend
 from .errors import GripperError, ProfileAssumed, ProfileError, URLError
 from .gripper import Gripper
 from .profiles import ProfileBase, load_profile
@@ -41,10 +42,10 @@ def open(target: str | os.PathLike[str], **overrides: Any) -> Gripper:  # noqa: 
     chosen = overrides.pop("profile", None)  # a name or a loaded profile; the keyword wins over ?profile=
     profile: ProfileBase | None = None
     if is_url(text):
-        url = parse_url(text)
+        url = _parse(text)
     else:
         profile = load_profile(text)
-        url = parse_url(overrides.pop("url", None) or profile.url)
+        url = _parse(overrides.pop("url", None) or profile.url)
     settings = Settings(url.url, url.params, overrides)
     from .reconnect import SETTINGS as RECONNECT_SETTINGS
 
@@ -67,6 +68,25 @@ def open(target: str | os.PathLike[str], **overrides: Any) -> Gripper:  # noqa: 
     _finish(gripper, settings)
     warn_if_assumed(gripper)
     return gripper
+
+
+def _parse(text: str) -> ConnectionURL:
+    """:func:`parse_url`, and a family's own protocol scheme: a backend that declares ``url_protocols``
+    (``{"urcap": "tcp"}``: Robotiq's URCap socket) is reached as ``FAMILY+NAME://…``, read as
+    ``FAMILY+TRANSPORT://…?protocol=NAME`` and named as typed. The generic grammar (drivers/urls.py) stays
+    the same for every family; only a family that says so gets a scheme of its own."""
+    try:
+        return parse_url(text)
+    except URLError as exc:
+        refused = exc
+    scheme, sep, rest = text.partition("://")
+    family, plus, name = scheme.lower().partition("+")
+    backend = find_backend(family) if sep and plus and family not in ("sim", "zenoh") else None
+    base = getattr(backend, "url_protocols", {}).get(name) if backend is not None else None
+    if base is None:
+        raise refused
+    parsed = parse_url(f"{family}+{base}://{rest}{'&' if '?' in rest else '?'}protocol={name}")
+    return dataclasses.replace(parsed, url=text)
 
 
 def warn_if_assumed(gripper: Gripper, stacklevel: int = 3) -> None:
@@ -119,7 +139,7 @@ def _open_sim(url: ConnectionURL, profile: ProfileBase | None, settings: Setting
         # Every simulator parameter comes from the URL or the keywords, so a refused one is a settings error.
         raise URLError(f"{url.url}: {exc}") from exc
     try:
-        sim_url = parse_url(server.url)
+        sim_url = _parse(server.url)
         settings.add_defaults(sim_url.params)  # e.g. the UDP simulator's reply port
         gripper = backend.open(sim_url, profile, settings)
     except BaseException:

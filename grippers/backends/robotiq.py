@@ -433,6 +433,7 @@ class RobotiqBackend:
     family = "robotiq"
     profile_model = RobotiqProfile
     bare_forms = {"serial": (30, "robotiq+serial://{rest}")}  # the "did you mean" of a bare serial port
+    url_protocols = {"urcap": "tcp"}  # robotiq+urcap://HOST[:63352]: the URCap socket (grippers/api.py)
     default_profile = FALLBACK_PROFILE  # `grippers sim robotiq` without --model
     sim_help = "simulate a Robotiq gripper (Modbus RTU) on a pseudo-terminal (pty) or tcp://HOST:PORT"
     sim_example = (
@@ -475,7 +476,7 @@ class RobotiqBackend:
         if common["read_function"] not in (3, 4):
             raise URLError(f"{url.url}: read_function must be 3 or 4")
         # Every setting is taken once, here; reconnection reuses this connector (never a re-parse of the URL).
-        # The URCap's ASCII socket is TCP too: its port (63352) or ?protocol=urcap selects it.
+        # The URCap's ASCII socket is TCP too: robotiq+urcap://, port 63352 or ?protocol=urcap selects it.
         protocol = settings.str("protocol", "urcap" if url.port == URCAP_PORT else "rtu")
         if protocol not in ("rtu", "urcap") or (protocol == "urcap" and url.transport != "tcp"):
             raise URLError(f"{url.url}: protocol must be rtu, or urcap over tcp, not {protocol!r}")

@@ -82,8 +82,8 @@ class RobotiqSimServer(SimServer):
         super().__init__(
             listen, lambda: session(model), family=family, time_scale=time_scale, advance=model.advance
         )
-        if is_urcap:
-            self.url += "?protocol=urcap"
+        if is_urcap:  # the URCap socket's own scheme (the backend's url_protocols)
+            self.url = self.url.replace(f"{family}+tcp://", f"{family}+urcap://", 1)
 
 
 def serve(

@@ -1,0 +1,41 @@
+"""Issue 29 §1: ``robotiq+urcap://HOST[:63352]`` reaches the URCap socket, a scheme the family declares
+(``url_protocols``) on top of the one URL grammar; the gripper keeps the URL as typed."""
+
+from __future__ import annotations
+
+import pytest
+
+import grippers
+from grippers.backends import get_backend
+from grippers.profiles import load_profile
+from grippers.settings import Settings
+
+
+@pytest.fixture
+def urcap_sim():  # noqa: ANN201
+    profile = load_profile("robotiq-2f85")
+    server = get_backend("robotiq").simulator(
+        profile, Settings("sim://robotiq-2f85", {"activated": "true"}, {}), "urcap://127.0.0.1:0"
+    )
+    yield server
+    server.close()
+    assert server.error is None
+
+
+def test_the_urcap_scheme_reaches_the_urcap_socket_and_names_the_gripper_as_typed(urcap_sim) -> None:
+    url = urcap_sim.url
+    assert url.startswith("robotiq+urcap://127.0.0.1:"), url
+    with grippers.open(url) as g:
+        assert g.url == url and g.name.endswith(url)
+        assert type(g.driver).__name__ == "UrcapClient"
+        g.move(0.03)
+        assert abs(g.state().width - 0.03) < 1e-3
+
+
+def test_the_same_socket_by_protocol_query_and_a_scheme_no_family_declares() -> None:
+    with pytest.raises(grippers.URLError, match="FAMILY\\+TRANSPORT"):
+        grippers.open("wsg+urcap://127.0.0.1:1")  # the WSG declares no such protocol
+    with pytest.raises(grippers.URLError, match="FAMILY\\+TRANSPORT"):
+        grippers.open("robotiq+modbus://127.0.0.1:1")  # not one the Robotiq declares
+    with pytest.raises(grippers.URLError, match="protocol"):
+        grippers.open("robotiq+urcap://127.0.0.1:1?protocol=rtu")  # the scheme says urcap already
