@@ -14,8 +14,6 @@ import argparse
 import importlib.util
 import json
 import os
-import socket
-import subprocess
 import sys
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -89,6 +87,8 @@ def check_dependencies() -> list[Check]:
 
 def check_can_interfaces() -> list[Check]:
     """The python-can interfaces the grippers use: importable, and usable where that can be tried locally."""
+    import socket
+
     if importlib.util.find_spec("can") is None:
         return []
     import can
@@ -123,6 +123,8 @@ def check_can_interfaces() -> list[Check]:
 
 
 def _ip_details() -> dict[str, dict[str, Any]]:
+    import subprocess
+
     try:
         proc = subprocess.run(
             ["ip", "-details", "-json", "link", "show"], capture_output=True, text=True, timeout=5
@@ -266,6 +268,8 @@ def factory_addresses() -> list[tuple[str, int, str]]:
 
 def check_route(address: str, port: int = 0, family: str = "a gripper") -> list[Check]:
     """Which local address would talk to a family's factory address; connect() on UDP sends nothing."""
+    import socket
+
     name = f"route to {address}"
     mine = address.rsplit(".", 1)[0] + ".100/24"  # an address of this computer on the gripper's /24 network
     try:

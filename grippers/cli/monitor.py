@@ -11,8 +11,6 @@ from __future__ import annotations
 
 import argparse
 import itertools
-import selectors
-import socket
 import sys
 import time
 from collections.abc import Callable, Iterator
@@ -291,6 +289,9 @@ def _proxy_records(args: argparse.Namespace, writer: Writer | None) -> Iterator[
     Each client connection gets its own connection to the gripper and its own parsers, so two programs
     talking through the proxy do not garble each other's packets.
     """
+    import selectors  # here, not at the top: `grippers --help` imports every command's module
+    import socket
+
     from grippers.drivers.captures import format_hex_line
     from grippers.drivers.dissect import FROM_GRIPPER, TO_GRIPPER
 
