@@ -195,11 +195,16 @@ def child(goals: int, sessions: int) -> dict[str, Any]:
                     return
                 handle.get_result_async().add_done_callback(on_result)
 
-            t0 = time.perf_counter()
-            c.send_goal_async(goal).add_done_callback(on_goal)
-            assert ended.wait(30), "no result within 30 s"
-            took = time.perf_counter() - t0
-            return took, bool(box) and box[0].status == 4  # SUCCEEDED
+            # Asked again when no answer came in 10 s: Fast DDS may lose the first reply to a new client
+            # (the server's reply writer not yet matched; tests/ros2/rosclient.py `answered`). A goal asked
+            # again is not timed: it says what the machine's discovery cost, not what the node does.
+            for attempt in range(3):
+                t0 = time.perf_counter()
+                c.send_goal_async(goal).add_done_callback(on_goal)
+                if ended.wait(10):
+                    took = time.perf_counter() - t0
+                    return (took if attempt == 0 else float("nan")), bool(box) and box[0].status == 4
+            raise AssertionError("no result within 30 s (3 goals)")
 
         times: dict[str, list[list[float]]] = {name: [] for name in servers}
         failed = 0
@@ -214,7 +219,8 @@ def child(goals: int, sessions: int) -> dict[str, Any]:
             for _ in range(goals):  # goal by goal, so the machine's noise falls on every server alike
                 for name, c in servers.items():
                     took, ok = one(c)
-                    times[name][-1].append(took)
+                    if took == took:  # nan: the goal had to be asked again (not timed, see one())
+                        times[name][-1].append(took)
                     failed += not ok
         js = list(stamps)
         js_span = time.monotonic() - t_js
