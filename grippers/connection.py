@@ -2,7 +2,7 @@
 a collaborator of :class:`~grippers.gripper.Gripper`.
 
 Three sources, the first that applies: the link watch of ``reconnect=true`` (grippers/reconnect.py); the
-device's own ``link`` feature (``Device.link``: a served gripper learns of a lost server from Zenoh's
+device's own ``liveness`` feature (``Device.liveness``: a served gripper learns of a lost server from Zenoh's
 liveliness, final without reconnection); otherwise the link is up until close().
 """
 
@@ -81,15 +81,15 @@ class LinkState:
         """During an outage, or after the device's own link was lost for good: ConnectionLost at once."""
         if self.watch is not None:
             self.watch.check(command)
-        elif self.device.link is not None and self.device.link.error is not None:
-            raise ConnectionLost(self.device.link.error.message, device=self.name, command=command)
+        elif self.device.liveness is not None and self.device.liveness.error is not None:
+            raise ConnectionLost(self.device.liveness.error.message, device=self.name, command=command)
 
     def connected(self, closed: bool) -> bool:
         if closed:
             return False
         if self.watch is not None:
             return self.watch.connected
-        return self.device.link is None or self.device.link.error is None
+        return self.device.liveness is None or self.device.liveness.error is None
 
     def on_connection(self, callback: Callable[[bool], Any]) -> Callable[[], None]:
         if self.watch is not None:
@@ -105,7 +105,7 @@ class LinkState:
             once(False)
 
         self.on_close.append(at_close)
-        unlink = None if self.device.link is None else self.device.link.add_listener(once)
+        unlink = None if self.device.liveness is None else self.device.liveness.add_listener(once)
 
         def remove() -> None:
             if at_close in self.on_close:

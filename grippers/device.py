@@ -11,7 +11,7 @@ Required: :meth:`Device.home`, :meth:`Device.move`, :meth:`Device.grasp`, :meth:
 :meth:`Device.read_state`, :meth:`Device.info`, :meth:`Device.close`. Everything else has a default that
 fits a simple device. Optional features are objects the device offers or leaves ``None``
 (:attr:`Device.reconnection`, :attr:`Device.servo`, :attr:`Device.soft_limits`, :attr:`Device.temperature`,
-:attr:`Device.device_tag`, :attr:`Device.link`, :attr:`Device.states`), not methods to override.
+:attr:`Device.device_tag`, :attr:`Device.liveness`, :attr:`Device.state_source`), not methods to override.
 
 The calls a device receives:
 
@@ -46,7 +46,7 @@ __all__ = [
     "Device",
     "DeviceContext",
     "DeviceTag",
-    "Link",
+    "Liveness",
     "Reconnection",
     "Servo",
     "SoftLimits",
@@ -156,7 +156,7 @@ class DeviceTag(Protocol):
 
 
 @runtime_checkable
-class Link(Protocol):
+class Liveness(Protocol):
     """A link whose loss the device learns by itself, without a read failing (a served gripper: the
     server's liveliness token went away). ``Gripper.connected``/``on_connection`` follow it, and every call
     raises ConnectionLost at once once it is lost (final without ``reconnect=true``)."""
@@ -236,8 +236,8 @@ class Device(ABC):
     soft_limits: SoftLimits | None = None
     temperature: Temperature | None = None
     device_tag: DeviceTag | None = None
-    link: Link | None = None
-    states: StateSource | None = None
+    liveness: Liveness | None = None
+    state_source: StateSource | None = None
 
     context: DeviceContext = DeviceContext(name="?")
 

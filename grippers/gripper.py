@@ -100,8 +100,8 @@ class Gripper:
                 reconnects=lambda: self._link.watch is not None,
             )
         )
-        if device.link is not None:  # a link lost for good ends servoing before the user is told
-            device.link.add_listener(lambda up: None if up else self._servo.end(stop_device=False))
+        if device.liveness is not None:  # a link lost for good ends servoing before the user is told
+            device.liveness.add_listener(lambda up: None if up else self._servo.end(stop_device=False))
 
     @property
     def name(self) -> str:
@@ -296,7 +296,7 @@ class Gripper:
         with self._lock:  # registered atomically with the closed check, so close() stops every stream
             self._check_open("stream")
             read = lambda: self._latch.shown(self.device.read_state())  # noqa: E731
-            return self._streams.open(self.device.states, read, self._link.watch, rate_hz, callback)
+            return self._streams.open(self.device.state_source, read, self._link.watch, rate_hz, callback)
 
     def async_support(self) -> AsyncSupport:
         """The one declared hook of a face built on this gripper (grippers/aio.py; the CLI's commands that

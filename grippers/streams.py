@@ -145,9 +145,9 @@ class StateStream(QueuedStream):
 class StreamSet:
     """The streams a gripper opened and has not seen closed: close() closes what is left.
 
-    A device that pushes its states (``Device.states``: a subscription) feeds its own streams; otherwise a
-    :class:`StateStream` polls ``read``, and with ``reconnect=true`` pauses over an outage and marks the gap
-    (``watch.stream_reader``, grippers/reconnect.py)."""
+    A device that pushes its states (``Device.state_source``: a subscription) feeds its own streams;
+    otherwise a :class:`StateStream` polls ``read``, and with ``reconnect=true`` pauses over an outage and
+    marks the gap (``watch.stream_reader``, grippers/reconnect.py)."""
 
     def __init__(self) -> None:
         self._lock = threading.Lock()
@@ -161,7 +161,8 @@ class StreamSet:
         rate_hz: float,
         callback: Callable[[GripperState], Any] | None,
     ) -> Any:
-        """A new stream, registered: from ``source`` (a ``Device.states``) if given, else polling ``read``."""
+        """A new stream, registered: from ``source`` (a ``Device.state_source``) if given, else polling
+        ``read``."""
         if source is not None:
             s = source.subscribe(rate_hz, callback, self.forget)
         else:

@@ -3,9 +3,10 @@
 A :class:`RemoteDevice` (the device contract, grippers/device.py) held by a :class:`RemoteGripper`, which is
 a Gripper plus the control lease (``control()``, ``acquire_control()``, ``release_control()``). Limits come
 from the served info and are checked by the gripper before anything is sent (and again by the server);
-errors arrive as a class name and are raised as the same class; ``stream()`` is a Zenoh subscription to the
-published states (the device's ``states`` feature), not polling; ``connected``/``on_connection`` follow the
-server's liveliness (its ``link`` feature). The Zenoh side is grippers/remote/link.py.
+errors arrive as a class name and are raised as the same class; ``stream()`` is a Zenoh subscription to
+the published states (the device's ``state_source`` feature), not polling; ``connected`` and
+``on_connection`` follow the server's liveliness (its ``liveness`` feature). The Zenoh side is
+grippers/remote/link.py.
 """
 
 from __future__ import annotations
@@ -82,7 +83,7 @@ class RemoteDevice(Device):
 
     def __init__(self, link: ServedLink, profile: ProfileBase | None = None) -> None:
         url = link.url
-        self.link = self.states = self._link = link
+        self.liveness = self.state_source = self._link = link
         try:
             doc = self._link.info_doc
             # Read with the family's model if installed, else as the generic profile (no vendor code needed).

@@ -2,8 +2,8 @@
 
 One :class:`ServedLink` per :class:`~grippers.remote.client.RemoteDevice`. Each call is one Zenoh query
 bounded by a timeout: a vanished server is a ``ConnectionLost`` within that bound (at once when its token goes
-away), never a hang. It is also the device's ``link`` feature (grippers/device.py ``Link``: ``error``,
-``add_listener``) and its ``states`` feature (``subscribe``: a subscription to the published states, not
+away), never a hang. It is also the device's ``liveness`` feature (grippers/device.py ``Liveness``: ``error``,
+``add_listener``) and its ``state_source`` feature (``subscribe``: a subscription to the published states, not
 polling).
 """
 
@@ -74,7 +74,7 @@ class ServedLink:
     def name(self) -> str:
         return self.context.name
 
-    # -- the link feature ---------------------------------------------------------------------------------
+    # -- the liveness feature--------------------------------------------------------------------------------
 
     @property
     def error(self) -> GripperError | None:
@@ -298,7 +298,7 @@ class ServedLink:
         self.declare_lost(why)
         raise ConnectionLost(why, device=self.name, command=command)
 
-    # -- the states feature: a subscription ---------------------------------------------------------------
+    # -- the state_source feature: a subscription ----------------------------------------------------------
 
     def subscribe(
         self,
