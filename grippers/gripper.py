@@ -280,12 +280,16 @@ class Gripper:
         self._check_open("state")
         return self._latch.took(self.device.read_state())
 
-    def _took_state(self, st: GripperState) -> GripperState:
+    def _took_state(self, st: GripperState) -> GripperState:  # what state() does with a reading
         return self._latch.took(st)
 
     def info(self) -> DeviceInfo:
         """What the device is: vendor, model, profile, firmware, serial number and the limits in force
-        (``extra["warnings"]``: what the library assumed or ignored). Raises as :meth:`state`."""
+        (``extra["warnings"]``: what the library assumed or ignored).
+
+        Raises:
+            GripperTimeout, ConnectionLost, ProtocolError, GripperError: as :meth:`state`.
+        """
         self._check_open("info")
         return self.device.info()
 
@@ -324,6 +328,7 @@ class Gripper:
         return w, c.speed(speed, command), c.force(force, command)
 
     def require(self, capability: Capability, command: str) -> None:
+        """NotSupported naming ``command`` unless the device has ``capability``; sends nothing."""
         self._features.require(capability, command)
 
     def temperature(self) -> float:
@@ -338,6 +343,7 @@ class Gripper:
         self._features.get(Capability.SOFT_LIMITS, "set_soft_limits").set(lo, hi)
 
     def clear_soft_limits(self) -> None:
+        """Remove the limits :meth:`set_soft_limits` set in the device."""
         self._check_open("clear_soft_limits")
         self._features.get(Capability.SOFT_LIMITS, "clear_soft_limits").set(None, None)
 
@@ -347,6 +353,7 @@ class Gripper:
         return str(self._features.get(Capability.DEVICE_TAG, "device_tag").read())
 
     def set_device_tag(self, tag: str) -> None:
+        """Store ``tag`` as the device's user-defined name."""
         self._check_open("set_device_tag")
         self._features.get(Capability.DEVICE_TAG, "set_device_tag").write(tag)
 
