@@ -10,7 +10,7 @@ itself can do. Reported per simulator:
 - RMS error: between the library-driven path and the ideal path (both sampled in simulated time);
 - CPU per target: this process's CPU in the threads that call ``servo`` and send (the caller inside
   ``servo()``, the servo thread, the driver's reader), per target received and per target sent; baseline: the
-  backend's ``_servo`` primitive called synchronously at the same 100 Hz with targets far apart, so that
+  device's ``servo.send`` primitive called synchronously at the same 100 Hz with targets far apart, so that
   every call goes on the wire (the wire commands alone, no latest-wins loop); the ratio compares servo's
   CPU per target received with that cost of putting every target on the wire synchronously;
 - wire share: the targets that went on the wire (the rest were coalesced or needed no frame).
@@ -201,7 +201,7 @@ def _drive(url: str, seconds: float) -> dict[str, Any]:
         g.move(target_mm(0.0) / 1000, SPEED)
         sample = _sampler(g)
         g.servo(target_mm(0.0) / 1000, SPEED)  # starts the servo thread before the CPU clocks are read
-        g._servo_loop.flush(2.0)
+        g.servo_flush(2.0)
         others = _threads_cpu(g, caller=False)
         samples: list[tuple[float, float]] = []
         n = round(seconds * RATE_HZ)
@@ -221,10 +221,10 @@ def _drive(url: str, seconds: float) -> dict[str, Any]:
                     time.sleep(delay)
                 now, mm = sample()
                 samples.append((now - t0, mm))
-        g._servo_loop.flush(2.0)
+        g.servo_flush(2.0)
         cpu_used = others() - c0 + caller
         stats = g.servo_stats
-        g._servo_loop.end()  # its thread's CPU clock is not read any more
+        g._servo.end(stop_device=False)  # its thread's CPU clock is not read any more
         g.stop()
         # Baseline: the backend's primitive, called synchronously, for as many targets.
         # Paced at the same 100 Hz (a loop that sleeps between calls runs colder than a tight one).
@@ -235,7 +235,7 @@ def _drive(url: str, seconds: float) -> dict[str, Any]:
             while (delay := w1 + k / RATE_HZ - time.perf_counter()) > 0:
                 time.sleep(delay)
             # far apart, so that every call goes on the wire (WSG: STOP + 21h; MSG: one 61)
-            g._servo(ServoTarget((30.0 + 30.0 * (k % 2)) / 1000, SPEED, None))
+            g.device.servo.send(ServoTarget((30.0 + 30.0 * (k % 2)) / 1000, SPEED, None))
         base_cpu = cpu() - c1
         g.stop()
         return {
@@ -296,7 +296,7 @@ def _drive_remote(url: str, seconds: float) -> dict[str, Any]:
             g.move(target_mm(0.0) / 1000, SPEED)
             sample = _sampler(local)
             g.servo(target_mm(0.0) / 1000, SPEED)
-            g._servo_loop.flush(2.0)
+            g.servo_flush(2.0)
             samples: list[tuple[float, float]] = []
             n = round(seconds * RATE_HZ)
             w0 = time.perf_counter()
@@ -313,7 +313,7 @@ def _drive_remote(url: str, seconds: float) -> dict[str, Any]:
                         time.sleep(delay)
                     now, mm = sample()
                     samples.append((now - t0, mm))
-            g._servo_loop.flush(2.0)
+            g.servo_flush(2.0)
             stats = g.servo_stats
             served_stats = local.servo_stats
             g.stop()

@@ -8,7 +8,7 @@ calls it. From this table:
 
 - ``grippers.remote.protocol.COMMANDS`` (what each verb takes on the wire, its lease rule) is derived;
 - the server's dispatch calls the Gripper method the verb names, with the arguments the table lists;
-- the remote client's stubs send exactly the arguments the table lists (``RemoteGripper._command``);
+- the remote client sends exactly the arguments the table lists (``grippers.remote.link.ServedLink.command``);
 - the asyncio face's forwarding methods take the Gripper method's own signature and lane.
 
 tests/test_command_table.py checks the rest against it: every public Gripper method is here with the

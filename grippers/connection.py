@@ -1,6 +1,9 @@
-"""A gripper's link to its device as the user sees it (``connected``, ``on_connection``), and the hooks a
-backend implements so that ``reconnect=true`` (grippers/reconnect.py) can bring the link back: apart from
-the core of :class:`~grippers.gripper.Gripper`, which it is a mixin of.
+"""A gripper's link to its device as the user sees it (``connected``, ``on_connection``, ``link_watch``):
+a collaborator of :class:`~grippers.gripper.Gripper`.
+
+Three sources, the first that applies: the link watch of ``reconnect=true`` (grippers/reconnect.py); the
+device's own ``liveness`` feature (``Device.liveness``: a served gripper learns of a lost server from Zenoh's
+liveliness, final without reconnection); otherwise the link is up until close().
 """
 
 from __future__ import annotations
@@ -8,8 +11,8 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, Protocol
 
-from .errors import DeviceMismatch, NotSupported
-from .parts import GripperPart
+from .device import Device
+from .errors import ConnectionLost, DeviceMismatch
 
 if TYPE_CHECKING:
     from .errors import GripperError
@@ -64,58 +67,60 @@ class Watch(Protocol):
     """Why the link was last lost, or the last attempt failed."""
 
 
-class ConnectionHooks(GripperPart):
-    """Connection state for users, reconnection hooks for backends."""
+class LinkState:
+    """Connected or not, who to tell, and the identity a reconnection must find again."""
 
-    # Set by Gripper.__init__ (and by grippers/reconnect.py's attach for the last two).
-    _closed: bool
-    _on_close: list[Callable[[], None]]
-    _watch: Watch | None
-    _opened_identity: dict[str, str]
+    def __init__(self, name: str, device: Device) -> None:
+        self.name = name
+        self.device = device
+        self.watch: Watch | None = None  # set by grippers/reconnect.py's attach (reconnect=true)
+        self.opened_identity: dict[str, str] = {}  # the device's identity when reconnection was switched on
+        self.on_close: list[Callable[[], None]] = []  # run at the end of Gripper.close()
 
-    @property
-    def link_watch(self) -> Watch | None:
-        """With ``reconnect=true``: the watch that brings a lost link back (its ``policy``, ``epoch``: the
-        reconnections so far, ``attempts`` in the current outage, ``last_error``); None when reconnection is
-        off. Read it; the gripper drives it."""
-        return self._watch
+    def check(self, command: str) -> None:
+        """During an outage, or after the device's own link was lost for good: ConnectionLost at once."""
+        if self.watch is not None:
+            self.watch.check(command)
+        elif self.device.liveness is not None and self.device.liveness.error is not None:
+            raise ConnectionLost(self.device.liveness.error.message, device=self.name, command=command)
 
-    @property
-    def connected(self) -> bool:
-        """False while a lost link is being re-established (reconnect=true) or after close()."""
-        if self._closed:
+    def connected(self, closed: bool) -> bool:
+        if closed:
             return False
-        return True if self._watch is None else self._watch.connected
+        if self.watch is not None:
+            return self.watch.connected
+        return self.device.liveness is None or self.device.liveness.error is None
 
     def on_connection(self, callback: Callable[[bool], Any]) -> Callable[[], None]:
-        """Call ``callback(connected)`` from a background thread whenever the link is lost or back; returns
-        a function that unregisters it. Without reconnect=true only a loss at close() is reported."""
-        if self._watch is not None:
-            return self._watch.add_listener(callback)
+        if self.watch is not None:
+            return self.watch.add_listener(callback)
+        told: list[bool] = []
+
+        def once(up: bool) -> None:  # a link lost for good is told once, not again at close()
+            if not told:
+                told.append(up)
+                callback(up)
 
         def at_close() -> None:
-            callback(False)
+            once(False)
 
-        self._on_close.append(at_close)
+        self.on_close.append(at_close)
+        unlink = None if self.device.liveness is None else self.device.liveness.add_listener(once)
 
         def remove() -> None:
-            if at_close in self._on_close:
-                self._on_close.remove(at_close)
+            if at_close in self.on_close:
+                self.on_close.remove(at_close)
+            if unlink is not None:
+                unlink()
 
         return remove
 
-    # Backends that can re-establish their link override these (reconnect=true).
-    def _identity(self) -> dict[str, str]:
-        """What tells this device from another of its family (model, serial), read without traffic where
-        the backend can. Recorded when reconnection is switched on; empty: devices cannot be told apart."""
-        return {}
-
-    def _check_same_device(self, found: dict[str, str]) -> None:
-        """Called by a backend's ``_reconnect`` before it swaps a fresh link in: DeviceMismatch when another
+    def check_same_device(self, found: dict[str, str]) -> None:
+        """Called by a device's reconnection before it swaps a fresh link in: DeviceMismatch when another
         device answers where the opened one was. Refused rather than adopted: the profile, the limits and the
         application's idea of the cell all belong to the opened device (a WSG 25 taking a WSG 50's 70 N
         grasp), so the caller reopens on purpose if the new device is meant."""
-        opened = self._opened_identity
+        opened = self.opened_identity
         if not opened:
             return
         differs = {k: v for k, v in found.items() if k in opened and opened[k] != v}
@@ -127,11 +132,3 @@ class ConnectionHooks(GripperPart):
                 device=self.name,
                 command="reconnect",
             )
-
-    def _link_alive(self) -> bool:
-        """Cheap, no traffic: whether the driver has noticed its link is gone."""
-        return True
-
-    def _reconnect(self) -> None:
-        """Open a fresh driver on the same URL and swap it in; GripperError while the device is not back."""
-        raise NotSupported("this backend cannot reconnect", device=self.name, command="reconnect")

@@ -11,7 +11,7 @@ Required: :meth:`Device.home`, :meth:`Device.move`, :meth:`Device.grasp`, :meth:
 :meth:`Device.read_state`, :meth:`Device.info`, :meth:`Device.close`. Everything else has a default that
 fits a simple device. Optional features are objects the device offers or leaves ``None``
 (:attr:`Device.reconnection`, :attr:`Device.servo`, :attr:`Device.soft_limits`, :attr:`Device.temperature`,
-:attr:`Device.device_tag`), not methods to override.
+:attr:`Device.device_tag`, :attr:`Device.liveness`, :attr:`Device.state_source`), not methods to override.
 
 The calls a device receives:
 
@@ -39,17 +39,21 @@ from .states import Capability, DeviceInfo, GraspResult, GripperState, MotionRes
 if TYPE_CHECKING:
     import asyncio
 
+    from .errors import GripperError
     from .servo import ServoTarget
 
 __all__ = [
     "Device",
     "DeviceContext",
     "DeviceTag",
+    "Liveness",
     "Reconnection",
     "Servo",
     "SoftLimits",
     "StartedRead",
     "StateCallback",
+    "StateSource",
+    "StateStreamLike",
     "Temperature",
 ]
 
@@ -76,12 +80,15 @@ class DeviceContext:
 
     ``name`` is how errors name the gripper (``PROFILE@URL``); ``closed()`` turns True when the gripper
     closes (a polling wait ends instead of polling a closed link); ``check_same_device(identity)`` raises
-    ``DeviceMismatch`` when a reconnection found another device than the opened one.
+    ``DeviceMismatch`` when a reconnection found another device than the opened one; ``reconnects()`` is
+    True when the gripper was opened with ``reconnect=true`` (a lost link is then an outage its watch brings
+    back through :attr:`Device.reconnection`, not the end).
     """
 
     name: str
     closed: Callable[[], bool] = lambda: False
     check_same_device: Callable[[dict[str, str]], None] = lambda identity: None
+    reconnects: Callable[[], bool] = lambda: False
 
 
 # -- optional features: objects a device offers, or None --------------------------------------------------
@@ -148,6 +155,46 @@ class DeviceTag(Protocol):
     def write(self, tag: str) -> None: ...
 
 
+@runtime_checkable
+class Liveness(Protocol):
+    """A link whose loss the device learns by itself, without a read failing (a served gripper: the
+    server's liveliness token went away). ``Gripper.connected``/``on_connection`` follow it, and every call
+    raises ConnectionLost at once once it is lost (final without ``reconnect=true``)."""
+
+    @property
+    def error(self) -> GripperError | None:
+        """Why the link is lost for good; None while it is up."""
+        ...
+
+    def add_listener(self, callback: Callable[[bool], Any]) -> Callable[[], None]:
+        """Call ``callback(False)`` once, from a thread of the device's, when the link is lost; returns what
+        unregisters it."""
+        ...
+
+
+class StateStreamLike(Protocol):
+    """What ``Gripper.stream()`` returns: iterate, ``get(timeout)``, ``close()`` (grippers/streams.py)."""
+
+    def get(self, timeout: float | None = None) -> GripperState: ...
+
+    def close(self) -> None: ...
+
+
+@runtime_checkable
+class StateSource(Protocol):
+    """States the device pushes (a subscription) instead of the gripper polling :meth:`Device.read_state`."""
+
+    def subscribe(
+        self,
+        rate_hz: float,
+        callback: Callable[[GripperState], Any] | None,
+        on_close: Callable[[Any], None],
+    ) -> StateStreamLike:
+        """A stream of at most ``rate_hz`` states a second (a ``grippers.streams.QueuedStream``); it calls
+        ``on_close(stream)`` once when closed."""
+        ...
+
+
 # -- the device ----------------------------------------------------------------------------------------
 
 
@@ -180,11 +227,17 @@ class Device(ABC):
     """True when the device cannot report its model and none was named, so the profile is a guess (an MSG
     cannot report its rail length): ``grippers.open`` then warns with ``ProfileAssumed``."""
 
+    fast_stop_shared: bool = False
+    """True when other clients share the device and may acknowledge its fast stop (a served gripper): a
+    latched gripper reads the state before it refuses a motion, and takes the device's word."""
+
     reconnection: Reconnection | None = None
     servo: Servo | None = None
     soft_limits: SoftLimits | None = None
     temperature: Temperature | None = None
     device_tag: DeviceTag | None = None
+    liveness: Liveness | None = None
+    state_source: StateSource | None = None
 
     context: DeviceContext = DeviceContext(name="?")
 

@@ -7,10 +7,10 @@ of threads. It used to reach into the gripper's private members for them; this o
 the gripper's internals can change without breaking a face, and a face written outside the library (trio,
 a GUI's loop) has a documented door instead of private ones.
 
-What it offers is the gripper's own rules, not copies: each member calls the hook a backend implements
-(``Gripper._start_state``, ``_abandon``, ``_resume``, ``_read_on``; a :class:`~grippers.device.Device`'s
-``start_read``/``abandon``/``resume``/``read_on`` through grippers/device_gripper.py) or applies the rule
-the threaded call applies (``took_state``: the fast-stop latch and the fault log of ``Gripper.state()``).
+What it offers is the gripper's own rules, not copies: each member calls the hook the gripper's
+:class:`~grippers.device.Device` implements (``start_read``/``abandon``/``resume``/``read_on``) or applies
+the rule the threaded call applies (``took_state``: the fast-stop latch and the fault log of
+``Gripper.state()``).
 """
 
 from __future__ import annotations
@@ -22,9 +22,8 @@ if TYPE_CHECKING:
     import asyncio
 
     from .connection import Watch
-    from .device import StartedRead, StateCallback
+    from .device import Device, StartedRead, StateCallback
     from .motions import MotionSupervisor, Spawn
-    from .servo import ServoLoop
     from .states import GripperState
 
 
@@ -32,22 +31,19 @@ class GripperCore(Protocol):
     """The members of :class:`~grippers.gripper.Gripper` this seam wraps; declared here, not imported from
     gripper.py, which imports this module (no import circle: docs/DEVELOPING.md, rule 1)."""
 
+    device: Device
     _closed: bool
     _motions: MotionSupervisor
-    _servo_loop: ServoLoop | None
-    _watch: Watch | None
+
+    @property
+    def servoing(self) -> bool: ...
+
+    @property
+    def link_watch(self) -> Watch | None: ...
 
     def _check_open(self, command: str) -> None: ...
 
-    def _start_state(self, done: StateCallback) -> StartedRead | None: ...
-
     def _took_state(self, st: GripperState) -> GripperState: ...
-
-    def _abandon(self, thread_ident: int) -> None: ...
-
-    def _resume(self, thread_ident: int) -> None: ...
-
-    def _read_on(self, loop: asyncio.AbstractEventLoop) -> Callable[[], None] | None: ...
 
     def _motion_timeout(self, distance: float, speed: float) -> float: ...
 
@@ -70,7 +66,7 @@ class AsyncSupport:
         :meth:`StartedRead.cancel` when the awaiting task is cancelled or its timeout passed."""
         g = self._g
         g._check_open("state")
-        return g._start_state(done)
+        return g.device.start_read(done)
 
     def took_state(self, state: GripperState) -> GripperState:
         """What ``Gripper.state()`` does with every reading (the fast-stop latch follows the device, a
@@ -83,11 +79,11 @@ class AsyncSupport:
         """The call thread ``thread_ident`` runs in the driver lost its caller (an asyncio task was
         cancelled): its waits end at once, as timeouts, until :meth:`resume`, so the next call goes out at
         once. Does nothing on a backend that cannot (the call then ends by its own timeout)."""
-        self._g._abandon(thread_ident)
+        self._g.device.abandon(thread_ident)
 
     def resume(self, thread_ident: int) -> None:
         """Thread ``thread_ident`` starts a new call: undo :meth:`abandon`."""
-        self._g._resume(thread_ident)
+        self._g.device.resume(thread_ident)
 
     # -- the event loop as the reader -----------------------------------------------------------------------
 
@@ -95,7 +91,7 @@ class AsyncSupport:
         """Let ``loop`` read the transport itself (a SocketCAN or ``udp_multicast`` bus: a file descriptor),
         so a reply reaches its task with no thread hand-over; returns what undoes it (call it on the loop's
         thread before the gripper closes), or None where the driver keeps its reader thread."""
-        return self._g._read_on(loop)
+        return self._g.device.read_on(loop)
 
     # -- motions --------------------------------------------------------------------------------------------
 
@@ -139,9 +135,9 @@ class AsyncSupport:
     def servoing(self) -> bool:
         """A servoing runs: a further target is queued without waiting (``servo()``), the first one of a
         servoing supersedes the running motion and may wait for it."""
-        return self._g._servo_loop is not None
+        return self._g.servoing
 
     @property
     def reconnects(self) -> bool:
         """Opened with ``reconnect=true``: a lost link is an outage to wait out, not the end."""
-        return self._g._watch is not None
+        return self._g.link_watch is not None

@@ -1,7 +1,7 @@
 """Every width, speed and force a user passes, checked against the limits in force before anything is sent.
 
-A mixin of :class:`~grippers.gripper.Gripper` (the checks are the same for every family and every face: the
-threaded and asyncio calls, servo, and ``check()`` for a dry run); apart so the core class holds the
+A collaborator of :class:`~grippers.gripper.Gripper` (the checks are the same for every family and every
+face: the threaded and asyncio calls, servo, and ``check()`` for a dry run); apart so the gripper holds the
 behaviour of a gripper, not the arithmetic of its limits.
 """
 
@@ -10,18 +10,19 @@ from __future__ import annotations
 from grippers.drivers.numbers import finite
 
 from .errors import LimitError
-from .parts import GripperPart
 from .profile_model import Limits, ProfileBase
 
 
-class LimitChecks(GripperPart):
+class ValueChecks:
     """Values in SI units against ``limits`` (the profile's, narrowed by the device's own); the defaults
-    come from the profile."""
+    come from the profile. ``limits`` is replaced when a reconnected device reports others."""
 
-    limits: Limits
-    profile: ProfileBase
+    def __init__(self, name: str, profile: ProfileBase, limits: Limits) -> None:
+        self.name = name
+        self.profile = profile
+        self.limits = limits
 
-    def _width(self, width: float, command: str) -> float:
+    def width(self, width: float, command: str) -> float:
         w = finite(width, "width", device=self.name, command=command)
         lo, hi = self.limits.min_width, self.limits.max_width
         if not lo - 1e-9 <= w <= hi + 1e-9:
@@ -32,10 +33,10 @@ class LimitChecks(GripperPart):
             )
         return min(max(w, lo), hi)
 
-    def _speed(self, speed: float | None, command: str) -> float:
+    def speed(self, speed: float | None, command: str) -> float:
         if speed is None:
             # The profile's default may lie above a safety limit or the device's own 53h limits (which narrow
-            # self.limits): sending it unchecked would bypass them, refusing it would break every call.
+            # the limits): sending it unchecked would bypass them, refusing it would break every call.
             default = self.profile.mechanics.default_speed_mm_s / 1000
             return min(max(default, self.limits.min_speed), self.limits.max_speed)
         s = finite(speed, "speed", device=self.name, command=command)
@@ -48,9 +49,9 @@ class LimitChecks(GripperPart):
             )
         return min(max(s, lo), hi)
 
-    def _force(self, force: float | None, command: str) -> float:
+    def force(self, force: float | None, command: str) -> float:
         if force is None:
-            default = self.profile.mechanics.default_force_n  # clamped for the reason given in _speed
+            default = self.profile.mechanics.default_force_n  # clamped for the reason given in speed()
             return min(max(default, self.limits.min_force), self.limits.max_force)
         f = finite(force, "force", device=self.name, command=command)
         lo, hi = self.limits.min_force, self.limits.max_force
@@ -58,18 +59,8 @@ class LimitChecks(GripperPart):
             raise LimitError(f"force {f:g} N is outside {lo:g}..{hi:g} N", device=self.name, command=command)
         return min(max(f, lo), hi)
 
-    def check(
-        self,
-        width: float | None = None,
-        speed: float | None = None,
-        force: float | None = None,
-        *,
-        command: str = "check",
-    ) -> tuple[float | None, float | None, float | None]:
-        """Validate values against the limits without sending anything (LimitError naming ``command``);
-        returns them as they would be used (speed and force default from the profile when None)."""
-        return (
-            None if width is None else self._width(width, command),
-            self._speed(speed, command),
-            self._force(force, command),
-        )
+    def soft_limits(self, min_width: float, max_width: float) -> tuple[float, float]:
+        lo, hi = self.width(min_width, "set_soft_limits"), self.width(max_width, "set_soft_limits")
+        if lo >= hi:
+            raise LimitError("min_width must be below max_width", device=self.name, command="set_soft_limits")
+        return lo, hi

@@ -23,8 +23,7 @@ import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
-from .connection import ConnectionHooks
-from .errors import ConnectionLost, GripperError, GripperTimeout
+from .errors import ConnectionLost, GripperError, GripperTimeout, NotSupported
 
 if TYPE_CHECKING:
     from .gripper import Gripper
@@ -130,7 +129,7 @@ class LinkWatch:
         log.info("%s: link lost (%s); reconnecting", self._g.name, error)
         # Servoing ends with the link: after the outage the device may stand elsewhere or be in FAST STOP,
         # so streaming targets again is the application's decision (a new servo() call starts it).
-        self._g._end_servo(stop_device=False)
+        self._g._servo.end(stop_device=False)
         self._tell(False)
 
     def wait_connected(self, timeout: float) -> bool:
@@ -163,14 +162,15 @@ class LinkWatch:
                     return
                 if not self._connected:
                     continue
-                if not self._g._link_alive():
+                r = self._g.device.reconnection
+                if r is not None and not r.alive():
                     self.lost(ConnectionLost("the driver lost its link", device=self._g.name))
                     continue
                 if time.monotonic() < next_beat:
                     continue
                 next_beat = time.monotonic() + self.policy.heartbeat_s
                 try:
-                    self._g._state()
+                    self._g.device.read_state()
                     missed = 0
                 except ConnectionLost as exc:
                     self.lost(exc)
@@ -193,9 +193,9 @@ class LinkWatch:
         while not self._closed:
             try:
                 self._g._reconnect()
-                if self.policy.acknowledge_on_reconnect and self._g._fast_stopped:
-                    self._g._acknowledge()
-                    self._g._fast_stopped = False
+                if self.policy.acknowledge_on_reconnect and self._g._latch.active:
+                    self._g.device.acknowledge()
+                    self._g._latch.active = False
             except GripperError as exc:
                 self.last_error = exc
             except Exception as exc:  # noqa: BLE001 - an OSError from a transport that is not back yet
@@ -256,17 +256,13 @@ class LinkWatch:
 
 
 def attach(gripper: Gripper, settings: Settings) -> None:
-    """Switch reconnection on for ``gripper`` if the settings (or its profile) ask for it."""
+    """Switch reconnection on for ``gripper`` if the settings (or its profile) ask for it; a device that
+    offers no reconnection refuses it here, at open, instead of a watch that can never reconnect."""
     policy = ReconnectPolicy.from_settings(settings, gripper.profile)
     if policy is None:
         return
-    if type(gripper)._reconnect is _base_reconnect():
-        from .errors import NotSupported
-
-        raise NotSupported("this backend cannot reconnect", device=gripper.name, command="open")
-    gripper._opened_identity = gripper._identity()  # a device that comes back must be this one
-    gripper._watch = LinkWatch(gripper, policy)
-
-
-def _base_reconnect() -> Any:
-    return ConnectionHooks._reconnect  # the default a backend that cannot reconnect keeps
+    r = gripper.device.reconnection
+    if r is None:
+        raise NotSupported("this device cannot reconnect", device=gripper.name, command="open")
+    gripper._link.opened_identity = r.identity()  # a device that comes back must be this one
+    gripper._link.watch = LinkWatch(gripper, policy)

@@ -140,3 +140,47 @@ class StateStream(QueuedStream):
         if self._on_close is not None:
             self._on_close(self)
             self._on_close = None
+
+
+class StreamSet:
+    """The streams a gripper opened and has not seen closed: close() closes what is left.
+
+    A device that pushes its states (``Device.state_source``: a subscription) feeds its own streams;
+    otherwise a :class:`StateStream` polls ``read``, and with ``reconnect=true`` pauses over an outage and
+    marks the gap (``watch.stream_reader``, grippers/reconnect.py)."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._streams: list[Any] = []
+
+    def open(
+        self,
+        source: Any,
+        read: Callable[[], GripperState],
+        watch: Any,
+        rate_hz: float,
+        callback: Callable[[GripperState], Any] | None,
+    ) -> Any:
+        """A new stream, registered: from ``source`` (a ``Device.state_source``) if given, else polling
+        ``read``."""
+        if source is not None:
+            s = source.subscribe(rate_hz, callback, self.forget)
+        else:
+            holder: list[StateStream] = []
+            if watch is not None:
+                read = watch.stream_reader(read, lambda: bool(holder) and holder[0]._stop.is_set())
+            s = StateStream(read, rate_hz, callback, on_close=self.forget)
+            holder.append(s)
+        with self._lock:
+            self._streams.append(s)
+        return s
+
+    def forget(self, s: Any) -> None:
+        with self._lock:
+            if s in self._streams:
+                self._streams.remove(s)
+
+    def take_all(self) -> list[Any]:
+        with self._lock:
+            streams, self._streams = self._streams, []
+        return streams

@@ -21,11 +21,14 @@ from grippers.aio import AsyncGripper
 from grippers.cli import SUBCOMMANDS
 from grippers.cli import motion as cli_motion
 from grippers.commands import COMMANDS, FACE_HOOKS, Command
+from grippers.device import DeviceContext
 from grippers.errors import GripperError
-from grippers.gripper import Capability, Gripper, GripperState
+from grippers.gripper import Capability, Gripper
 from grippers.profiles import load_profile
 from grippers.remote import protocol
-from grippers.remote.client import RemoteGripper
+from grippers.remote.client import RemoteDevice, RemoteGripper
+from grippers.remote.holder import LossListeners
+from grippers.remote.link import ServedLink
 
 _KIND = {False: inspect.Parameter.POSITIONAL_OR_KEYWORD, True: inspect.Parameter.KEYWORD_ONLY}
 
@@ -104,17 +107,24 @@ def test_every_served_verb_calls_its_method_with_the_wire_arguments() -> None:
 # -- the remote client ------------------------------------------------------------------------------------
 
 
-class _Recording(RemoteGripper):
-    """A remote client with no Zenoh session: its one sending call records the verb and arguments."""
+class _RecordingLink(ServedLink):
+    """A served link with no Zenoh session: its one sending call records the verb and arguments."""
 
-    def __init__(self) -> None:  # noqa: D107 - no session: Gripper's own set-up only
-        Gripper.__init__(self, load_profile("wsg-50"), "zenoh://recorded", timeout=1.0)
-        self.capabilities = frozenset(Capability)
-        self._lost = None
+    def __init__(self) -> None:  # noqa: D107 - no session
+        self.url = self.served_name = "zenoh://recorded"
+        self.timeout = 1.0
+        self.context = DeviceContext(name=self.url)
+        self.lost = None
+        self._listeners = LossListeners()
+        self.info_doc = {
+            "profile_data": load_profile("wsg-50").model_dump(mode="json"),
+            "limits": load_profile("wsg-50").limits().model_dump(mode="json"),
+            "capabilities": [c.value for c in Capability],
+        }
         self.sent: list[tuple[str, dict[str, Any]]] = []
         self.sent_lock = threading.Lock()
 
-    def _call(self, command: str, args: dict[str, Any] | None = None, timeout: float | None = None) -> Any:
+    def call(self, command: str, args: dict[str, Any] | None = None, timeout: float | None = None) -> Any:
         with self.sent_lock:
             self.sent.append((command, dict(args or {})))
         if command == "grasp":
@@ -123,11 +133,22 @@ class _Recording(RemoteGripper):
             return {"width": 0.05, "state": "idle"}
         return {"temperature": 30.0, "device_tag": "tag"}.get(command)
 
-    def _state(self) -> GripperState:  # a key read, not a verb: the grasp asks it first, and goes on
+    def read(self, key: str, command: str) -> Any:  # a key read, not a verb: the grasp asks it first
         raise GripperError("no state here", device=self.name, command="state")
 
-    def _close(self) -> None:
+    def close(self) -> None:
         pass
+
+
+class _Recording(RemoteGripper):
+    """A remote client over a :class:`_RecordingLink`."""
+
+    def __init__(self) -> None:  # noqa: D107
+        self.link = _RecordingLink()
+        device = RemoteDevice(self.link)
+        super().__init__(device, device.profile, "zenoh://recorded", timeout=1.0)
+        self.sent = self.link.sent
+        self.sent_lock = self.link.sent_lock
 
 
 _SAMPLE = {"width": 0.03, "min_width": 0.01, "max_width": 0.06, "tag": "cell 3"}
@@ -154,7 +175,7 @@ def test_the_remote_client_refuses_to_send_arguments_the_table_does_not_list() -
     g = _Recording()
     try:
         with pytest.raises(GripperError, match="the command table says"):
-            g._command("move", 1.0, width=0.02, speed=0.1)  # no timeout: not what the table says
+            g.link.command("move", 1.0, width=0.02, speed=0.1)  # no timeout: not what the table says
         assert g.sent == []
     finally:
         g.close()

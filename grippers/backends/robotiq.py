@@ -52,8 +52,8 @@ from grippers.drivers.robotiq.session import FaultClass, MotionTracker, classify
 from grippers.drivers.robotiq.urcap import UrcapClient
 
 from ..device import Device
-from ..device_gripper import DeviceGripper
 from ..errors import MotionBlocked, NotReferenced, URLError
+from ..gripper import Gripper
 from ..kit.motion import MotionEpochs, poll_until
 from ..profiles import ProfileBase
 from ..states import Capability, DeviceInfo, GraspResult, GraspState, GripperState, MotionResult
@@ -109,7 +109,7 @@ def fault_error(st: Status, *, device: str, command: str) -> CommandFailed | Non
 class RobotiqDevice(Device):
     """One Robotiq gripper over a :class:`RobotiqClient` (Modbus RTU) or a :class:`UrcapClient`, in SI units.
 
-    The gripper that holds it (:class:`~grippers.device_gripper.DeviceGripper`) checks limits, runs the motion
+    The gripper that holds it (:class:`~grippers.gripper.Gripper`) checks limits, runs the motion
     rule and keeps the fast-stop latch (``reports_fast_stop`` False: the device has no fast-stop state). The
     device takes a new rPR mid-motion (``moves_to_new_targets``): a newer motion is written over the running
     one without a stop, and :meth:`supersede` only ends the older wait (a new motion epoch).
@@ -421,12 +421,12 @@ def robotiq_gripper(
     *,
     timeout: float,
     connect: Callable[[], RobotiqClient | UrcapClient] | None = None,
-) -> DeviceGripper:
+) -> Gripper:
     """The gripper over an open ``client``: what :meth:`RobotiqBackend.open` returns (``connect``: how to
     reopen the link for ``reconnect=true``; None, no reconnection). Tests and benchmarks build one over a
     scripted client with it."""
     device = RobotiqDevice(client, profile, url, timeout=timeout, connect=connect)
-    return DeviceGripper(device, profile, url, timeout=timeout)
+    return Gripper(device, profile, url, timeout=timeout)
 
 
 class RobotiqBackend:
@@ -458,7 +458,7 @@ class RobotiqBackend:
         t = RobotiqTransport()
         return [ProbeCandidate(f"robotiq+serial://{where.serial_port}?baudrate={t.baudrate}", order=30)]
 
-    def open(self, url: ConnectionURL, profile: ProfileBase | None, settings: Settings) -> DeviceGripper:
+    def open(self, url: ConnectionURL, profile: ProfileBase | None, settings: Settings) -> Gripper:
         from ..profiles import load_profile
 
         if profile is None:

@@ -5,7 +5,7 @@ stops, speed is a byte, and force is only a current limit. :class:`MsgDevice` tu
 newtons into those numbers with the profile's maps, once, and the driver's
 :class:`~grippers.drivers.stepfoc.device.StepfocDevice` does the rest on either link (CAN or UART): the poll
 loop and its one motion-end rule, the supersede counter, the shared CAN bus. The gripper
-(:class:`~grippers.device_gripper.DeviceGripper`) does the limits, the motion rule and the "jaws start inside
+(:class:`~grippers.gripper.Gripper`) does the limits, the motion rule and the "jaws start inside
 the part" opening before a grasp.
 """
 
@@ -32,8 +32,8 @@ from grippers.drivers.stepfoc.device import (
 from grippers.drivers.stepfoc.speed import speed_byte_for, variant
 
 from ..device import Device, DeviceContext, StartedRead, StateCallback
-from ..device_gripper import DeviceGripper
 from ..errors import FastStopActive, MotionBlocked, NotReferenced, URLError
+from ..gripper import Gripper
 from ..profiles import Limits, ProfileBase, load_profile
 from ..settings import Settings
 from ..states import Capability, DeviceInfo, GraspResult, GraspState, GripperState, MotionResult
@@ -385,7 +385,7 @@ class StepfocBackend:
 
         return RawProbe(stepfoc_probe.identify_request())
 
-    def open(self, url: ConnectionURL, profile: ProfileBase | None, settings: Settings) -> DeviceGripper:
+    def open(self, url: ConnectionURL, profile: ProfileBase | None, settings: Settings) -> Gripper:
         assumed = not isinstance(profile, MsgProfile)  # no profile given: the rail length is a guess
         if not isinstance(profile, MsgProfile):
             profile = load_profile(DEFAULT_PROFILE)
@@ -415,7 +415,7 @@ class StepfocBackend:
         try:
             link.status()  # is anything there? a silent node raises GripperTimeout naming it
             device = MsgDevice(link, profile, url.url, profile_assumed=assumed)
-            return DeviceGripper(device, profile, url.url, timeout=timeout)
+            return Gripper(device, profile, url.url, timeout=timeout)
         except BaseException:
             link.close()
             raise

@@ -1,6 +1,6 @@
 """The WSG backend: :class:`WsgDevice`, a :class:`grippers.device.Device` over a WSG client, in SI units.
 
-:meth:`WsgBackend.open` returns the :class:`~grippers.device_gripper.DeviceGripper` holding it.
+:meth:`WsgBackend.open` returns the :class:`~grippers.gripper.Gripper` holding it.
 
 The driver speaks mm, mm/s and N; the conversion happens here and nowhere else. The device's own Get System
 Limits (53h) answer narrows the profile's limits at connect time, so a profile with optimistic datasheet
@@ -30,8 +30,8 @@ from grippers.drivers.wsg.commands import (
 from grippers.drivers.wsg.protocol import Status
 
 from ..device import Device, StartedRead, StateCallback
-from ..device_gripper import DeviceGripper
 from ..errors import MotionBlocked, NotReferenced, URLError
+from ..gripper import Gripper
 from ..profiles import Limits, ProfileBase, load_profile
 from ..settings import Settings
 from ..states import Capability, DeviceInfo, GraspResult, GraspState, GripperState, MotionResult
@@ -370,7 +370,7 @@ class WsgBackend:
 
         selftest_checks(gripper, add)
 
-    def open(self, url: ConnectionURL, profile: ProfileBase | None, settings: Settings) -> DeviceGripper:
+    def open(self, url: ConnectionURL, profile: ProfileBase | None, settings: Settings) -> Gripper:
         t = profile.transport if isinstance(profile, WsgProfile) else WsgTransport()
         timeout = settings.positive("timeout", t.timeout_s)
         common = {
@@ -427,7 +427,7 @@ class WsgBackend:
                 device_limits=device_limits,
                 connect=connect,
             )
-            gripper = DeviceGripper(device, profile, url.url, timeout=timeout)
+            gripper = Gripper(device, profile, url.url, timeout=timeout)
             gripper.limits = device.limits  # narrowed by the device's 53h answer
             return gripper
         except BaseException:

@@ -78,39 +78,26 @@ class LeaseHolder:
 
 
 class LossListeners:
-    """``on_connection`` callbacks of a ``zenoh://`` gripper opened without reconnect=true. A lost server is
-    final there, as a lost link is on every other transport, and the callbacks are told so once, from a
-    thread of ours (the loss is noticed on Zenoh's thread, or the servo loop's), and not again at close()."""
+    """The ``link`` feature's listeners of a ``zenoh://`` device (grippers/device.py ``Link``): told once,
+    from a thread of ours (the loss is noticed on Zenoh's thread, or the servo loop's), in the order they
+    came: the gripper's own first (it ends servoing), then the user's ``on_connection`` callbacks."""
 
     def __init__(self) -> None:
         self._listeners: list[Callable[[bool], Any]] = []
 
-    def add(
-        self, callback: Callable[[bool], Any], at_close: Callable[[Callable[[bool], Any]], Callable[[], None]]
-    ) -> Callable[[], None]:
-        """Register ``callback`` for the loss, and (through ``at_close``, the base class's) for close()."""
-        told: list[bool] = []
-
-        def once(up: bool) -> None:
-            if not told:
-                told.append(up)
-                callback(up)
-
-        self._listeners.append(once)
-        remove_at_close = at_close(once)
+    def add(self, callback: Callable[[bool], Any]) -> Callable[[], None]:
+        self._listeners.append(callback)
 
         def remove() -> None:
-            if once in self._listeners:
-                self._listeners.remove(once)
-            remove_at_close()
+            if callback in self._listeners:
+                self._listeners.remove(callback)
 
         return remove
 
-    def tell(self, before: Callable[[], None]) -> None:
-        """Run ``before`` (end the servoing), then tell every listener the link is gone; returns at once."""
+    def tell(self) -> None:
+        """Tell every listener the link is gone; returns at once."""
 
         def run() -> None:
-            before()
             for fn in list(self._listeners):
                 try:
                     fn(False)

@@ -1,6 +1,6 @@
 """``await g.state()`` on an MSG over CAN is read natively (issue 20 §2): the poll (and frame 26 when the
 status asks for the cause of an error) is a started request the bus reader completes, with no worker thread
-(Gripper._start_state, StepfocBus.start_request). Over ``sim://msg-150`` (python-can ``virtual`` bus), a
+(Device.start_read, StepfocBus.start_request). Over ``sim://msg-150`` (python-can ``virtual`` bus), a
 ``stepfoc+can://virtual/...`` URL to a simulator on its own channel, and python-can's ``udp_multicast`` bus,
 which has a file descriptor, so the event loop reads it itself (drivers/stepfoc/can_reader.py): the same
 outcomes whoever reads the bus.

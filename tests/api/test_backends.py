@@ -29,33 +29,30 @@ def test_third_party_backend_via_entry_point(tmp_path: Path, monkeypatch: pytest
         textwrap.dedent(
             """
             import time
+            from grippers.device import Device
             from grippers.gripper import Gripper, GripperState, GraspState, MotionResult, GraspResult
             from grippers.profiles import load_profile
 
-            class AcmeGripper(Gripper):
-                driver = None
+            class AcmeDevice(Device):
                 width = 0.0
-                def _home(self, timeout): pass
-                def _move(self, width, speed, timeout):
+                def home(self, timeout): pass
+                def move(self, width, speed, timeout):
                     self.width = width
                     return MotionResult(width, GraspState.IDLE)
-                def _grasp(self, width, speed, force, timeout):
+                def grasp(self, width, speed, force, timeout):
                     return GraspResult(True, width, force, GraspState.HOLDING)
-                def _release(self, width, speed, timeout): return self._move(width, speed, timeout)
-                def _stop(self): pass
-                def _fast_stop(self): pass
-                def _acknowledge(self): pass
-                def _state(self):
+                def stop(self): pass
+                def read_state(self):
                     t = time.time()
                     return GripperState(self.width, 0.0, 0.0, None, GraspState.IDLE, False, True, (), t)
-                def _info(self): raise NotImplementedError
-                def _close(self): pass
+                def info(self): raise NotImplementedError
+                def close(self): pass
 
             class AcmeBackend:
                 family = "acme"
                 profile_model = None
                 def open(self, url, profile, settings):
-                    return AcmeGripper(profile or load_profile("wsg50"), url.url, timeout=1.0)
+                    return Gripper(AcmeDevice(), profile or load_profile("wsg50"), url.url, timeout=1.0)
             """
         )
     )

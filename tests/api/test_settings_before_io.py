@@ -36,7 +36,7 @@ def no_io(monkeypatch: pytest.MonkeyPatch) -> None:
         from grippers.remote import client as remote_client
     except ImportError:  # pragma: no cover - the remote extra is part of the test environment
         return
-    monkeypatch.setattr(remote_client, "RemoteGripper", _no_io)
+    monkeypatch.setattr(remote_client, "RemoteDevice", _no_io)
 
 
 @pytest.mark.parametrize(

@@ -130,12 +130,14 @@ def test_asyncio_stream_resumes_after_a_restart(wsg_port_sim: Restartable) -> No
     asyncio.run(asyncio.wait_for(main(), 30))
 
 
-def test_a_backend_without_the_hook_refuses_reconnect() -> None:
-    from grippers.gripper import Gripper
-
-    assert Gripper._reconnect is not None
-    with grippers.open("sim://wsg50?time_scale=20") as g, pytest.raises(GripperError):
-        Gripper._reconnect(g)
+def test_a_device_without_reconnection_refuses_reconnect() -> None:
+    with grippers.open("sim://wsg50?time_scale=20") as g:
+        reconnection, g.device.reconnection = g.device.reconnection, None
+        try:
+            with pytest.raises(GripperError, match="cannot reconnect"):
+                g._reconnect()
+        finally:
+            g.device.reconnection = reconnection
 
 
 def test_wsg_udp_simulator_restarted_on_the_same_port(restartable) -> None:  # noqa: ANN001

@@ -261,11 +261,11 @@ def test_the_secret_never_crosses_a_publication(serve) -> None:
         )
         with grippers.open(server.urls["g"]) as g:
             g.home()
-            secret = g._holder.secret
+            secret = g.device._link.holder.secret
             assert secret
             time.sleep(1.0)  # several heartbeats
             assert g.move(0.05).width == pytest.approx(0.05, abs=0.001)  # still held: heartbeats work
-            assert g._holder.secret == secret
+            assert g.device._link.holder.secret == secret
         sub.undeclare()
         assert seen and not any(secret.encode() in p for p in seen)
     finally:

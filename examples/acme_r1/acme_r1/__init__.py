@@ -32,7 +32,7 @@ from grippers import (
 )
 from grippers.backends import Dissector, ProbeCandidate
 from grippers.device import Device
-from grippers.device_gripper import DeviceGripper
+from grippers.gripper import Gripper
 from grippers.kit import MotionEpochs, TcpLink, poll_until
 from grippers.profiles import ProfileBase, load_profile
 
@@ -247,7 +247,7 @@ class AcmeBackend:
     sim_help = "simulate an ACME R1 gripper on loopback TCP"
     sim_example = "grippers sim acme --listen tcp://127.0.0.1:5500 --part-width 30"
 
-    def open(self, url: ConnectionURL, profile: ProfileBase | None, settings: Settings) -> DeviceGripper:
+    def open(self, url: ConnectionURL, profile: ProfileBase | None, settings: Settings) -> Gripper:
         profile = profile or load_profile(self.default_profile)
         if not isinstance(profile, AcmeProfile):
             raise URLError(f"{url.url}: profile {profile.name!r} is not an ACME profile")
@@ -257,7 +257,7 @@ class AcmeBackend:
         timeout = settings.positive("timeout", profile.acme.timeout_s)
         settings.check()  # a misspelt ?timout= is a URLError now, before anything is opened
         device = AcmeDevice(lambda: AcmeLink(host, port, timeout=timeout, device=url.url), profile, url.url)
-        return DeviceGripper(device, profile, url.url, timeout=timeout)
+        return Gripper(device, profile, url.url, timeout=timeout)
 
     def simulator(self, profile: ProfileBase, settings: Settings, listen: str | None = None) -> AcmeServer:
         """A simulated R1 on loopback TCP (``listen``: tcp://127.0.0.1:PORT, default a free port)."""
