@@ -24,8 +24,10 @@ class RawPort:
         self.fd = os.open(server.path, os.O_RDWR | os.O_NOCTTY)
         self.buf = b""
 
-    def ask(self, line: bytes, wait: float = 1.0, quiet: float = 0.0) -> list[str]:
-        """Write ``line``; return the answer lines. ``quiet`` (s): collect until that long passes silent."""
+    def ask(self, line: bytes, wait: float = 5.0, quiet: float = 0.0) -> list[str]:
+        """Write ``line``; return the answer lines. ``quiet`` (s): collect until that long passes silent.
+        ``wait`` only bounds a missing answer (a complete line ends it at once): generous, so a simulator
+        starved of the CPU on a busy machine is not taken for a firmware that did not answer."""
         os.write(self.fd, line)
         deadline = time.monotonic() + wait
         last = time.monotonic()

@@ -27,7 +27,7 @@ def wait_for(predicate, timeout: float = 5.0, poll: float = 0.01):
 
 
 def calibrated_client(srv, **kw) -> StepfocUart:
-    client = StepfocUart(srv.url, timeout=kw.pop("timeout", 0.5), **kw)
+    client = StepfocUart(srv.url, timeout=kw.pop("timeout", 2.0), **kw)
     client.calibrate(wait=True, timeout=10)
     return client
 
@@ -41,7 +41,7 @@ def test_url_and_attributes(msg_sim) -> None:
 
 def test_calibrate_move_and_read(msg_sim) -> None:
     srv = msg_sim()
-    with StepfocUart(srv.url, timeout=0.5) as client:
+    with StepfocUart(srv.url, timeout=2.0) as client:
         assert client.gripper() == 1
         assert not client.gripinfo().calibrated
         client.calibrate(wait=True, timeout=10)
@@ -76,7 +76,7 @@ def test_closing_on_a_part_reports_detection_1(msg_sim) -> None:
 
 def test_uncalibrated_gripper_does_not_move(msg_sim) -> None:
     srv = msg_sim()
-    with StepfocUart(srv.url, timeout=0.5) as client:
+    with StepfocUart(srv.url, timeout=2.0) as client:
         client.velocity(255)
         before = srv.model.ticks
         client.position(10)
@@ -105,7 +105,7 @@ def test_estop_and_clear(msg_sim) -> None:
 
 def test_info(msg_sim) -> None:
     srv = msg_sim(MsgModel(node=5, hardware_version=3, software_version=17, batch_date=9))
-    with StepfocUart(srv.url, timeout=0.5) as client:
+    with StepfocUart(srv.url, timeout=2.0) as client:
         info = client.info()
     assert (info.hardware_version, info.batch_date, info.software_version, info.can_id) == (3, 9, 17, 5)
     assert info.vbus_mv == srv.model.bus_voltage_mv and info.thermistor_enabled is False
@@ -114,7 +114,7 @@ def test_info(msg_sim) -> None:
 
 def test_gripper_mode_flag(msg_sim) -> None:
     srv = msg_sim()
-    with StepfocUart(srv.url, timeout=0.5) as client:
+    with StepfocUart(srv.url, timeout=2.0) as client:
         assert client.gripper(0) == 0
         assert client.gripinfo().is_gripper is False
         assert client.gripper(1) == 1
@@ -122,7 +122,7 @@ def test_gripper_mode_flag(msg_sim) -> None:
 
 def test_unknown_command_answer(msg_sim) -> None:
     srv = msg_sim()
-    with StepfocUart(srv.url, timeout=0.5) as client:
+    with StepfocUart(srv.url, timeout=2.0) as client:
         with pytest.raises(NotSupported) as err:
             client.command("SIN", 3)  # the parser knows SIN, communication.cpp does not: "Unknown command"
         assert err.value.command == "SIN" and "Unknown command" in str(err.value)
@@ -149,7 +149,7 @@ def test_silent_device_times_out_then_recovers(msg_sim) -> None:
 
 def test_garbage_and_corruption_resynchronise(msg_sim) -> None:
     srv = msg_sim()
-    with StepfocUart(srv.url, timeout=0.5) as client:
+    with StepfocUart(srv.url, timeout=2.0) as client:
         srv.faults.send_garbage(b"\x00\xff#garbage\r\nGripper: 9\r\nnot a line" + b"x" * 600 + b"\n")
         assert client.velocity(33) == 33
         srv.faults.send_garbage(b"\xfe\xfe\r\n")
@@ -166,21 +166,23 @@ def test_garbage_and_corruption_resynchronise(msg_sim) -> None:
 
 def test_dropped_and_late_answers(msg_sim) -> None:
     srv = msg_sim()
-    with StepfocUart(srv.url, timeout=0.2) as client:
+    # An exchange timeout of 1 s (not 0.2 s: a simulator starved of the CPU on a busy machine answered late
+    # and failed the last, undelayed exchange), the late answer 0.5 s after it.
+    with StepfocUart(srv.url, timeout=1.0) as client:
         srv.faults.drop_replies(1)
         with pytest.raises(GripperTimeout):
             client.velocity(40)
         assert srv.model.speed_setpoint == 40  # the command arrived; only the answer was lost
-        srv.faults.delay_replies(0.3, 1)
+        srv.faults.delay_replies(1.5, 1)
         with pytest.raises(GripperTimeout):
             client.current(300)
-        time.sleep(0.35)  # the late answer arrives now, and must not answer the next command
+        time.sleep(0.6)  # the late answer arrives now, and must not answer the next command
         assert client.velocity() == 40
 
 
 def test_hash_resets_receiver_and_no_echo(msg_sim) -> None:
     srv = msg_sim()
-    with StepfocUart(srv.url, timeout=0.5) as client:
+    with StepfocUart(srv.url, timeout=2.0) as client:
         client._ser.write(b"#Gripvel 12")  # never finished ...
         assert client.velocity(77) == 77  # ... '#' starts over
         assert srv.requests[-1].argument == "77"
@@ -251,5 +253,5 @@ def test_serve_uart_arguments() -> None:
 def test_package_serve_dispatches_pty() -> None:
     from grippers.drivers.stepfoc.sim import serve
 
-    with serve(MsgModel(), "pty", time_scale=100.0) as srv, StepfocUart(srv.url, timeout=0.5) as client:
+    with serve(MsgModel(), "pty", time_scale=100.0) as srv, StepfocUart(srv.url, timeout=2.0) as client:
         assert client.gripper() == 1
