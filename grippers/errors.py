@@ -13,6 +13,8 @@ from grippers.drivers.errors import (
     URLError,
 )
 
+from .units import to_mm
+
 __all__ = [
     "AccessDenied",
     "CommandFailed",
@@ -97,8 +99,8 @@ class MotionBlocked(CommandFailed):
         self.width = width
         self.target = target
         if message is None:
-            where = "" if width is None else f" at {width * 1000:.1f} mm"
-            short = "" if target is None else f", short of its target {target * 1000:g} mm"
+            where = "" if width is None else f" at {to_mm(width):.1f} mm"
+            short = "" if target is None else f", short of its target {to_mm(target):g} mm"
             said = f" ({status_name})" if status_name else ""
             message = f"{command or 'the motion'} blocked by an obstacle{where}{short}{said}"
         super().__init__(message, status=status, status_name=status_name, device=device, command=command)

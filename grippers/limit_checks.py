@@ -11,6 +11,7 @@ from grippers.drivers.numbers import finite
 
 from .errors import LimitError
 from .profile_model import Limits, ProfileBase
+from .units import to_m, to_mm
 
 
 class ValueChecks:
@@ -27,7 +28,7 @@ class ValueChecks:
         lo, hi = self.limits.min_width, self.limits.max_width
         if not lo - 1e-9 <= w <= hi + 1e-9:
             raise LimitError(
-                f"width {w * 1000:g} mm is outside {lo * 1000:g}..{hi * 1000:g} mm",
+                f"width {to_mm(w):g} mm is outside {to_mm(lo):g}..{to_mm(hi):g} mm",
                 device=self.name,
                 command=command,
             )
@@ -37,13 +38,13 @@ class ValueChecks:
         if speed is None:
             # The profile's default may lie above a safety limit or the device's own 53h limits (which narrow
             # the limits): sending it unchecked would bypass them, refusing it would break every call.
-            default = self.profile.mechanics.default_speed_mm_s / 1000
+            default = to_m(self.profile.mechanics.default_speed_mm_s)
             return min(max(default, self.limits.min_speed), self.limits.max_speed)
         s = finite(speed, "speed", device=self.name, command=command)
         lo, hi = self.limits.min_speed, self.limits.max_speed
         if not lo - 1e-9 <= s <= hi + 1e-9 or s <= 0:
             raise LimitError(
-                f"speed {s * 1000:g} mm/s is outside {lo * 1000:g}..{hi * 1000:g} mm/s",
+                f"speed {to_mm(s):g} mm/s is outside {to_mm(lo):g}..{to_mm(hi):g} mm/s",
                 device=self.name,
                 command=command,
             )

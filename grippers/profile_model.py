@@ -14,6 +14,7 @@ from typing import Annotated
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from .timeouts import MAX_TIMEOUT_S
+from .units import to_m
 
 # Every number is finite and below a bound no real gripper comes near: beyond them a profile cannot work
 # (an infinite stroke makes home() wait for ever, an opening width of 1e308 overflows in state(), a WSG stroke
@@ -174,13 +175,13 @@ class ProfileBase(_Model):
         m, s = self.mechanics, self.safety
         max_current = getattr(self, "effective_max_current_ma", None)
         return Limits(
-            min_width=max(m.min_width_mm, s.min_width_mm or 0.0) / 1000,
-            max_width=min(m.max_width_mm, s.max_width_mm or m.max_width_mm) / 1000,
-            min_speed=m.min_speed_mm_s / 1000,
-            max_speed=min(m.max_speed_mm_s, s.max_speed_mm_s or m.max_speed_mm_s) / 1000,
+            min_width=to_m(max(m.min_width_mm, s.min_width_mm or 0.0)),
+            max_width=to_m(min(m.max_width_mm, s.max_width_mm or m.max_width_mm)),
+            min_speed=to_m(m.min_speed_mm_s),
+            max_speed=to_m(min(m.max_speed_mm_s, s.max_speed_mm_s or m.max_speed_mm_s)),
             min_force=m.min_force_n,
             max_force=min(m.max_force_n, s.max_force_n or m.max_force_n),
-            max_current=None if max_current is None else max_current / 1000,
+            max_current=None if max_current is None else max_current / 1000,  # mA -> A
         )
 
     def matches(self, name: str) -> bool:

@@ -15,6 +15,7 @@ from .device import Device
 from .errors import NotSupported
 from .motions import MotionSupervisor
 from .servo import ServoLoop, ServoStats, ServoTarget
+from .units import to_mm
 
 
 class ServoControl:
@@ -34,7 +35,7 @@ class ServoControl:
     def submit(self, target: ServoTarget, check_open: Callable[[str], None]) -> None:
         """Queue ``target`` (checked already); the first one of a servoing supersedes the running motion."""
         if self.loop is None:  # servoing begins: it takes over from a running motion, which ends now
-            self.motions.supersede(f"servo to {target.width * 1000:g} mm")
+            self.motions.supersede(f"servo to {to_mm(target.width):g} mm")
         with self.lock:
             check_open("servo")
             loop = self.loop

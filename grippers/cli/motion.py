@@ -21,6 +21,7 @@ from .output import (
     error_line,
     fmt_num,
     key_values,
+    m_to_mm,
     mm_to_m,
     state_dict,
     write_json,
@@ -147,13 +148,13 @@ def result_dict(result: MotionResult | GraspResult | None) -> dict[str, Any] | N
     if isinstance(result, GraspResult):
         return {
             "grasped": result.grasped,
-            "width_mm": round(result.width * 1000.0, 3),
+            "width_mm": round(m_to_mm(result.width), 3),
             "force_n": None if result.force is None else round(result.force, 3),
             "grasp_state": result.state.value,
             "reason": result.reason,
         }
     if isinstance(result, MotionResult):
-        return {"width_mm": round(result.width * 1000.0, 3), "grasp_state": result.state.value}
+        return {"width_mm": round(m_to_mm(result.width), 3), "grasp_state": result.state.value}
     return None
 
 
@@ -200,7 +201,7 @@ def _move_args(parser: argparse.ArgumentParser) -> None:
 
 
 def _move(g: Gripper, a: argparse.Namespace) -> Any:
-    return g.move(a.width / 1000.0, mm_to_m(a.speed), timeout=a.motion_timeout)
+    return g.move(mm_to_m(a.width), mm_to_m(a.speed), timeout=a.motion_timeout)
 
 
 def _grasp_args(parser: argparse.ArgumentParser) -> None:
@@ -216,7 +217,7 @@ def _grasp_args(parser: argparse.ArgumentParser) -> None:
 
 
 def _grasp(g: Gripper, a: argparse.Namespace) -> Any:
-    width = g.limits.min_width if a.width is None else a.width / 1000.0
+    width = g.limits.min_width if a.width is None else mm_to_m(a.width)
     return g.grasp(width, mm_to_m(a.speed), a.force, timeout=a.motion_timeout)
 
 

@@ -15,6 +15,8 @@ import sys
 from collections.abc import Iterable, Mapping, Sequence
 from typing import TYPE_CHECKING, Any, TextIO, overload
 
+from grippers.units import to_m, to_mm
+
 if TYPE_CHECKING:
     from grippers.profile_model import Limits
     from grippers.states import DeviceInfo, GripperState
@@ -54,7 +56,7 @@ def m_to_mm(value: float) -> float: ...
 def m_to_mm(value: None) -> None: ...
 def m_to_mm(value: float | None) -> float | None:
     """Metres (or m/s) as millimetres (mm/s)."""
-    return None if value is None else value * 1000.0
+    return to_mm(value)
 
 
 @overload
@@ -63,7 +65,7 @@ def mm_to_m(value: float) -> float: ...
 def mm_to_m(value: None) -> None: ...
 def mm_to_m(value: float | None) -> float | None:
     """Millimetres (mm/s) as metres (m/s), for the API."""
-    return None if value is None else value / 1000.0
+    return to_m(value)
 
 
 def fmt_num(value: float | None, unit: str = "", digits: int = 1) -> str:

@@ -42,6 +42,7 @@ from typing import Any, TypeVar
 from ..errors import CommandFailed
 from ..gripper import GraspResult, GraspState, Gripper, GripperState
 from ..motions import MotionHandle
+from ..units import to_mm
 
 T = TypeVar("T")
 
@@ -330,6 +331,6 @@ class GoalRunner:
             # Nothing between the jaws: they closed past the target by the grasp's travel; go back to it.
             return self._move(lambda: _started(g.move(width, speed, wait=False)), width)
         raise GoalFailed(
-            f"no part held at {result.width * 1000:.1f} mm: {result.reason or result.state.value}",
+            f"no part held at {to_mm(result.width):.1f} mm: {result.reason or result.state.value}",
             self._settled(width),
         )

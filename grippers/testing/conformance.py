@@ -53,6 +53,7 @@ from grippers import (
 )
 from grippers.drivers.urls import parse_query, with_params
 from grippers.motions import MotionHandle
+from grippers.units import to_m, to_mm
 
 from . import GripperSims, SimURL
 
@@ -112,7 +113,7 @@ class Conformance:
         given: dict[str, Any] = {**self.target.settings, **settings}
         given["time_scale"] = self.hold_time_scale if hold else self.time_scale
         if part_m is not None:
-            given["part_width_mm"] = round(part_m * 1000, 1)
+            given["part_width_mm"] = round(to_mm(part_m), 1)
             try:
                 return self.sims(self.target.profile, **given)
             except URLError as exc:
@@ -413,11 +414,11 @@ class ConformanceSuite:
 
     def test_a_grasp_on_a_part_reports_grasped(self, conformance: Conformance) -> None:
         profile = grippers.load_profile(conformance.target.profile)
-        part = 0.4 * profile.mechanics.stroke_mm / 1000
+        part = to_m(0.4 * profile.mechanics.stroke_mm)
         g = conformance.homed(part_m=part)
         force = (g.limits.min_force + g.limits.max_force) / 2
         result = _done(g.grasp(part, force=force, timeout=self.motion_bound_s))
-        assert result.grasped, f"a grasp on a {part * 1000:g} mm part: {result}"
+        assert result.grasped, f"a grasp on a {to_mm(part):g} mm part: {result}"
         assert abs(result.width - part) < conformance.tolerance, result
         assert g.state().grasp is GraspState.HOLDING, g.state()
         g.release(timeout=self.motion_bound_s)
@@ -427,7 +428,7 @@ class ConformanceSuite:
         """A plain move() that a part stops short of its target raises MotionBlocked (a CommandFailed),
         never a result as if it had arrived."""
         blocked = getattr(grippers, "MotionBlocked", CommandFailed)
-        part = 0.4 * grippers.load_profile(conformance.target.profile).mechanics.stroke_mm / 1000
+        part = to_m(0.4 * grippers.load_profile(conformance.target.profile).mechanics.stroke_mm)
         g = conformance.homed(part_m=part)
         g.release(timeout=self.motion_bound_s)
         lim = g.limits
