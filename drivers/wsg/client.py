@@ -31,9 +31,9 @@ from .commands import (
 from .connection import WsgConnection
 from .exchanges import SILENT_GAP
 from .handles import Pending, Queries, Subscription
-from .opening import can_transport, serial_transport, transport_from_url
+from .opening import transport_from_url
 from .protocol import Status
-from .reading import Submitted
+from .reading import LineOptions, Submitted
 from .state_reads import StateReads
 from .transports import (
     DEFAULT_BAUDRATE,
@@ -42,6 +42,8 @@ from .transports import (
     DEFAULT_TCP_PORT,
     DEFAULT_UDP_LOCAL_PORT,
     DEFAULT_UDP_PORT,
+    CanTransport,
+    SerialTransport,
     TcpTransport,
     Transport,
     UdpTransport,
@@ -75,16 +77,10 @@ class WsgClient:
         stale_final_ttl: float = 60.0,
         silent_gap: float = SILENT_GAP,
     ) -> None:
-        self.connection = WsgConnection(
-            transport,
-            device=device,
-            timeout=timeout,
-            motion_timeout=motion_timeout,
-            verify_checksum=verify_checksum,
-            stale_ttl=stale_ttl,
-            stale_final_ttl=stale_final_ttl,
-            silent_gap=silent_gap,
+        options = LineOptions(
+            device, timeout, motion_timeout, verify_checksum, stale_ttl, stale_final_ttl, silent_gap
         )
+        self.connection = WsgConnection(transport, options)
         conn = self.connection
         self._line = conn.line
         self._exchanges = ex = conn.exchanges
@@ -133,7 +129,7 @@ class WsgClient:
         stopbits: float = 1,
         **kw: Any,
     ) -> Self:
-        t = serial_transport(port, baudrate=baudrate, bytesize=bytesize, parity=parity, stopbits=stopbits)
+        t = SerialTransport(port, baudrate=baudrate, bytesize=bytesize, parity=parity, stopbits=stopbits)
         return cls(t, **kw)
 
     @classmethod
@@ -150,8 +146,8 @@ class WsgClient:
         port: int | None = None,
         **kw: Any,
     ) -> Self:
-        link = can_transport(
-            bus=bus,
+        link = CanTransport(
+            bus,
             interface=interface,
             channel=channel,
             bitrate=bitrate,

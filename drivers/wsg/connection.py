@@ -19,10 +19,10 @@ from typing import Any, Self
 from ..errors import ConnectionLost, GripperError, LimitError, NotSupported
 from .callbacks import Callbacks
 from .commands import AUTO_UPDATE_COMMANDS, Cmd, command_name, encode_request
-from .exchanges import POLL, SILENT_GAP, Exchanges
+from .exchanges import POLL, Exchanges
 from .handles import Subscription
 from .motion_exchanges import MotionSteps
-from .reading import Line, Submitted
+from .reading import Line, LineOptions, Submitted
 from .transports import Transport
 
 __all__ = ["WsgConnection"]
@@ -41,28 +41,8 @@ class WsgConnection:
     (:attr:`exchanges`), the callback side (:attr:`callbacks`), the motion steps (:attr:`motions`) and the
     one reader thread here, which also runs the subscriptions (python-can's Notifier)."""
 
-    def __init__(
-        self,
-        transport: Transport,
-        *,
-        device: str | None = None,
-        timeout: float = 1.0,
-        motion_timeout: float = 60.0,
-        verify_checksum: bool = True,
-        stale_ttl: float = 2.0,
-        stale_final_ttl: float = 60.0,
-        silent_gap: float = SILENT_GAP,
-    ) -> None:
-        self.line = Line(
-            transport,
-            device=device,
-            timeout=timeout,
-            motion_timeout=motion_timeout,
-            verify_checksum=verify_checksum,
-            stale_ttl=stale_ttl,
-            stale_final_ttl=stale_final_ttl,
-            silent_gap=silent_gap,
-        )
+    def __init__(self, transport: Transport, options: LineOptions | None = None) -> None:
+        self.line = Line(transport, options or LineOptions())
         self.exchanges = Exchanges(self.line)
         self.callbacks = Callbacks(self.line)
         self.motions = MotionSteps(self.line, self.exchanges)

@@ -8,8 +8,6 @@ from __future__ import annotations
 
 from typing import Any
 
-from can import BusABC
-
 from ..errors import LimitError
 from ..urls import TRANSPORTS, parse_url, refuse_unknown, shown, to_bool, to_float, to_int
 from .transports import (
@@ -26,7 +24,7 @@ from .transports import (
     UdpTransport,
 )
 
-__all__ = ["can_transport", "serial_transport", "transport_from_url"]
+__all__ = ["transport_from_url"]
 
 # The query parameters a URL may carry, per transport (the client's framing and ids; the API's settings are
 # grippers.open's business).
@@ -36,35 +34,6 @@ _FROM_URL_PARAMETERS: dict[str, tuple[str, ...]] = {
     "serial": ("baudrate", "bytesize", "parity", "stopbits"),
     "can": ("bitrate", "extended", "port", "recv_id", "send_id"),
 }
-
-
-def serial_transport(
-    port: str, *, baudrate: int = DEFAULT_BAUDRATE, bytesize: int = 8, parity: str = "N", stopbits: float = 1
-) -> SerialTransport:
-    return SerialTransport(port, baudrate=baudrate, bytesize=bytesize, parity=parity, stopbits=stopbits)
-
-
-def can_transport(
-    *,
-    bus: BusABC | None = None,
-    interface: str | None = None,
-    channel: str | int | None = None,
-    bitrate: int | None = None,
-    send_id: int = DEFAULT_CAN_SEND_ID,
-    recv_id: int = DEFAULT_CAN_RECV_ID,
-    extended_id: bool | None = None,
-    port: int | None = None,
-) -> CanTransport:
-    return CanTransport(
-        bus,
-        interface=interface,
-        channel=channel,
-        bitrate=bitrate,
-        send_id=send_id,
-        recv_id=recv_id,
-        extended_id=extended_id,
-        port=port,
-    )
 
 
 def transport_from_url(url: str, *, connect_timeout: float) -> Transport:
@@ -102,8 +71,9 @@ def transport_from_url(url: str, *, connect_timeout: float) -> Transport:
         if "bytesize" in query:
             framing["bytesize"] = num("bytesize", 8)
         assert u.serial_port is not None  # the grammar refuses a serial URL without a port
-        return serial_transport(u.serial_port, **framing)
-    return can_transport(
+        return SerialTransport(u.serial_port, **framing)
+    return CanTransport(
+        None,
         interface=u.interface,
         channel=u.channel,
         bitrate=num("bitrate", 0) if "bitrate" in query else None,

@@ -81,6 +81,24 @@ def _always(_timeout: float) -> bool:
     return True
 
 
+@dataclass(frozen=True)
+class LineOptions:
+    """How a WSG line behaves, given once by the client and handed down whole (not re-listed by every part).
+
+    ``timeout``: an exchange's bound; ``motion_timeout``: a motion's end; ``verify_checksum``: refuse packets
+    with a bad CRC; ``stale_ttl``/``stale_final_ttl``: how long a late reply to a given-up exchange is still
+    recognised (and dropped) rather than taken for unsolicited; ``silent_gap``: the pause that ends a packet
+    on a serial line."""
+
+    device: str | None = None
+    timeout: float = 1.0
+    motion_timeout: float = 60.0
+    verify_checksum: bool = True
+    stale_ttl: float = 2.0
+    stale_final_ttl: float = 60.0
+    silent_gap: float = SILENT_GAP
+
+
 class Line:
     """One connection's shared state and its input side: who reads, and what the bytes read mean (lock,
     session, reading role). The parts of the connection (:class:`~.exchanges.Exchanges`,
@@ -88,18 +106,8 @@ class Line:
     :class:`~.connection.WsgConnection`) each hold this one object: they share its lock and its state, not
     a base class."""
 
-    def __init__(
-        self,
-        transport: Transport,
-        *,
-        device: str | None,
-        timeout: float,
-        motion_timeout: float,
-        verify_checksum: bool,
-        stale_ttl: float,
-        stale_final_ttl: float,
-        silent_gap: float,
-    ) -> None:
+    def __init__(self, transport: Transport, options: LineOptions) -> None:
+        device, timeout, motion_timeout = options.device, options.timeout, options.motion_timeout
         self.device = device or f"wsg {transport.name}"
         self.transport = transport  # as opened (the client shows it); reads and writes go through the tap
         self.wire = wire_tap(transport, self.device)  # DEBUG on grippers.wire: every packet, decoded
@@ -117,9 +125,11 @@ class Line:
             0,
         )
         self.session = Session(
-            verify_checksum=verify_checksum, stale_ttl=stale_ttl, stale_final_ttl=stale_final_ttl
+            verify_checksum=options.verify_checksum,
+            stale_ttl=options.stale_ttl,
+            stale_final_ttl=options.stale_final_ttl,
         )
-        self.silent_gap = silent_gap
+        self.silent_gap = options.silent_gap
         # docs/protocols.md §1: only a serial line ends a packet by a pause. A TCP stream may pause 40 ms
         # inside a reply (delayed ACK) and CAN frames may be spaced: there the size field and the parser's
         # per-id bound end a packet, never a gap.
