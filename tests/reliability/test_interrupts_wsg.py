@@ -29,6 +29,8 @@ from grippers.drivers.errors import GripperError, GripperTimeout
 from grippers.drivers.wsg.client import WsgClient
 from grippers.drivers.wsg.commands import Cmd, SystemFlags
 
+from ..simhold import held
+
 _ENGINE = {
     str(Path(wsg_package.__file__).parent / name)
     for name in (
@@ -149,11 +151,17 @@ def _stopped(c: WsgClient) -> None:
 
 
 @pytest.fixture
-def client(wsg_sim, wsg_connect) -> WsgClient:
+def served(wsg_sim, wsg_connect) -> tuple[Any, WsgClient]:
+    """The simulator (its clock can be held still: tests/simhold.py) and a homed client of it."""
     server = wsg_sim("tcp://127.0.0.1:0", time_scale=20.0)
     c = wsg_connect(server.url, timeout=2.0, stale_ttl=0.2, stale_final_ttl=1.0)
     c.home()
-    return c
+    return server, c
+
+
+@pytest.fixture
+def client(served: tuple[Any, WsgClient]) -> WsgClient:
+    return served[1]
 
 
 def _lines_of(call: Callable[[], object]) -> int:
@@ -229,21 +237,28 @@ def test_ctrl_c_at_every_line_of_a_motion_then_stop(client: WsgClient) -> None:
     assert c.connection_lost is None
 
 
-def test_ctrl_c_at_every_line_of_waiting_for_a_pending_motion(client: WsgClient) -> None:
+def test_ctrl_c_at_every_line_of_waiting_for_a_pending_motion(served: tuple[Any, WsgClient]) -> None:
     """``Pending.result()`` interrupted at each line: the motion keeps its slot (result may be called again),
-    cancel() still stops it, and the result then reports the stop."""
-    c = client
+    cancel() still stops it, and the result then reports the stop.
+
+    The device is held still from the motion's start until it is stopped (tests/simhold.py): 90 mm at 5 mm/s
+    is under a second at this time scale, and on a busy machine the interrupted call and the health check took
+    longer (CI: "DID NOT RAISE", the motion had ended by itself before cancel())."""
+    server, c = served
     for n in range(1, 60):
         start, end = (100.0, 10.0) if n % 2 else (10.0, 100.0)
         c.preposition(start, 400.0, timeout=5.0)
-        pending = c.preposition(end, 5.0, wait=False)  # 90 mm at 5 mm/s: ~1 s at this time scale
-        assert pending is not None
-        _run_interrupted(lambda p=pending: p.result(timeout=5.0), n)  # noqa: B023 - bound at once
-        _healthy(c)
-        # STOP, then the final reply; if the interrupt took that reply's bytes with it (see the state query
-        # test), cancel() abandons the exchange so the id is free again after stale_final_ttl.
-        pending.cancel(timeout=2.0)
-        with pytest.raises(GripperError):  # aborted (or abandoned): a stopped motion is never reported done
-            pending.result(timeout=0.5)
+        with held(server):
+            pending = c.preposition(end, 5.0, wait=False)  # held: still moving whatever the scheduler does
+            assert pending is not None
+            _run_interrupted(lambda p=pending: p.result(timeout=5.0), n)  # noqa: B023 - bound at once
+            _healthy(c)
+            # STOP, then the final reply; if the interrupt took that reply's bytes with it (see the state
+            # query test), cancel() abandons the exchange so the id is free again after stale_final_ttl.
+            pending.cancel(timeout=2.0)
+            with pytest.raises(
+                GripperError
+            ):  # aborted (or abandoned): a stopped motion is never reported done
+                pending.result(timeout=0.5)
         _stopped(c)
     assert c.request(Cmd.LOOP, b"x").payload[2:] == b"x"
