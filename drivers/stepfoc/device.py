@@ -159,7 +159,11 @@ class StepfocDevice:
         for attempt in range(2):
             try:
                 left = max(0.1, deadline - time.monotonic())
-                return self._wait(command, motion, left, self.link.calibration_verdict, False)
+                st = self._wait(command, motion, left, self.link.calibration_verdict, False)
+                # ENDED means the calibrated bit was seen set, but over UART by the verdict's own reads, which
+                # may come after the poll ``st`` (taken while it still ran): the verdict is the newer word.
+                self.calibrated = True
+                return st
             except _Retry as retry:
                 if attempt:
                     raise CommandFailed(
