@@ -39,7 +39,7 @@ def test_wsg_tcp_killed_and_restarted_on_the_same_port(wsg_port_sim: Restartable
             with pytest.raises(ConnectionLost, match="reconnecting"):
                 call()
         wsg_port_sim.start()
-        wait_for(lambda: g.connected)
+        wait_for(lambda: g.connected and len(events) >= 2)  # listeners are told after the flag turns
         assert events == [False, True]
         # The stream went on by itself; its first state after the outage says states were missed.
         for _ in range(200):
@@ -124,6 +124,10 @@ def test_asyncio_stream_resumes_after_a_restart(wsg_port_sim: Restartable) -> No
                     threading.Thread(target=wsg_port_sim.start).start()
                 if st.gap:
                     break
+            for _ in range(500):  # listeners are told after the flag turns: wait for the second event
+                if len(ups) >= 2:
+                    break
+                await asyncio.sleep(0.01)
             assert ups[:2] == [False, True]
             assert sum(s.gap for s in states) == 1
 

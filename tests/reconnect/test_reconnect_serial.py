@@ -63,7 +63,7 @@ def test_msg_uart_killed_and_restarted_behind_a_stable_path(
             raise AssertionError("a move during the outage did not raise ConnectionLost")
         sim.start()
         _point(link, sim)
-        wait_for(lambda: g.connected)
+        wait_for(lambda: g.connected and len(events) >= 2)  # listeners are told after the flag turns
         assert events == [False, True]
         assert not g.state().referenced  # a restarted MSG has lost its calibration (docs/protocols.md §2)
         g.home()

@@ -47,7 +47,8 @@ def test_a_restarted_server_is_taken_up_again() -> None:
             except ConnectionLost:
                 pass
             server = ServeProcess(f"left={sim('wsg50')}", listen=listen)
-            assert _until(lambda: g.connected, 20.0), "the restarted server was not taken up"
+            back = _until(lambda: g.connected and len(events) >= 2, 20.0)  # listeners are told after the flag
+            assert back, "the restarted server was not taken up"
             assert events[:2] == [False, True]
             assert not g.state().referenced  # a new simulator (a power-cycled gripper): not homed
             g.home()
