@@ -61,6 +61,8 @@ try:  # POSIX ports report a vanished tty through termios.error, which is not an
     _PORT_ERRORS: tuple[type[BaseException], ...] = (serial.SerialException, OSError, termios.error)
 except ImportError:  # pragma: no cover - Windows
     _PORT_ERRORS = (serial.SerialException, OSError)
+# Opening also fails with a ValueError: serial_for_url refuses a bad port URL so.
+_OPEN_ERRORS: tuple[type[BaseException], ...] = (*_PORT_ERRORS, ValueError)
 
 
 class _Pending:
@@ -117,7 +119,7 @@ class StepfocUart(Closing):
             self._ser = serial.serial_for_url(
                 self.port, baudrate=baudrate, timeout=min(_POLL_S, self.timeout), write_timeout=self.timeout
             )
-        except (*_PORT_ERRORS, ValueError) as exc:  # type: ignore[misc]  # a tuple of exception classes
+        except _OPEN_ERRORS as exc:
             raise ConnectionLost(f"cannot open serial port: {exc}", device=self.device) from exc
 
     # -- lifecycle ------------------------------------------------------------------------------------------

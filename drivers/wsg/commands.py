@@ -15,7 +15,7 @@ from typing import Any
 
 from ..errors import LimitError, ProtocolError
 from ..numbers import finite
-from .protocol import Packet, Status, status_name, to_status
+from .protocol import Packet, Status, slot_setter, status_name, to_status
 
 __all__ = [
     "COMMANDS",
@@ -819,9 +819,9 @@ class Reply:
 
 
 # Slot setters of a frozen class: the decoder fills replies without __init__ (the fast path, benchmark 4).
-_set_reply_command = Reply.command.__set__  # type: ignore[attr-defined,misc]
-_set_reply_status = Reply.status.__set__  # type: ignore[attr-defined,misc]
-_set_reply_fields = Reply.fields.__set__  # type: ignore[attr-defined,misc]
+_set_reply_command = slot_setter(Reply, "command")
+_set_reply_status = slot_setter(Reply, "status")
+_set_reply_fields = slot_setter(Reply, "fields")
 
 
 def encode_reply(cmd: int, status: int = Status.E_SUCCESS, **fields: Any) -> bytes:

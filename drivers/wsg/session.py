@@ -48,7 +48,7 @@ from dataclasses import dataclass
 from enum import Enum
 
 from ..errors import GripperError, ProtocolError
-from .commands import COMMANDS, Cmd, command_name
+from .commands import COMMANDS, Cmd, CommandSpec, command_name
 from .protocol import (
     CRC_AFTER_PREAMBLE,
     HEADER_SIZE,
@@ -455,8 +455,8 @@ def _echoes(exchange: Exchange, payload: bytes) -> bool:
     return len(payload) < 2 or bool(payload[0] | payload[1]) or payload[2:] == exchange.payload
 
 
-def _reply_max(s: object) -> int | None:
-    layout = s.reply  # type: ignore[attr-defined]  # a command table entry (commands.py)
+def _reply_max(s: CommandSpec) -> int | None:
+    layout = s.reply
     if layout.tail is None:
         return 2 + layout.size
     if layout.tail.max_len is not None:
