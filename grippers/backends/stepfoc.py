@@ -38,12 +38,11 @@ from ..profiles import Limits, ProfileBase, load_profile
 from ..settings import Settings
 from ..states import Capability, DeviceInfo, GraspResult, GraspState, GripperState, MotionResult
 from ..urls import ConnectionURL
+from .stepfoc_features import MsgReconnection, MsgServo, MsgTemperature
 from .stepfoc_profile import MsgProfile
 
 if TYPE_CHECKING:
     import asyncio
-
-    from ..servo import ServoTarget
 
 DEFAULT_PROFILE = "msg-150"  # the MSG cannot report its rail length: profile= chooses another
 CALIBRATION_BOUND_S = 65.0  # a calibration drives both ways at low current, pauses, and may run twice
@@ -67,9 +66,9 @@ class MsgDevice(Device):
             {Capability.TEMPERATURE} if link.has_temperature else set()
         )
         self.grips_from_inside = self.maps.inside_grip
-        self.temperature = _Temperature(self.msg) if link.has_temperature else None
-        self.reconnection = _Reconnection(self)
-        self.servo = _Servo(self)
+        self.temperature = MsgTemperature(self.msg) if link.has_temperature else None
+        self.reconnection = MsgReconnection(self)
+        self.servo = MsgServo(self)
         self._limits = self.narrow_limits(profile.limits())  # what the gripper enforces (it asks the same)
         self.mode = "idle"  # what the last motion was, to name what the detection bits mean
         self.held = False  # a grasp found its part; detection 3 afterwards means the part was lost
@@ -292,54 +291,6 @@ class MsgDevice(Device):
 
     def resume(self, thread_ident: int) -> None:
         self.msg.resume(thread_ident)
-
-
-class _Temperature:
-    def __init__(self, msg: StepfocDevice) -> None:
-        self._msg = msg
-
-    def read(self) -> float:
-        return float(self._msg.link.temperature())
-
-
-class _Servo:
-    """Streamed targets: one motion frame (CAN 61, UART Gripvel/Gripcur/Grippos) per new target."""
-
-    def __init__(self, device: MsgDevice) -> None:
-        self._device = device
-
-    def begin(self) -> None:
-        self._device.msg.servo_begin()
-
-    def send(self, target: ServoTarget) -> bool:
-        d = self._device
-        if not d.msg.servo(
-            d.position_byte(target.width), d.speed_byte(target.speed), d.current_ma(target.force)
-        ):
-            return False
-        d.mode, d.held = "move", False
-        return True
-
-    def end(self) -> None:
-        return None
-
-
-class _Reconnection:
-    def __init__(self, device: MsgDevice) -> None:
-        self._device = device
-
-    def alive(self) -> bool:
-        return self._device.msg.alive()
-
-    def identity(self) -> dict[str, str]:
-        serial = self._device.msg.link.serial()  # the UART protocol reports none: nothing to compare
-        return {} if serial is None else {"serial": serial}
-
-    def reconnect(self) -> None:
-        d = self._device
-        d.msg.reconnect()
-        d.context.check_same_device(self.identity())  # another MSG put on this node is refused
-        d.mode, d.held = "idle", False  # a power-cycled gripper lost anything it held
 
 
 class StepfocBackend:
