@@ -61,6 +61,11 @@ def field_value(value: Any) -> Any:
 
 
 def record(**fields: Any) -> dict[str, Any]:
+    """One record of the ``grippers.monitor/1`` document (docs/cli.md): the keys below, given ones replaced.
+    ``raw`` is the frame as hex text (``data.hex()``, ``"R"`` for a CAN remote frame), as the JSON carries
+    it, in every family's dissector: bytes are refused (a TypeError), so no dissector writes another form."""
+    if isinstance(fields.get("raw"), bytes | bytearray | memoryview):
+        raise TypeError("a monitor record's raw is hex text: pass data.hex(), not the bytes")
     base: dict[str, Any] = {
         "time": None,
         "protocol": None,  # the family dissector's own name ("can" for a frame no family reads)

@@ -18,7 +18,9 @@ family): ``probe_candidates``, ``raw_probe``, ``factory_address``, ``bare_forms`
 ``device_settings``, ``selftest_checks``, ``reports_stroke``, ``cli_sim`` (or ``sim_help``, ``sim_example``,
 ``default_profile``). A family declares them in its CLI module (``X_cli`` beside its backend's module ``X``)
 or on its backend; one it lacks is a command that says, in words that fit every family, that it is not
-offered. ``tests/test_vendor_neutral.py`` keeps the rest of the package free of vendor names.
+offered. docs/backends.md ("Hooks the commands call") describes each, and tests/test_hooks_documented.py
+fails when a name asked here is missing there. ``tests/test_vendor_neutral.py`` keeps the rest of the
+package free of vendor names.
 """
 
 from __future__ import annotations
@@ -35,6 +37,23 @@ if TYPE_CHECKING:
     from ..profile_model import ProfileBase
     from ..settings import Settings
     from ..urls import ConnectionURL
+
+__all__ = [
+    "BUILTIN_BACKENDS",
+    "ENTRY_POINT_GROUP",
+    "Backend",
+    "BusSimulatedBackend",
+    "Dissector",
+    "ProbeCandidate",
+    "RawProbe",
+    "SimServer",
+    "SimulatedBackend",
+    "available_backends",
+    "bus_query",
+    "find_backend",
+    "get_backend",
+    "hook",
+]
 
 ENTRY_POINT_GROUP = "grippers.backends"
 

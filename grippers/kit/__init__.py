@@ -16,12 +16,22 @@ Three parts, each usable alone:
   end by polling the device, ends the wait when a stop or a newer motion comes (:class:`MotionEpochs`), at
   close or at the timeout, and maps the device's faults.
 
+- **The hooks' values** (docs/backends.md, "Hooks the commands call"): what a family's optional hooks return
+  and take, under one import with the rest: :class:`ProbeCandidate` and :class:`RawProbe` (``grippers
+  probe``), :func:`bus_query`, :class:`Dissector`, :class:`CanDissector` and :func:`monitor_record`
+  (``grippers monitor``: one record of its JSON document, ``raw`` as hex text), and :class:`ServoTarget`
+  (what a ``servo`` feature's ``send()`` receives). They are defined where the library uses them
+  (:mod:`grippers.backends`, :mod:`grippers.servo`, the drivers' ``dissect``); this is where a plugin
+  imports them from.
+
 Everything here is public and stable for plugin authors; the drivers layer underneath imports nothing of
 :mod:`grippers`, so a family's driver may use the same classes from ``grippers.drivers``.
 """
 
 from __future__ import annotations
 
+from grippers.drivers.dissect import CanDissector
+from grippers.drivers.dissect import record as monitor_record
 from grippers.drivers.links import (
     ByteLink,
     LinkHolder,
@@ -43,25 +53,34 @@ from grippers.drivers.simkit import (
     flip_last_byte,
 )
 
+from ..backends import Dissector, ProbeCandidate, RawProbe, bus_query
+from ..servo import ServoTarget
 from .motion import MotionEpochs, poll_until
 
 __all__ = [
     "ByteLink",
+    "CanDissector",
     "DeviceSession",
+    "Dissector",
     "Fault",
     "FaultHooks",
     "FaultKind",
     "LinkHolder",
     "MotionEpochs",
+    "ProbeCandidate",
+    "RawProbe",
     "Reconnectable",
     "SerialLink",
+    "ServoTarget",
     "SimClock",
     "SimServer",
     "TcpLink",
     "TraceFn",
     "apply_fault",
+    "bus_query",
     "first_half",
     "flip_last_byte",
+    "monitor_record",
     "open_link",
     "poll_until",
 ]

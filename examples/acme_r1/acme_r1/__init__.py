@@ -22,6 +22,7 @@ from grippers import (
     DeviceInfo,
     GraspResult,
     GraspState,
+    Gripper,
     GripperError,
     GripperState,
     GripperTimeout,
@@ -30,10 +31,8 @@ from grippers import (
     NotReferenced,
     URLError,
 )
-from grippers.backends import Dissector, ProbeCandidate
 from grippers.device import Device
-from grippers.gripper import Gripper
-from grippers.kit import MotionEpochs, TcpLink, poll_until
+from grippers.kit import Dissector, MotionEpochs, ProbeCandidate, TcpLink, poll_until
 from grippers.profiles import ProfileBase, load_profile
 
 from .codec import Control, Decoder, Frame, Reg, Status

@@ -96,13 +96,17 @@ class AcmeDissector:
         self._decoders: dict[str, Decoder] = {}
 
     def feed(self, direction: str, data: bytes, stamp: float | None) -> list[dict[str, Any]]:
-        from grippers.drivers.dissect import record
+        from grippers.kit import monitor_record  # the codec itself needs nothing of grippers
 
         decoder = self._decoders.setdefault(direction, Decoder())
         try:
             frames = decoder.feed(data)
         except FrameError as exc:
-            return [record(time=stamp, protocol=self.protocol, direction=direction, text=str(exc), raw=data)]
+            return [
+                monitor_record(
+                    time=stamp, protocol=self.protocol, direction=direction, text=str(exc), raw=data.hex()
+                )
+            ]
         out = []
         for f in frames:
             name = Reg(f.addr).name if f.op != "E" and f.addr < len(Reg) else str(f.addr)
@@ -110,14 +114,14 @@ class AcmeDissector:
             fields = {"register": name, "count": f.count, "values": list(f.values)}
             text = f"{command} {name} " + (" ".join(map(str, f.values)) if f.values else f"x{f.count}")
             out.append(
-                record(
+                monitor_record(
                     time=stamp,
                     protocol=self.protocol,
                     direction=direction,
                     command=command,
                     fields=fields,
                     text=text,
-                    raw=f.encode(),
+                    raw=f.encode().hex(),
                 )
             )
         return out
