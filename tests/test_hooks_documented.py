@@ -183,7 +183,15 @@ def test_the_worked_example_imports_only_public_modules() -> None:
 def test_the_kit_exports_what_a_plugin_needs() -> None:
     import grippers.kit as kit
 
-    for name in ("ProbeCandidate", "RawProbe", "bus_query", "Dissector", "CanDissector", "monitor_record"):
+    for name in (
+        "ProbeCandidate",
+        "RawProbe",
+        "Identity",
+        "bus_query",
+        "Dissector",
+        "CanDissector",
+        "monitor_record",
+    ):
         assert name in kit.__all__ and getattr(kit, name) is not None
     assert kit.ServoTarget(0.05, 0.1, None).force is None
 

@@ -14,13 +14,13 @@ object with ``url`` and ``close()``) for ``sim://``. The protocols below declare
 and grippers.testing make on a backend.
 
 Everything else a family knows, the CLI asks through :func:`hook` (issue 28 §2: no generic module names a
-family): ``probe_candidates``, ``raw_probe``, ``factory_address``, ``bare_forms``, ``dissector``,
-``device_settings``, ``selftest_checks``, ``reports_stroke``, ``cli_sim`` (or ``sim_help``, ``sim_example``,
-``default_profile``). A family declares them in its CLI module (``X_cli`` beside its backend's module ``X``)
-or on its backend; one it lacks is a command that says, in words that fit every family, that it is not
-offered. docs/backends.md ("Hooks the commands call") describes each, and tests/test_hooks_documented.py
-fails when a name asked here is missing there. ``tests/test_vendor_neutral.py`` keeps the rest of the
-package free of vendor names.
+family): ``probe_candidates``, ``probe_identity``, ``raw_probe``, ``factory_address``, ``bare_forms``,
+``dissector``, ``device_settings``, ``selftest_checks``, ``reports_stroke``, ``cli_sim`` (or ``sim_help``,
+``sim_example``, ``default_profile``). A family declares them in its CLI module (``X_cli`` beside its
+backend's module ``X``) or on its backend; one it lacks is a command that says, in words that fit every
+family, that it is not offered. docs/backends.md ("Hooks the commands call") describes each, and
+tests/test_hooks_documented.py fails when a name asked here is missing there. ``tests/test_vendor_neutral.py``
+keeps the rest of the package free of vendor names.
 """
 
 from __future__ import annotations
@@ -44,6 +44,7 @@ __all__ = [
     "Backend",
     "BusSimulatedBackend",
     "Dissector",
+    "Identity",
     "ProbeCandidate",
     "RawProbe",
     "SimServer",
@@ -115,11 +116,26 @@ class ProbeCandidate:
     """One URL a family's ``probe_candidates(transport, where, options)`` hook offers for a bare transport
     (``grippers probe tcp://HOST``, a serial port, a CAN bus). Candidates sharing a serial port are tried
     in ``order``; ``unless_nodes``: tried only when no node answered at these bus nodes (a frame that would
-    be another family's E-stop there)."""
+    be another family's E-stop there). ``protocol``: the wire protocol the candidate speaks
+    (``"modbus-rtu"``); once a candidate answers on a serial port, the others of the same protocol are
+    tried there too (they would answer as well), and the families' ``probe_identity`` checks decide which
+    of them the device is (issue 40 §4). None: the first to answer claims the port."""
 
     url: str
     order: int = 50
     unless_nodes: tuple[int, ...] = ()
+    protocol: str | None = None
+
+
+@dataclass(frozen=True)
+class Identity:
+    """What a family's ``probe_identity(gripper)`` hook says of a device that opened as its own: ``mine``
+    True (what it read back is the family's: a model register, a vendor string), False (it read back
+    something that is not: the device only speaks the same protocol) or None (nothing it reads tells its
+    devices from another family's); ``reason`` says what it read, for the probe's output."""
+
+    mine: bool | None
+    reason: str
 
 
 def bus_query(options: dict[str, Any]) -> str:

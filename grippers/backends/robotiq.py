@@ -456,7 +456,8 @@ class RobotiqBackend:
         if transport != "serial":
             return []
         t = RobotiqTransport()
-        return [ProbeCandidate(f"robotiq+serial://{where.serial_port}?baudrate={t.baudrate}", order=30)]
+        url = f"robotiq+serial://{where.serial_port}?baudrate={t.baudrate}"
+        return [ProbeCandidate(url, order=30, protocol="modbus-rtu")]  # another family on its map: identity
 
     def open(self, url: ConnectionURL, profile: ProfileBase | None, settings: Settings) -> Gripper:
         from ..profiles import load_profile

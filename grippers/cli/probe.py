@@ -94,6 +94,7 @@ class Outcome:
     location: dict[str, Any]
     device: dict[str, Any] | None = None
     reason: str | None = None
+    identity: dict[str, Any] | None = None  # the family's probe_identity verdict (probe_identity.py)
 
 
 def probe_one(url: str, location: dict[str, Any], timeout: float, profile: Any = None) -> Outcome:
@@ -127,7 +128,9 @@ def probe_one(url: str, location: dict[str, Any], timeout: float, profile: Any =
             "limits": info["limits"],
             "warnings": [str(w) for w in (info.get("extra") or {}).get("warnings", [])],
         }
-        return Outcome("gripper", url, location, device=device)
+        from .probe_identity import identity_of
+
+        return Outcome("gripper", url, location, device=device, identity=identity_of(url, gripper))
     except Exception as exc:
         return _failed(url, location, exc)
     finally:
@@ -278,7 +281,10 @@ class _Runner:
         failures: list[BaseException] = []
 
         def run_group(items: list[Any]) -> None:
+            answered: str | None = None  # the protocol that answered here: its other families are tried too
             for c in items:
+                if answered is not None and c.protocol != answered:
+                    continue
                 self.progress.update(f"probing {c.url} ...")
                 try:
                     outcome = self._attempt(c)
@@ -288,7 +294,9 @@ class _Runner:
                 with self._lock:
                     self.outcomes[c.url] = outcome
                 if outcome.kind == "gripper":
-                    return  # one protocol answered on this resource: the others cannot share it
+                    if c.protocol is None:
+                        return  # one protocol answered on this resource: the others cannot share it
+                    answered = c.protocol
 
         threads = [
             threading.Thread(target=run_group, args=(items,), daemon=True) for items in groups.values()
@@ -376,6 +384,9 @@ def collect(
         raise failures[0]
     order = {c.url: i for i, c in enumerate(plan.candidates)}
     outcomes = sorted(runner.outcomes.values(), key=lambda o: order.get(o.url, 0))
+    from .probe_identity import resolve
+
+    outcomes = resolve(outcomes, {c.url: c.group for c in plan.candidates})
     return {
         "schema": PROBE_SCHEMA_ID,
         "target": target,
@@ -499,6 +510,9 @@ def render(doc: dict[str, Any]) -> str:
     for d in doc["grippers"]:
         for warning in d.get("warnings") or []:
             lines.append(f"warning: {d['url']}: {warning}")
+        shared = d.get("same_port")
+        if shared and shared["kept"][0] == d["url"]:
+            lines.append(f"{where(d['location'])}: {', '.join(shared['answered'])} answered; {shared['why']}")
     for urls, reason in collapse(doc["others"]):
         lines.append(f"answered, not a gripper: {_urls(urls)} ({reason})")
     silent = collapse(doc["silent"])

@@ -32,6 +32,7 @@ class Candidate:
     # When set, the candidate is only tried if no device answered at these nodes on the same bus (a WSG packet
     # on CAN id 0x000/0x001 would be an E-stop frame for STEPFOC node 0, docs/protocols.md §1, §2).
     unless_nodes: tuple[int, ...] = ()
+    protocol: str | None = None  # the candidate's ProbeCandidate.protocol (probe_identity.py)
 
 
 @dataclass
@@ -144,7 +145,10 @@ def expand(target: str, bitrate: int | None = None, options: dict[str, Any] | No
     for c in sorted(offered, key=lambda c: c.order):  # stable: a family's own order within one rank
         # Candidates on one serial port share it, tried one after another; the rest each have their own.
         group = f"serial:{u.serial_port}" if scheme == "serial" else c.url
-        plan.candidates.append(Candidate(c.url, location_of(c.url), group=group, unless_nodes=c.unless_nodes))
+        where = location_of(c.url)
+        plan.candidates.append(
+            Candidate(c.url, where, group, unless_nodes=c.unless_nodes, protocol=c.protocol)
+        )
     return plan
 
 

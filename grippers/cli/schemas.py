@@ -69,6 +69,14 @@ class Limits(_Strict):
     max_current_a: float | None = Field(description="for devices controlled by a current limit; else null")
 
 
+class SamePort(_Strict):
+    """Several families opened a device on one serial port (they speak one protocol): who, and the verdict."""
+
+    answered: list[str] = Field(description="the family URLs that opened a device on this port")
+    kept: list[str] = Field(description="those reported as grippers: the one the checks agree on, or all")
+    why: str = Field(description="what the families' identity checks (their probe_identity hooks) read back")
+
+
 class Device(_Strict):
     url: str = Field(description="a URL that opens this gripper with grippers.open() and every command")
     family: str = Field(description="the family: the connection URL's first part (a built-in or a plugin's)")
@@ -84,6 +92,9 @@ class Device(_Strict):
     warnings: list[str] = Field(
         default_factory=list,
         description="what the probe assumed or ignored, e.g. a model the device cannot report",
+    )
+    same_port: SamePort | None = Field(
+        default=None, description="only where several families answered on one serial port (issue 40 §4)"
     )
 
 
