@@ -320,7 +320,7 @@ class RobotiqDevice(Device):
             width=self.profile.width_of(st.position),
             speed=None,
             force=None,
-            current=st.current_ma / 1000,
+            current=None if st.current_ma is None else st.current_ma / 1000,
             grasp=self._grasp_state(st),
             moving=st.moving,
             referenced=st.activated,

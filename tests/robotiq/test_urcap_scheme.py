@@ -39,3 +39,21 @@ def test_the_same_socket_by_protocol_query_and_a_scheme_no_family_declares() -> 
         grippers.open("robotiq+modbus://127.0.0.1:1")  # not one the Robotiq declares
     with pytest.raises(grippers.URLError, match="protocol"):
         grippers.open("robotiq+urcap://127.0.0.1:1?protocol=rtu")  # the scheme says urcap already
+
+
+def test_urcap_exchanges_are_wire_lines_at_vv_and_the_current_is_unreported(
+    urcap_sim, caplog: pytest.LogCaptureFixture
+) -> None:
+    """Issue 39 §1: docs/logging.md promises every frame on ``grippers.wire`` for every family; the socket
+    offers no current reading, so ``state().current`` is None (unreported), not 0.0."""
+    import logging
+
+    with caplog.at_level(logging.DEBUG, logger="grippers.wire"), grippers.open(urcap_sim.url) as g:
+        st = g.state()
+        g.move(0.04)
+    assert st.current is None
+    lines = [r.getMessage() for r in caplog.records if r.name == "grippers.wire"]
+    assert any(line.endswith("->  urcap    GET ACT") for line in lines), lines[:4]
+    assert any(line.endswith("<-  urcap    ack") for line in lines), lines[:4]
+    assert any("<-  urcap    POS " in line for line in lines)
+    assert all(line.startswith(urcap_sim.url) for line in lines)
