@@ -136,8 +136,10 @@ class RobotiqDevice(Device):
         *,
         timeout: float,
         connect: Callable[[], RobotiqClient | UrcapClient] | None = None,
+        profile_assumed: bool = False,
     ) -> None:
         self.client = client
+        self.profile_assumed = profile_assumed  # no profile named: the registers do not say the model
         self.profile = profile
         self.url = url
         self.maps = profile.robotiq
@@ -354,6 +356,7 @@ class RobotiqDevice(Device):
     def info(self) -> DeviceInfo:
         p = self.profile
         st = self.client.read_status(command="info")
+        warnings = [assumed_warning(p.name, self.url)] if self.profile_assumed else []
         return DeviceInfo(
             family="robotiq",
             vendor=p.vendor,
@@ -371,6 +374,7 @@ class RobotiqDevice(Device):
                 "force": "approximate: rFR 0..255 mapped linearly onto the profile's force range",
                 "fast_stop": "rGTO cleared (the device has no brake); the library refuses motion until "
                 "acknowledge()",
+                **({"warnings": warnings} if warnings else {}),
             },
         )
 
@@ -437,6 +441,16 @@ class RobotiqServo:
         self._device._mode = "idle"
 
 
+def assumed_warning(profile: str, url: str) -> str:
+    """What ``info()`` says when no profile was named (issue 39 §1: a Hand-E taken for a 2F-85 reads 85 mm of
+    stroke for its 50 mm, with no word said)."""
+    return (
+        f"model {profile} assumed: the Robotiq registers do not say which gripper answers (a 2F-85, 2F-140 "
+        f"or Hand-E); name it: `grippers state {url} --profile robotiq-hande` (robotiq-2f85, "
+        "robotiq-2f140), profile= in Python"
+    )
+
+
 def robotiq_gripper(
     client: RobotiqClient | UrcapClient,
     profile: RobotiqProfile,
@@ -444,11 +458,14 @@ def robotiq_gripper(
     *,
     timeout: float,
     connect: Callable[[], RobotiqClient | UrcapClient] | None = None,
+    profile_assumed: bool = False,
 ) -> Gripper:
     """The gripper over an open ``client``: what :meth:`RobotiqBackend.open` returns (``connect``: how to
-    reopen the link for ``reconnect=true``; None, no reconnection). Tests and benchmarks build one over a
-    scripted client with it."""
-    device = RobotiqDevice(client, profile, url, timeout=timeout, connect=connect)
+    reopen the link for ``reconnect=true``; None, no reconnection; ``profile_assumed``: no profile was named,
+    ``grippers.open`` warns). Tests and benchmarks build one over a scripted client with it."""
+    device = RobotiqDevice(
+        client, profile, url, timeout=timeout, connect=connect, profile_assumed=profile_assumed
+    )
     return Gripper(device, profile, url, timeout=timeout)
 
 
@@ -484,6 +501,7 @@ class RobotiqBackend:
     def open(self, url: ConnectionURL, profile: ProfileBase | None, settings: Settings) -> Gripper:
         from ..profiles import load_profile
 
+        assumed = profile is None  # the registers do not name the model: the fallback is a guess
         if profile is None:
             profile = load_profile(FALLBACK_PROFILE)
         if not isinstance(profile, RobotiqProfile):
@@ -529,7 +547,9 @@ class RobotiqBackend:
         client = connect()
         try:
             client.read_status(command="open")  # a gripper answers, or the open fails here
-            return robotiq_gripper(client, profile, url.url, timeout=common["timeout"], connect=connect)
+            return robotiq_gripper(
+                client, profile, url.url, timeout=common["timeout"], connect=connect, profile_assumed=assumed
+            )
         except BaseException:
             client.close()
             raise
