@@ -31,6 +31,7 @@ from ..errors import (
     NotSupported,
     ProtocolError,
 )
+from ..serial_ports import open_serial_port
 from .dissect import log_uart_line
 from .motion import Verdict
 from .uart_calibration import UartCalibration
@@ -113,12 +114,15 @@ class StepfocUart(Closing):
         self._abandoned: set[int] = set()  # threads whose caller gave up (abandon(), module docstring)
         self._closed = False
         self._calibration = UartCalibration(self)  # what #Mode showed of a calibration, its verdicts
-        try:
-            self._ser = serial.serial_for_url(
-                self.port, baudrate=baudrate, timeout=min(_POLL_S, self.timeout), write_timeout=self.timeout
+        self._ser = (
+            open_serial_port(  # exclusively (drivers/serial_ports.py: a second process is told "busy")
+                self.port,
+                device=self.device,
+                baudrate=baudrate,
+                timeout=min(_POLL_S, self.timeout),
+                write_timeout=self.timeout,
             )
-        except (*_PORT_ERRORS, ValueError) as exc:  # type: ignore[misc]  # a tuple of exception classes
-            raise ConnectionLost(f"cannot open serial port: {exc}", device=self.device) from exc
+        )
 
     # -- lifecycle ------------------------------------------------------------------------------------------
 
