@@ -475,10 +475,14 @@ class RobotiqBackend:
     bare_forms = {"serial": (30, "robotiq+serial://{rest}")}  # the "did you mean" of a bare serial port
     url_protocols = {"urcap": "tcp"}  # robotiq+urcap://HOST[:63352]: the URCap socket (grippers/api.py)
     default_profile = FALLBACK_PROFILE  # `grippers sim robotiq` without --model
-    sim_help = "simulate a Robotiq gripper (Modbus RTU) on a pseudo-terminal (pty) or tcp://HOST:PORT"
+    sim_help = (
+        "simulate a Robotiq gripper: Modbus RTU on a pseudo-terminal (pty) or tcp://HOST:PORT, or the "
+        "URCap's socket on urcap://HOST:PORT"
+    )
     sim_example = (
         "grippers sim robotiq --listen pty --model 2f85\n"
-        "         grippers sim robotiq --listen tcp://127.0.0.1:5020 --model hand-e"
+        "         grippers sim robotiq --listen tcp://127.0.0.1:5020 --model hand-e\n"
+        "         grippers sim robotiq --listen urcap://127.0.0.1:63352 --model hand-e"
     )
 
     def dissector(self) -> Any:
