@@ -129,10 +129,11 @@ def _could_start(data: bytes) -> bool:
 
 
 def _reply(name: str, digits: str) -> Reply:
-    value = int(digits)
-    if value > MAXIMA[name]:
-        return Reply(name, None, f"{name} {digits}", f"{name} {digits} is out of range (0..{MAXIMA[name]})")
-    return Reply(name, value, f"{name} {digits}")
+    raw = f"{name} {digits if len(digits) <= MAX_GARBAGE_REPORT else digits[:MAX_GARBAGE_REPORT] + '...'}"
+    significant = digits.lstrip("0")
+    if len(significant) > VALUE_DIGITS or int(significant or "0") > MAXIMA[name]:  # int() of 3 digits at most
+        return Reply(name, None, raw, f"{raw} is out of range (0..{MAXIMA[name]})")
+    return Reply(name, int(significant or "0"), raw)
 
 
 def parse_command(line: str) -> tuple[str, dict[str, int]] | tuple[str, str]:

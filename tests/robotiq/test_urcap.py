@@ -53,6 +53,12 @@ def test_a_value_out_of_its_range_is_an_error_not_a_number(line: str, limit: int
     assert reply.value is None and reply.error == f"{line} is out of range (0..{limit})"
 
 
+def test_a_value_of_endless_digits_is_out_of_range_not_a_crash() -> None:
+    (reply,) = ReplyParser().feed(b"POS " + b"9" * 10_000 + b"\n")
+    assert reply.value is None and reply.error is not None and "out of range (0..255)" in reply.error
+    assert len(reply.error) < 120  # the value is quoted cut short
+
+
 def test_garbage_is_dropped_up_to_the_next_reply() -> None:
     p = ReplyParser()
     assert _raws(p, b"\xff\x00nak\nxyzzy POS 40\n") == ["POS 40"]
