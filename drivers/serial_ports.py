@@ -31,8 +31,18 @@ def open_serial_port(port: str, *, device: str, **options: Any) -> Any:
     exclusive = not port.startswith(("loop://", "socket://", "rfc2217://", "spy://", "alt://", "hwgrep://"))
     try:
         return serial.serial_for_url(port, exclusive=True if exclusive else None, **options)
-    except (OSError, ValueError, serial.SerialException) as exc:
+    except (*_open_errors(), serial.SerialException) as exc:
         raise ConnectionLost(open_failure(port, exc), device=device, command="open") from exc
+
+
+def _open_errors() -> tuple[type[BaseException], ...]:
+    """What an open raises besides pyserial's own: OSError, ValueError (a bad port URL), and on POSIX
+    termios.error (a tty that vanished while it was being set up)."""
+    try:
+        import termios
+    except ImportError:  # pragma: no cover - Windows
+        return (OSError, ValueError)
+    return (OSError, ValueError, termios.error)
 
 
 def open_failure(port: str, exc: BaseException) -> str:
