@@ -35,6 +35,7 @@ from typing import Any, Generic, Protocol, TypeVar
 
 from .closing import Closing
 from .errors import ConnectionLost, GripperError, GripperTimeout, ProtocolError, URLError
+from .serial_ports import open_serial_port
 from .urls import ConnectionURL, format_host, parse_url, to_int
 
 __all__ = [
@@ -308,19 +309,21 @@ class SerialLink(ByteLink):
         timeout: float = DEFAULT_TIMEOUT,
         **options: Any,
     ) -> None:
-        import serial  # the kit is importable without a serial port in sight
-
         super().__init__(device or port, timeout=timeout)
         self.port, self.baudrate = port, baudrate
         options.setdefault("bytesize", 8)
         options.setdefault("parity", "N")
         options.setdefault("stopbits", 1)
-        try:
-            self._port = serial.serial_for_url(
-                port, baudrate=baudrate, timeout=0.0, write_timeout=max(self.timeout, 1.0), **options
+        self._port = (
+            open_serial_port(  # exclusively: a second process is told "busy" (drivers/serial_ports.py)
+                port,
+                device=self.device,
+                baudrate=baudrate,
+                timeout=0.0,
+                write_timeout=max(self.timeout, 1.0),
+                **options,
             )
-        except (OSError, ValueError, serial.SerialException) as exc:
-            raise ConnectionLost(f"cannot open {port}: {exc}", device=self.device, command="open") from exc
+        )
         self._read_timeout = 0.0
 
     def _send(self, data: bytes) -> None:

@@ -16,6 +16,7 @@ from .modbus import FUNCTIONS, RequestParser, Response, ResponseParser
 from .registers import COMMAND_ADDRESS, STATUS_ADDRESS, Command, Status, fault_name
 
 PROTOCOL = "modbus"
+URCAP_PROTOCOL = "urcap"
 
 
 def _command_text(cmd: Command) -> str:
@@ -108,6 +109,22 @@ def log_frame(device: str, direction: str, frame: bytes) -> None:
         ]
     for rec in recs:
         log_record(device, rec)
+
+
+def log_urcap(device: str, direction: str, line: bytes) -> None:
+    """One URCap request or reply (``SET POS 100 GTO 1``, ``ack``, ``OBJ 3``) to the ``grippers.wire`` logger
+    (the caller checks DEBUG is on): the socket's ASCII is already readable, so the text is the line."""
+    text = line.decode("ascii", "replace").strip()
+    log_record(
+        device,
+        record(
+            protocol=URCAP_PROTOCOL,
+            direction=direction,
+            command=text.partition(" ")[0] if direction == TO_GRIPPER else None,
+            text=text,
+            raw=line.hex(),
+        ),
+    )
 
 
 def wire_debug() -> bool:

@@ -155,7 +155,7 @@ class Status:
     controller_fault: int  # kFLT (a Robotiq Universal Controller's; 0 on a bare gripper)
     position_echo: int  # gPR
     position: int  # gPO
-    current: int  # gCU, ~10 mA per count
+    current: int | None  # gCU, ~10 mA per count; None where it is not reported (the URCap socket)
 
     @property
     def activated(self) -> bool:
@@ -166,8 +166,8 @@ class Status:
         return self.activated and self.gto and self.obj == ObjectDetection.MOVING
 
     @property
-    def current_ma(self) -> int:
-        return self.current * CURRENT_MA_PER_COUNT
+    def current_ma(self) -> int | None:
+        return None if self.current is None else self.current * CURRENT_MA_PER_COUNT
 
     @property
     def major_fault(self) -> bool:
@@ -176,7 +176,7 @@ class Status:
     def registers(self) -> tuple[int, int, int]:
         byte0 = (ACT if self.act else 0) | (GTO if self.gto else 0) | int(self.sta) << 4 | int(self.obj) << 6
         byte2 = (self.controller_fault & 0x0F) << 4 | (self.fault & 0x0F)
-        return (byte0 << 8, byte2 << 8 | self.position_echo, self.position << 8 | self.current)
+        return (byte0 << 8, byte2 << 8 | self.position_echo, self.position << 8 | (self.current or 0))
 
     @classmethod
     def from_registers(cls, regs: tuple[int, ...] | list[int]) -> Status:
@@ -200,5 +200,5 @@ class Status:
         return (
             f"gACT={int(self.act)} gGTO={int(self.gto)} gSTA={self.sta.name} gOBJ={self.obj.name} "
             f"gFLT=0x{self.fault:X} kFLT=0x{self.controller_fault:X} gPR={self.position_echo} "
-            f"gPO={self.position} gCU={self.current}"
+            f"gPO={self.position} gCU={'-' if self.current is None else self.current}"
         )

@@ -1,15 +1,20 @@
-"""The Robotiq URCap's ASCII socket (TCP 63352 on a UR controller), sans-IO: lines out, lines in.
+"""The Robotiq URCap's ASCII socket (TCP 63352 on a UR controller), sans-IO: lines out, replies in.
 
 The codec both sides share: the client (:mod:`.urcap`, over a TCP link of the backend kit) and the simulator
 (:mod:`.sim.server`). Nothing here does I/O.
 
-``SET VAR VALUE [VAR VALUE ...]`` is answered ``ack``; ``GET VAR`` is answered ``VAR VALUE``. Request
-variables ACT, GTO, ATR, ARD, POS (rPR), SPE, FOR; status variables STA, OBJ, FLT, PRE (the position request
-echo), and GET POS reads gPO. Values are the register bytes. Facts: docs/protocols-robotiq.md §5.
+Requests are lines: ``SET VAR VALUE [VAR VALUE ...]\\n`` and ``GET VAR\\n``. The replies are not framed alike
+(docs/protocols-robotiq.md §5 names the public sources): a SET is answered by the three bytes ``ack`` with no
+line end (ur_rtde compares a raw read to ``"ack"``, the URCap's own script reads three bytes), a GET by
+``VAR VALUE\\n``. A reply therefore ends at its known form, not only at a newline: :class:`ReplyParser` takes
+``ack`` with or without a line end, and ``VAR VALUE`` at its line end or once it has the three digits a byte
+can have. Request variables ACT, GTO, ATR, ARD, POS (rPR), SPE, FOR; status variables STA, OBJ, FLT, PRE (the
+position request echo), and GET POS reads gPO. Values are the register fields, each in its own range.
 """
 
 from __future__ import annotations
 
+import re
 from collections.abc import Mapping
 from dataclasses import dataclass
 
@@ -17,8 +22,13 @@ from .registers import ActivationState, Command, ObjectDetection, Status
 
 SETTABLE = ("ACT", "GTO", "ATR", "ARD", "POS", "SPE", "FOR", "SID")
 READABLE = ("ACT", "GTO", "STA", "OBJ", "FLT", "POS", "PRE", "SPE", "FOR")
+# The largest value each readable variable can have: its field's width in the register map (§1 of the docs):
+# a bit, the 2-bit gSTA and gOBJ, and bytes (gFLT's byte carries the controller's kFLT nibble beside gFLT).
+MAXIMA = {"ACT": 1, "GTO": 1, "STA": 3, "OBJ": 3, "FLT": 255, "POS": 255, "PRE": 255, "SPE": 255, "FOR": 255}
 ACK = "ack"
-MAX_LINE = 256  # a reply longer than this is not the URCap's
+ACK_REPLY = b"ack"  # what the URCap answers a SET: three bytes, no line end
+VALUE_DIGITS = 3  # a byte has at most three decimal digits: ``VAR ddd`` is complete without its line end
+MAX_GARBAGE_REPORT = 40  # bytes of dropped garbage quoted in a message
 
 
 def set_line(**values: int) -> bytes:
@@ -42,45 +52,88 @@ def get_line(name: str) -> bytes:
     return f"GET {name}\n".encode("ascii")
 
 
+def get_reply(name: str, value: int) -> bytes:
+    """The device side of GET: ``VAR VALUE\\n``."""
+    return f"{name} {value}\n".encode("ascii")
+
+
 @dataclass(frozen=True, slots=True)
 class Reply:
-    """One reply line: ``ack`` (``name`` None) or ``VAR VALUE``."""
+    """One reply: ``ack`` (``name`` None) or ``VAR VALUE``; ``error`` says why a ``VAR VALUE`` is no value
+    (out of its variable's range: ``value`` is then None)."""
 
     name: str | None
     value: int | None
     raw: str
+    error: str | None = None
 
 
-class LineParser:
-    """Bytes in, reply lines out; a line that is neither ``ack`` nor ``VAR INT`` raises ValueError naming
-    it."""
+_VARIABLE = "|".join(READABLE).encode()
+# Where a reply may start: ``ack``, or a readable variable and a space (what resynchronisation looks for).
+_START = re.compile(rb"ack|(?:" + _VARIABLE + rb") ")
+_VALUE = re.compile(rb"(" + _VARIABLE + rb") ([0-9]+)")
+_SPACE = b" \t\r\n\0"
+_LONGEST_START = 4  # "POS ": the most a cut-short reply can hold before its first digit
+
+
+class ReplyParser:
+    """Bytes in, replies out, each ended by its known form (``ack``; ``VAR VALUE`` at its line end or at three
+    digits). Bytes that start no reply are dropped up to where one may start (resynchronisation: counted in
+    :attr:`dropped`, the first of them kept in :attr:`garbage` for a message)."""
 
     def __init__(self) -> None:
         self._buf = bytearray()
+        self.dropped = 0
+        self.garbage = b""
 
     def feed(self, data: bytes) -> list[Reply]:
         self._buf += data
-        out = []
-        while b"\n" in self._buf:
-            raw, _, rest = bytes(self._buf).partition(b"\n")
-            self._buf = bytearray(rest)
-            line = raw.decode("ascii", "replace").strip()
-            if line:
-                out.append(parse_reply(line))
-        if len(self._buf) > MAX_LINE:
-            text = bytes(self._buf[:40])
-            self._buf.clear()
-            raise ValueError(f"no end of line after {MAX_LINE} bytes ({text!r}...)")
-        return out
+        out: list[Reply] = []
+        buf = self._buf
+        while True:
+            del buf[: len(buf) - len(buf.lstrip(_SPACE))]
+            if not buf:
+                return out
+            if buf.startswith(ACK_REPLY):
+                del buf[: len(ACK_REPLY)]
+                out.append(Reply(None, None, ACK))
+                continue
+            match = _VALUE.match(buf)
+            if match is not None:
+                if match.end() == len(buf) and len(match.group(2)) < VALUE_DIGITS:
+                    return out  # more digits may follow
+                reply = _reply(match.group(1).decode(), match.group(2).decode())
+                del buf[: match.end()]
+                out.append(reply)
+                continue
+            if _could_start(bytes(buf)):
+                return out  # the start of a reply, cut short
+            found = _START.search(buf, 1)
+            cut = found.start() if found is not None else len(buf)
+            if found is None:  # keep a tail that may begin the next reply
+                tail = next((k for k in range(_LONGEST_START, 0, -1) if _could_start(bytes(buf[-k:]))), 0)
+                cut = max(1, len(buf) - tail)
+            self.garbage = bytes(buf[: min(cut, MAX_GARBAGE_REPORT)])
+            self.dropped += cut
+            del buf[:cut]
 
 
-def parse_reply(line: str) -> Reply:
-    if line == ACK:
-        return Reply(None, None, line)
-    name, _, value = line.partition(" ")
-    if name in READABLE and value.strip().isdigit():
-        return Reply(name, int(value), line)
-    raise ValueError(f"not a URCap reply: {line[:60]!r}")
+def _could_start(data: bytes) -> bool:
+    """Whether ``data`` is the beginning of a reply cut short (``ac``, ``PO``, ``POS ``)."""
+    if ACK_REPLY.startswith(data):
+        return True
+    name, space, rest = data.partition(b" ")
+    if not space:
+        return any(v.encode().startswith(name) for v in READABLE)
+    return not rest and name in {v.encode() for v in READABLE}
+
+
+def _reply(name: str, digits: str) -> Reply:
+    raw = f"{name} {digits if len(digits) <= MAX_GARBAGE_REPORT else digits[:MAX_GARBAGE_REPORT] + '...'}"
+    significant = digits.lstrip("0")
+    if len(significant) > VALUE_DIGITS or int(significant or "0") > MAXIMA[name]:  # int() of 3 digits at most
+        return Reply(name, None, raw, f"{raw} is out of range (0..{MAXIMA[name]})")
+    return Reply(name, int(significant or "0"), raw)
 
 
 def parse_command(line: str) -> tuple[str, dict[str, int]] | tuple[str, str]:
@@ -113,17 +166,18 @@ def command_line(cmd: Command) -> bytes:
 
 
 def status_of(values: Mapping[str, int]) -> Status:
-    """A :class:`Status` from the values of :data:`STATUS_VARIABLES`; gCU is not offered by the URCap (0)."""
+    """A :class:`Status` from the values of :data:`STATUS_VARIABLES`; gCU is not offered by the URCap (None:
+    unreported, not 0). FLT is the status byte's fault field: gFLT, kFLT in its high nibble."""
     return Status(
         act=bool(values["ACT"]),
         gto=bool(values["GTO"]),
         sta=ActivationState(values["STA"] & 3),
         obj=ObjectDetection(values["OBJ"] & 3),
         fault=values["FLT"] & 0x0F,
-        controller_fault=0,
+        controller_fault=values["FLT"] >> 4,
         position_echo=values["PRE"],
         position=values["POS"],
-        current=0,
+        current=None,
     )
 
 

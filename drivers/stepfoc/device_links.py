@@ -358,7 +358,9 @@ class UartLink(Link):
 
     def reopened(self) -> Link:
         d = self.driver
-        fresh = UartLink(self.port, d.baudrate, d.current_limit_ma, d.timeout)
+        baudrate = d.baudrate
+        d.close()  # the port is opened exclusively (drivers/serial_ports.py): free it before opening it again
+        fresh = UartLink(self.port, baudrate, d.current_limit_ma, d.timeout)
         try:
             fresh.status()
         except BaseException:

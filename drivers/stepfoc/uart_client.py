@@ -31,6 +31,7 @@ from ..errors import (
     NotSupported,
     ProtocolError,
 )
+from ..serial_ports import open_serial_port
 from .dissect import log_uart_line
 from .motion import Verdict
 from .uart_calibration import UartCalibration
@@ -61,8 +62,6 @@ try:  # POSIX ports report a vanished tty through termios.error, which is not an
     _PORT_ERRORS: tuple[type[BaseException], ...] = (serial.SerialException, OSError, termios.error)
 except ImportError:  # pragma: no cover - Windows
     _PORT_ERRORS = (serial.SerialException, OSError)
-# Opening also fails with a ValueError: serial_for_url refuses a bad port URL so.
-_OPEN_ERRORS: tuple[type[BaseException], ...] = (*_PORT_ERRORS, ValueError)
 
 
 class _Pending:
@@ -115,12 +114,15 @@ class StepfocUart(Closing):
         self._abandoned: set[int] = set()  # threads whose caller gave up (abandon(), module docstring)
         self._closed = False
         self._calibration = UartCalibration(self)  # what #Mode showed of a calibration, its verdicts
-        try:
-            self._ser = serial.serial_for_url(
-                self.port, baudrate=baudrate, timeout=min(_POLL_S, self.timeout), write_timeout=self.timeout
+        self._ser = (
+            open_serial_port(  # exclusively (drivers/serial_ports.py: a second process is told "busy")
+                self.port,
+                device=self.device,
+                baudrate=baudrate,
+                timeout=min(_POLL_S, self.timeout),
+                write_timeout=self.timeout,
             )
-        except _OPEN_ERRORS as exc:
-            raise ConnectionLost(f"cannot open serial port: {exc}", device=self.device) from exc
+        )
 
     # -- lifecycle ------------------------------------------------------------------------------------------
 

@@ -21,6 +21,7 @@ import serial
 
 from ..canlink import describe_failure, open_bus
 from ..errors import ConnectionLost, GripperTimeout
+from ..serial_ports import open_serial_port
 from .protocol import can_frames
 
 __all__ = [
@@ -287,19 +288,18 @@ class SerialTransport:
         write_timeout: float | None = 2.0,
     ) -> None:
         self.name = f"serial:{port}"
-        try:
-            # docs/protocols.md §1: 115200 baud, 8N1 by default; one public driver uses 2 stop bits.
-            self._port = serial.serial_for_url(
-                port,
-                baudrate=baudrate,
-                bytesize=bytesize,
-                parity=parity,
-                stopbits=stopbits,
-                timeout=0.05,
-                write_timeout=write_timeout,
-            )
-        except (serial.SerialException, ValueError, OSError) as exc:
-            raise ConnectionLost(f"cannot open serial port: {exc}", device=self.name) from None
+        # docs/protocols.md §1: 115200 baud, 8N1 by default; one public driver uses 2 stop bits. Exclusively,
+        # as every family opens a port (drivers/serial_ports.py: a second process is told "busy").
+        self._port = open_serial_port(
+            port,
+            device=self.name,
+            baudrate=baudrate,
+            bytesize=bytesize,
+            parity=parity,
+            stopbits=stopbits,
+            timeout=0.05,
+            write_timeout=write_timeout,
+        )
         self._timeout = 0.05
         self.port = port
 

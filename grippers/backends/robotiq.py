@@ -11,15 +11,17 @@ The semantics on the common interface (docs/getting-started-robotiq.md says the 
   "activation completed" (the sweep opens and closes the fingers). On an active, fault-free gripper it sends
   nothing and returns: clearing rACT would release a held part and sweep the whole stroke, and the gripper
   needs no referencing once active. A re-activation is needed only after a major fault (``acknowledge()``
-  does it) or a power cycle (``home()`` does it, the gripper then reports itself not active).
+  clears it, then ``home()`` activates) or a power cycle (the gripper then reports itself not active).
 - ``move``/``grasp``/``release`` write rPR, rSP, rFR with rGTO set and poll the status until gOBJ leaves 0;
   ``grasp()`` is held on gOBJ 2 (contact while closing) or 1 (contact while opening), no part on gOBJ 3.
-- ``stop()`` clears rGTO: the fingers halt where they are. ``fast_stop()`` does the same, since the device has
-  no brake or e-stop input of its own (the automatic release, rATR/rARD, is a slow opening or closing, not a
-  stop); the gripper holding the device latches it until ``acknowledge()`` (``reports_fast_stop`` False;
-  ``info().extra["fast_stop"]`` says so).
-- ``acknowledge()`` clears the gripper's fast-stop latch and, after a major fault (0x0A-0x0F), re-activates as
-  the manual prescribes (rACT cleared, then set), which sweeps the fingers and releases any part.
+- ``stop()`` clears rGTO: the fingers halt where they are; on a gripper that is not activated it writes
+  nothing (rACT written 1 would start the activation's sweep: a stop never starts a motion). ``fast_stop()``
+  does the same, since the device has no brake or e-stop input of its own (the automatic release, rATR/rARD,
+  is a slow opening or closing, not a stop); the gripper holding the device latches it until
+  ``acknowledge()`` (``reports_fast_stop`` False; ``info().extra["fast_stop"]`` says so).
+- ``acknowledge()`` clears the gripper's fast-stop latch and, after a major fault (0x0A-0x0F), clears the
+  fault with the first half of the manual's reset (rACT cleared), which moves nothing; ``home()`` then
+  activates (rACT set), which sweeps the fingers. An acknowledgement never starts a motion (issue 40 §5).
 - a newer motion is written over the running one (rPR with rGTO set, no stop in between:
   ``moves_to_new_targets``); the older motion's wait ends "superseded" (a new epoch of
   :class:`grippers.kit.motion.MotionEpochs`).
@@ -81,19 +83,26 @@ class RobotiqFault(CommandFailed):
     """The gripper reports a fault (gFLT): ``status`` is the code, ``status_name`` its name."""
 
 
-def fault_error(st: Status, *, device: str, command: str) -> CommandFailed | None:
+def fault_error(st: Status, *, device: str, command: str, url: str = "URL") -> CommandFailed | None:
     """The typed error for the fault ``st`` shows, or None where the wait goes on (a delayed action, the
-    watchdog's note, which the next write clears): drivers/robotiq/session.py classifies."""
+    watchdog's note, which the next write clears): drivers/robotiq/session.py classifies. The next step is
+    told in the user's terms, the command line's (``grippers ack URL``), with the Python call beside it."""
     kind = classify_fault(st.fault)
     if kind in (FaultClass.NONE, FaultClass.TRANSIENT):
         return None
     if kind is FaultClass.NOT_ACTIVATED:
         return not_activated_error(
-            "the gripper is not activated (gFLT 0x07): call home() to activate it",
+            f"the gripper is not activated (gFLT 0x07): activate it with `grippers home {url}` "
+            "(home() in Python; the fingers sweep the stroke)",
             device=device,
             command=command,
         )
-    hint = " (acknowledge() re-activates the gripper)" if kind is FaultClass.MAJOR else ""
+    hint = (
+        f": clear it with `grippers ack {url}` (acknowledge() in Python), then `grippers home {url}` "
+        "re-activates (the fingers sweep the stroke)"
+        if kind is FaultClass.MAJOR
+        else ""
+    )
     return RobotiqFault(
         f"gripper fault 0x{st.fault:02X}: {fault_text(st.fault)}{hint}",
         status=st.fault,
@@ -127,8 +136,10 @@ class RobotiqDevice(Device):
         *,
         timeout: float,
         connect: Callable[[], RobotiqClient | UrcapClient] | None = None,
+        profile_assumed: bool = False,
     ) -> None:
         self.client = client
+        self.profile_assumed = profile_assumed  # no profile named: the registers do not say the model
         self.profile = profile
         self.url = url
         self.maps = profile.robotiq
@@ -150,13 +161,14 @@ class RobotiqDevice(Device):
     def _ready(self, command: str) -> Status:
         """The status before a motion: activated and without a fault, or a clear error."""
         st = self.client.read_status(command=command)
-        error = fault_error(st, device=self.name, command=command)
+        error = fault_error(st, device=self.name, command=command, url=self.url)
         if error is not None:
             raise error
         if not st.activated:
             what = "being activated" if st.sta == ActivationState.IN_PROGRESS else "not activated"
             raise not_activated_error(
-                f"the gripper is {what} (gSTA {int(st.sta)}): call home() to activate it first",
+                f"the gripper is {what} (gSTA {int(st.sta)}): activate it first with `grippers home "
+                f"{self.url}` (home() in Python)",
                 device=self.name,
                 command=command,
             )
@@ -169,7 +181,7 @@ class RobotiqDevice(Device):
         rGTO or rACT cleared by someone else, close(), or the timeout (grippers.kit.motion.poll_until)."""
 
         def fault(st: Status) -> CommandFailed | None:
-            error = fault_error(st, device=self.name, command=command)
+            error = fault_error(st, device=self.name, command=command, url=self.url)
             if error is None and (
                 not st.act or (not activating and not (st.gto and st.sta == ActivationState.COMPLETE))
             ):
@@ -224,13 +236,16 @@ class RobotiqDevice(Device):
         if st.activated and st.fault not in MAJOR_FAULTS and st.fault != Fault.ACTIVATION_BIT:
             return  # active already: nothing is toggled (see the module's docstring)
         if st.fault in MAJOR_FAULTS and st.act:
-            error = fault_error(st, device=self.name, command="home")
+            error = fault_error(st, device=self.name, command="home", url=self.url)
             assert error is not None
             raise error
         motion = self.epochs.begin("superseded by a newer motion before it ended (home)")
         self._mode, self._held = "home", False
-        waiting = st.act and st.sta == ActivationState.IN_PROGRESS and not st.fault  # wait for that one
-        self._activate("home", motion, timeout, write=not waiting, reset=bool(st.act or st.fault))
+        # An activation under way (one that an earlier home() stopped waiting for) is waited for, not reset:
+        # clearing rACT without setting it again would leave the gripper reset (issue 43 §5).
+        waiting = st.act and st.sta == ActivationState.IN_PROGRESS and not st.fault
+        reset = not waiting and bool(st.act or st.fault)
+        self._activate("home", motion, timeout, write=not waiting, reset=reset)
         self._mode = "idle"
 
     def move(self, width: float, speed: float, timeout: float) -> MotionResult:
@@ -270,10 +285,17 @@ class RobotiqDevice(Device):
         return MotionResult(self.profile.width_of(st.position), GraspState.IDLE)
 
     def _halt(self, cause: str, command: str) -> None:
+        """rGTO cleared, rACT kept as the device has it: a stop never starts an activation (issue 40 §5: rACT
+        written 1 to a gripper that is not active starts the sweep of the whole stroke)."""
         self.epochs.begin(cause)
-        cmd = Command(
-            act=True, gto=False, position=self._last.position, speed=self._last.speed, force=self._last.force
-        )
+        last = self._last
+        if not last.act:  # nothing written by us yet: the device's own rACT and rPR decide
+            st = self.client.read_status(command=command)
+            self._mode = "idle"
+            if not st.act:
+                return  # not activated: nothing moves, and nothing is written
+            last = Command(act=True, position=st.position_echo, speed=last.speed, force=last.force)
+        cmd = Command(act=True, gto=False, position=last.position, speed=last.speed, force=last.force)
         self.client.write_command(cmd, command=command)
         self._last = cmd
         self._mode = "idle"
@@ -293,11 +315,14 @@ class RobotiqDevice(Device):
         st = self.client.read_status(command="acknowledge")
         if st.fault not in MAJOR_FAULTS:
             return  # the fast-stop latch is the gripper's: nothing to clear on the device
-        log.warning("%s: re-activating after fault 0x%02X: the fingers sweep the stroke", self.name, st.fault)
-        motion = self.epochs.begin("aborted by acknowledge()")
-        lim = self.limits
-        bound = 2.0 * 2 * lim.stroke / max(lim.min_speed, 1e-6) + 2.0 + self.timeout  # a sweep at least
-        self._activate("acknowledge", motion, bound, write=True, reset=True)
+        # The reset half of the manual's cure (rACT cleared): it clears the fault and moves nothing. The
+        # activation (rACT set), which sweeps the stroke, is home()'s: an acknowledgement never starts a
+        # motion (issue 40 §5).
+        log.warning("%s: fault 0x%02X cleared (rACT 0): home() re-activates", self.name, st.fault)
+        self.epochs.begin("aborted by acknowledge()")
+        self._last = Command(speed=self._last.speed, force=self._last.force)
+        self.client.write_command(self._last, command="acknowledge")
+        self._mode = "idle"
 
     # -- state and info ----------------------------------------------------------------------------------
 
@@ -320,7 +345,7 @@ class RobotiqDevice(Device):
             width=self.profile.width_of(st.position),
             speed=None,
             force=None,
-            current=st.current_ma / 1000,
+            current=None if st.current_ma is None else st.current_ma / 1000,
             grasp=self._grasp_state(st),
             moving=st.moving,
             referenced=st.activated,
@@ -331,6 +356,7 @@ class RobotiqDevice(Device):
     def info(self) -> DeviceInfo:
         p = self.profile
         st = self.client.read_status(command="info")
+        warnings = [assumed_warning(p.name, self.url)] if self.profile_assumed else []
         return DeviceInfo(
             family="robotiq",
             vendor=p.vendor,
@@ -348,6 +374,7 @@ class RobotiqDevice(Device):
                 "force": "approximate: rFR 0..255 mapped linearly onto the profile's force range",
                 "fast_stop": "rGTO cleared (the device has no brake); the library refuses motion until "
                 "acknowledge()",
+                **({"warnings": warnings} if warnings else {}),
             },
         )
 
@@ -414,6 +441,16 @@ class RobotiqServo:
         self._device._mode = "idle"
 
 
+def assumed_warning(profile: str, url: str) -> str:
+    """What ``info()`` says when no profile was named (issue 39 §1: a Hand-E taken for a 2F-85 reads 85 mm of
+    stroke for its 50 mm, with no word said)."""
+    return (
+        f"model {profile} assumed: the Robotiq registers do not say which gripper answers (a 2F-85, 2F-140 "
+        f"or Hand-E); name it: `grippers state {url} --profile robotiq-hande` (robotiq-2f85, "
+        "robotiq-2f140), profile= in Python"
+    )
+
+
 def robotiq_gripper(
     client: RobotiqClient | UrcapClient,
     profile: RobotiqProfile,
@@ -421,11 +458,14 @@ def robotiq_gripper(
     *,
     timeout: float,
     connect: Callable[[], RobotiqClient | UrcapClient] | None = None,
+    profile_assumed: bool = False,
 ) -> Gripper:
     """The gripper over an open ``client``: what :meth:`RobotiqBackend.open` returns (``connect``: how to
-    reopen the link for ``reconnect=true``; None, no reconnection). Tests and benchmarks build one over a
-    scripted client with it."""
-    device = RobotiqDevice(client, profile, url, timeout=timeout, connect=connect)
+    reopen the link for ``reconnect=true``; None, no reconnection; ``profile_assumed``: no profile was named,
+    ``grippers.open`` warns). Tests and benchmarks build one over a scripted client with it."""
+    device = RobotiqDevice(
+        client, profile, url, timeout=timeout, connect=connect, profile_assumed=profile_assumed
+    )
     return Gripper(device, profile, url, timeout=timeout)
 
 
@@ -435,10 +475,14 @@ class RobotiqBackend:
     bare_forms = {"serial": (30, "robotiq+serial://{rest}")}  # the "did you mean" of a bare serial port
     url_protocols = {"urcap": "tcp"}  # robotiq+urcap://HOST[:63352]: the URCap socket (grippers/api.py)
     default_profile = FALLBACK_PROFILE  # `grippers sim robotiq` without --model
-    sim_help = "simulate a Robotiq gripper (Modbus RTU) on a pseudo-terminal (pty) or tcp://HOST:PORT"
+    sim_help = (
+        "simulate a Robotiq gripper: Modbus RTU on a pseudo-terminal (pty) or tcp://HOST:PORT, or the "
+        "URCap's socket on urcap://HOST:PORT"
+    )
     sim_example = (
         "grippers sim robotiq --listen pty --model 2f85\n"
-        "         grippers sim robotiq --listen tcp://127.0.0.1:5020 --model hand-e"
+        "         grippers sim robotiq --listen tcp://127.0.0.1:5020 --model hand-e\n"
+        "         grippers sim robotiq --listen urcap://127.0.0.1:63352 --model hand-e"
     )
 
     def dissector(self) -> Any:
@@ -462,6 +506,7 @@ class RobotiqBackend:
     def open(self, url: ConnectionURL, profile: ProfileBase | None, settings: Settings) -> Gripper:
         from ..profiles import load_profile
 
+        assumed = profile is None  # the registers do not name the model: the fallback is a guess
         if profile is None:
             profile = load_profile(FALLBACK_PROFILE)
         if not isinstance(profile, RobotiqProfile):
@@ -507,7 +552,9 @@ class RobotiqBackend:
         client = connect()
         try:
             client.read_status(command="open")  # a gripper answers, or the open fails here
-            return robotiq_gripper(client, profile, url.url, timeout=common["timeout"], connect=connect)
+            return robotiq_gripper(
+                client, profile, url.url, timeout=common["timeout"], connect=connect, profile_assumed=assumed
+            )
         except BaseException:
             client.close()
             raise

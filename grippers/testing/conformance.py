@@ -217,6 +217,7 @@ class ConformanceSuite:
     hold_wall_s: float = 10.0  # wall seconds a minimum-speed crossing lasts where a check holds a motion
     tolerance: float = 0.002  # m: a completed motion's reported width against its target
     motion_bound_s: float = 30.0  # wall seconds any one motion of a check may take
+    settle_s: float = 3.0  # device seconds a check waits for what must not happen (an activation, a homing)
 
     @pytest.fixture
     def conformance_target(self) -> str:
@@ -449,6 +450,35 @@ class ConformanceSuite:
         else:
             assert not result.grasped, f"a grasp with nothing between the jaws reported grasped: {result}"
         assert g.state().grasp is not GraspState.HOLDING, g.state()
+
+    # -- stops on a device at rest ----------------------------------------------------------------------
+
+    @pytest.mark.parametrize("homed", [False, True], ids=["never-homed", "homed"])
+    def test_stops_and_acknowledge_never_start_a_motion_on_a_device_at_rest(
+        self, conformance: Conformance, homed: bool
+    ) -> None:
+        """Issue 40 §5: ``stop()``, ``fast_stop()`` and ``acknowledge()`` on a device that is not moving start
+        nothing: no activation or homing (a Robotiq's rACT written to 1 sweeps the whole stroke), no motion.
+        Each may refuse with a typed error; none may move the jaws or reference the device."""
+        g = conformance.open(conformance.simulator())
+        if homed:
+            g.home()
+        before = conformance.until_still(g)
+        for name in ("stop", "fast_stop", "acknowledge"):
+            try:
+                getattr(g, name)()
+            except grippers.NotSupported:
+                pass
+            except GripperError as exc:  # a typed refusal is honest (a device that must be homed first)
+                assert not isinstance(exc, (GripperTimeout, ConnectionLost)), f"{name}(): {exc!r}"
+        settle = max(self.settle_s / conformance.time_scale, 0.3)  # device seconds an activation would take
+        deadline = time.monotonic() + settle
+        while time.monotonic() < deadline:
+            st = g.state()
+            assert not st.moving, f"stop/fast_stop/acknowledge started a motion: {st}"
+            assert st.referenced == before.referenced, f"the device was referenced by a stop: {st}"
+            assert abs(st.width - before.width) < conformance.tolerance, f"the jaws moved: {before} -> {st}"
+            time.sleep(0.01)
 
     # -- fast stop ---------------------------------------------------------------------------------------
 

@@ -126,7 +126,9 @@ def test_every_fault_during_a_motion_is_a_typed_error_naming_it(g: Any, code: in
         assert g.state().grasp is GraspState.ERROR
         with pytest.raises(RobotiqFault):
             g.move(0.04)
-        g.acknowledge()  # a reset and a new activation, as the manual prescribes
+        g.acknowledge()  # the reset (rACT 0): the fault is cleared, nothing moves
+        assert not g.state().referenced and g.state().faults == ()
+        g.home()  # the activation, which sweeps the fingers
     else:
         with g.simulator.lock:
             g.simulator.model.clear_fault()
@@ -141,6 +143,8 @@ def test_automatic_release_faults_are_reported_and_acknowledged(g: Any) -> None:
     with pytest.raises(RobotiqFault, match="automatic release completed"):
         g.move(0.04)
     g.acknowledge()
+    assert not g.state().referenced and g.state().faults == ()
+    g.home()
     assert g.state().referenced
 
 
@@ -272,3 +276,37 @@ def test_every_gflt_code_maps_to_one_typed_outcome(code: int) -> None:
         assert isinstance(err, RobotiqFault) and err.status == code and err.command == "move"
         assert (err.status_name in FAULT_NAMES.values()) == (code in FAULT_NAMES)
     g.close()
+
+
+@pytest.mark.parametrize("transport", ["tcp", "urcap"])
+def test_home_after_an_activation_that_timed_out_waits_for_it(transport: str) -> None:
+    """Issue 43 §5: the second home() found the activation under way, cleared rACT and never set it again,
+    then failed "rACT was cleared (another program?)" and left the gripper reset."""
+    with grippers.open(f"sim://robotiq-2f85?transport={transport}") as g:
+        g.simulator.pause()  # the activation cannot complete: the first home() times out for sure
+        with pytest.raises(GripperTimeout):
+            g.home(timeout=0.3)
+        g.simulator.resume()
+        g.home(timeout=10)
+        assert g.state().referenced and g.simulator.model.act
+
+
+def test_stop_on_a_gripper_never_activated_writes_nothing() -> None:
+    """Issue 40 §5: stop() wrote rACT 1, which started the activation's sweep of the whole stroke."""
+    with grippers.open("sim://robotiq-2f85") as g:
+        g.simulator.pause()
+        for call in (g.stop, g.fast_stop, g.acknowledge):
+            call()
+        assert g.simulator.model.writes == 0 and not g.simulator.model.act
+        g.simulator.step(3.0)
+        assert not g.state().referenced and not g.state().moving
+
+
+def test_a_fault_says_what_to_run_in_the_user_s_terms(g: Any) -> None:
+    """Issue 39 §2: the next step is the command line's, ``grippers ack URL``, not a Python method name."""
+    g.home()
+    with g.simulator.lock:
+        g.simulator.model.inject_fault(Fault.OVERCURRENT)
+    with pytest.raises(RobotiqFault) as err:
+        g.move(0.04)
+    assert f"`grippers ack {g.url}`" in str(err.value) and f"`grippers home {g.url}`" in str(err.value)

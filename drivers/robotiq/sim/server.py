@@ -33,8 +33,10 @@ class RtuSession:
 
 
 class UrcapSession:
-    """The URCap's socket in front of the model: SET is a write of the request block, GET a read of the
-    status (docs/protocols-robotiq.md §5). A line it does not understand gets no answer."""
+    """The URCap's socket in front of the model: SET is a write of the request block, answered by the three
+    bytes ``ack`` with no line end, as the controller does; GET a read of the status, answered ``VAR VALUE``
+    and a line end (docs/protocols-robotiq.md §5 names the public sources). A line it does not understand
+    gets no answer."""
 
     def __init__(self, model: RobotiqModel) -> None:
         self.model = model
@@ -56,12 +58,11 @@ class UrcapSession:
                 self.model.handle(
                     Request(slave, WRITE_MULTIPLE, COMMAND_ADDRESS, 3, COMMAND_ADDRESS, cmd.registers()), now
                 )
-                out.append(b"ack\n")
+                out.append(urcap.ACK_REPLY)
             else:  # GET: the status as a read of it now
                 self.model.handle(Request(slave, READ_HOLDING, STATUS_ADDRESS, 3), now)
-                out.append(
-                    f"{arg} {urcap.variable_of(arg, self.model.status(), self.model.command)}\n".encode()
-                )
+                value = urcap.variable_of(arg, self.model.status(), self.model.command)
+                out.append(urcap.get_reply(arg, value))
         return out
 
 
