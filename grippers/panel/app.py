@@ -161,6 +161,7 @@ class Panel:
     async def _send(self, ws: WebSocket, link: PageLink) -> None:
         """The page's one writer: queued messages at once, changed snapshots every tick."""
         seen: dict[str, int] = {}
+        seen_info: dict[str, int] = {}
         period = 1.0 / STATE_HZ
         next_tick = time.monotonic()
         try:
@@ -172,9 +173,13 @@ class Panel:
                 except TimeoutError:
                     pass
                 next_tick = max(next_tick + period, time.monotonic())
-                changed = [s.snapshot() for n, s in self.sessions.items() if seen.get(n) != s.seq]
+                changed = [
+                    s.snapshot(identity=seen_info.get(n) != s.info_seq)
+                    for n, s in self.sessions.items()
+                    if seen.get(n) != s.seq
+                ]
                 for snap in changed:
-                    seen[snap["name"]] = snap["seq"]
+                    seen[snap["name"]], seen_info[snap["name"]] = snap["seq"], snap["info_seq"]
                 if changed:
                     await ws.send_text(json.dumps({"type": "update", "grippers": changed}))
         except (WebSocketDisconnect, RuntimeError, OSError):

@@ -49,7 +49,8 @@ Tell = Callable[[str, dict[str, Any]], None]  # (page id, message): a message fo
 def error_dict(exc: BaseException) -> dict[str, Any]:
     """A refused or failed command as the page shows it: the library's class and message, no traceback."""
     if isinstance(exc, GripperError):
-        text = f"{exc.command}: {exc.message}" if exc.command else exc.message
+        said = exc.command and not exc.message.startswith(exc.command)  # "move refused: …" names it already
+        text = f"{exc.command}: {exc.message}" if said else exc.message
     else:
         log.exception("panel: unexpected error")
         text = f"internal error: {type(exc).__name__}: {exc}"
@@ -73,6 +74,7 @@ class GripperSession:
         self._lock = threading.Lock()
         self._motion: Any = None  # the handle of the last motion a page started
         self.seq = 0
+        self.info_seq = 0  # bumped when the identity or the limits change (read again after a reconnection)
         self.state: dict[str, Any] | None = None
         self.moving = False
         self.info: dict[str, Any] | None = None
@@ -85,15 +87,21 @@ class GripperSession:
 
     # -- what the pages see ------------------------------------------------------------------------------
 
-    def snapshot(self) -> dict[str, Any]:
+    def snapshot(self, identity: bool = True) -> dict[str, Any]:
+        """What a page shows; ``identity=False`` leaves out what changes only with ``info_seq`` (the info, the
+        limits), which a page already has."""
         holder = self.control.holder
-        return {
-            "name": self.name,
-            "seq": self.seq,
+        fixed = {
             "url": self.gripper.url,
             "remote": self.remote,
             "info": self.info,
             "limits": limits_dict(self.gripper.limits),
+        }
+        return {
+            "name": self.name,
+            "seq": self.seq,
+            "info_seq": self.info_seq,
+            **(fixed if identity else {}),
             "connected": self.connected,
             "lost": self.lost,
             "state": self.state,
@@ -120,6 +128,8 @@ class GripperSession:
     def _read_info(self) -> None:
         try:
             self.info = info_dict(self.gripper.info())
+            with self._lock:
+                self.info_seq += 1
         except GripperError as exc:
             self.lost = error_dict(exc)["message"]
 

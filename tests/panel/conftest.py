@@ -9,6 +9,7 @@ script, as the ROS 2 tests do).
 from __future__ import annotations
 
 import json
+import threading
 import time
 from collections.abc import Callable, Iterator
 from typing import Any
@@ -20,6 +21,8 @@ pytest.importorskip("uvicorn", reason="the panel extra: pip install '.[panel]'")
 
 import grippers
 from grippers.panel.server import PanelServer
+
+from .browser import CHROMIUM, Tab
 
 
 @pytest.fixture
@@ -63,7 +66,10 @@ def wait_for(predicate: Callable[[], Any], what: str, timeout: float = 10.0) -> 
 
 
 class PageClient:
-    """A page as the server sees it, without a browser: the WebSocket, commands and what comes back."""
+    """A page as the server sees it, without a browser: the WebSocket, commands and what comes back.
+
+    A thread reads everything the server sends as it comes, as a browser does: a client that stopped reading
+    would stop answering the server's pings too, and be dropped as a page whose connection was lost."""
 
     def __init__(self, server: PanelServer, **kwargs: Any) -> None:
         from websockets.sync.client import connect
@@ -78,18 +84,32 @@ class PageClient:
         self.page = hello["page"]
         self.label = hello["label"]
         self._next = 0
+        self._changed = threading.Condition()
         self.snapshots: dict[str, dict[str, Any]] = {}
+        self.replies: dict[Any, dict[str, Any]] = {}
         self.done: list[dict[str, Any]] = []
+        self._reader = threading.Thread(target=self._read, daemon=True)
+        self._reader.start()
 
-    def _take(self, message: dict[str, Any]) -> None:
-        if message["type"] == "update":
-            for snap in message["grippers"]:
-                self.snapshots[snap["name"]] = snap
-        elif message["type"] == "done":
-            self.done.append(message)
+    def _read(self) -> None:
+        try:
+            for text in self.ws:
+                message = json.loads(text)
+                with self._changed:
+                    if message["type"] == "update":
+                        for snap in message["grippers"]:
+                            name = snap["name"]
+                            self.snapshots[name] = {**self.snapshots.get(name, {}), **snap}
+                    elif message["type"] == "done":
+                        self.done.append(message)
+                    elif message["type"] == "reply":
+                        self.replies[message.get("id")] = message
+                    self._changed.notify_all()
+        except Exception:
+            pass
 
     def command(self, name: str, command: str, **args: Any) -> dict[str, Any]:
-        """Send one command; its reply (other messages are kept on the way)."""
+        """Send one command; its reply."""
         self._next += 1
         self.ws.send(json.dumps({"id": self._next, "name": name, "command": command, "args": args}))
         return self.reply(self._next)
@@ -98,24 +118,18 @@ class PageClient:
         self.ws.send(text)
 
     def reply(self, request_id: Any) -> dict[str, Any]:
-        deadline = time.monotonic() + 10
-        while time.monotonic() < deadline:
-            message = json.loads(self.ws.recv(timeout=10))
-            if message["type"] == "reply" and message.get("id") == request_id:
-                return dict(message)
-            self._take(message)
-        raise AssertionError(f"no reply to {request_id}")
+        with self._changed:
+            if not self._changed.wait_for(lambda: request_id in self.replies, timeout=10):
+                raise AssertionError(f"no reply to {request_id}")
+            return dict(self.replies.pop(request_id))
 
     def pump(self, seconds: float = 0.1) -> None:
-        end = time.monotonic() + seconds
-        while time.monotonic() < end:
-            try:
-                self._take(json.loads(self.ws.recv(timeout=max(0.01, end - time.monotonic()))))
-            except TimeoutError:
-                return
+        """Let ``seconds`` of updates come in."""
+        time.sleep(seconds)
 
     def close(self) -> None:
         self._connection.__exit__(None, None, None)
+        self._reader.join(5)
 
 
 @pytest.fixture
@@ -133,3 +147,38 @@ def page() -> Iterator[Callable[..., PageClient]]:
             p.close()
         except Exception:
             pass
+
+
+# -- the browser (tests marked ``browser``: Playwright is imported by these fixtures only) ----------------
+
+
+@pytest.fixture(scope="module")
+def chromium() -> Iterator[Any]:
+    from playwright.sync_api import sync_playwright  # the browser tests' own dependency
+
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=CHROMIUM, args=["--no-sandbox"])
+        try:
+            yield browser
+        finally:
+            browser.close()
+
+
+@pytest.fixture
+def tab(chromium: Any) -> Iterator[Callable[..., Tab]]:
+    """``tab(url)``: a new browser context (its own cookies) on the panel, loaded and connected."""
+    contexts: list[Any] = []
+
+    def open_(url: str, *, wait_connected: bool = True) -> Tab:
+        context = chromium.new_context(viewport={"width": 1280, "height": 900}, accept_downloads=True)
+        context.set_default_timeout(10_000)
+        contexts.append(context)
+        t = Tab(context.new_page())
+        t.response = t.page.goto(url)
+        if wait_connected:
+            t.page.get_by_text("connected as page").wait_for()
+        return t
+
+    yield open_
+    for c in contexts:
+        c.close()

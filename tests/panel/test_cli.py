@@ -1,5 +1,5 @@
-"""Issue 42 §1: ``grippers panel`` prints its address (``--json``: ``{"url": ...}`` first), serves, and stops on
-SIGTERM or Ctrl-C; ``grippers --help`` does not load the panel's web stack."""
+"""Issue 42 §1: ``grippers panel`` prints its address (``--json``: ``{"url": ...}`` first), serves, and
+stops on SIGTERM or Ctrl-C; ``grippers --help`` does not load the panel's web stack."""
 
 from __future__ import annotations
 
@@ -73,7 +73,8 @@ def test_help_does_not_load_the_web_stack() -> None:
         "            main(argv)\n"
         "        except SystemExit:\n"
         "            pass\n"
-        "print(sorted(m for m in ('starlette', 'uvicorn', 'websockets', 'grippers.panel') if m in sys.modules))\n"
+        "web = ('starlette', 'uvicorn', 'websockets', 'grippers.panel')\n"
+        "print(sorted(m for m in web if m in sys.modules))\n"
     )
     done = subprocess.run(
         [sys.executable, "-c", code], capture_output=True, text=True, timeout=60, env=os.environ

@@ -163,11 +163,11 @@ function bound(input, lo, hi) {
 function onUpdate(snaps) {
   for (const snap of snaps) {
     const card = cards.get(snap.name) || makeCard(snap);
-    card.snap = snap;
+    card.snap = { ...card.snap, ...snap }; // the identity and limits come only when they change
     const st = snap.state;
     if (st && (!card.history.length || card.history[card.history.length - 1].t !== st.t)) {
       const force = st.force_n !== null ? st.force_n : st.current_a;
-      card.history.push({ t: st.t, w: st.width_mm, f: force });
+      card.history.push({ t: st.t, w: st.width_mm, f: force, current: st.force_n === null });
       const oldest = st.t - WINDOW_S;
       while (card.history.length && card.history[0].t < oldest) card.history.shift();
     }
@@ -196,10 +196,12 @@ function drawChart(card) {
   const limits = card.snap.limits || {};
   const now = points[points.length - 1].t;
   const x = (t) => w - ((now - t) / WINDOW_S) * w;
+  const current = points[points.length - 1].current;
   const series = [
     ["w", "#2563eb", limits.max_width_mm || Math.max(...points.map((p) => p.w || 0), 1)],
-    ["f", "#d97706", limits.max_force_n || Math.max(...points.map((p) => p.f || 0), 1)],
+    ["f", "#d97706", (current ? limits.max_current_a : limits.max_force_n) || Math.max(...points.map((p) => p.f || 0), 1)],
   ];
+  card.node.querySelector(".legend .f").textContent = current ? "current (A)" : "force (N)";
   for (const [key, color, top] of series) {
     ctx.strokeStyle = color;
     ctx.lineWidth = 2;
