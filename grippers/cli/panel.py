@@ -106,3 +106,35 @@ def run(args: argparse.Namespace) -> int:
         for gripper in opened.values():
             gripper.close()
     return 0
+
+
+class ServedPanel:
+    """``grippers serve ... --http HOST:PORT``: the panel over the served grippers, as clients of the server.
+
+    The page drives each gripper through its ``zenoh://`` URL on this very server, never through the opened
+    device: a program that holds a gripper's lease keeps it (the page is refused, naming the holder), and
+    the page's own control takes the lease like any client's (its label ``panel``)."""
+
+    def __init__(self, args: argparse.Namespace, server: Any, names: list[str]) -> None:
+        import grippers
+
+        self.clients: dict[str, Any] = {}
+        self.panel: Any = None
+        try:
+            for name in names:
+                url = server.url(name)
+                self.clients[name] = grippers.open(f"{url}{'&' if '?' in url else '?'}label=panel")
+            self.panel = start_panel(args, self.clients, args.http)
+        except BaseException:
+            self.close()
+            raise
+
+    @property
+    def url(self) -> str:
+        return str(self.panel.url)
+
+    def close(self) -> None:
+        if self.panel is not None:
+            self.panel.close()
+        for client in self.clients.values():
+            client.close()

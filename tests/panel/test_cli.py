@@ -80,3 +80,56 @@ def test_help_does_not_load_the_web_stack() -> None:
         [sys.executable, "-c", code], capture_output=True, text=True, timeout=60, env=os.environ
     )
     assert done.stdout.strip() == "[]", done.stderr
+
+
+def test_serve_http_adds_the_panel_through_the_served_lease() -> None:
+    """``serve --http``: the panel's address in --json; the page drives the grippers as a client of the
+    server, so a program holding the lease keeps it."""
+    pytest.importorskip("zenoh")
+    import grippers
+
+    from .conftest import PageClient, wait_for
+
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "grippers",
+            "serve",
+            "left=sim://wsg50?time_scale=20",
+            "--listen",
+            "tcp/127.0.0.1:0",
+            "--http",
+            "127.0.0.1:0",
+            "--json",
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        doc = json.loads(proc.stdout.readline())  # type: ignore[union-attr]
+        assert doc["schema"] == "grippers.serve/1" and doc["panel"].startswith("http://127.0.0.1:")
+        listing = httpx.get(doc["panel"] + "api/grippers", timeout=5).json()["grippers"]
+        assert [g["name"] for g in listing] == ["left"] and listing[0]["remote"] is True
+        with grippers.open(doc["grippers"][0]["url"] + "&label=robot") as robot:
+            robot.acquire_control()
+
+            class _Server:  # PageClient needs the panel's port only
+                port = int(doc["panel"].rsplit(":", 1)[1].strip("/"))
+                token = None
+
+            page = PageClient(_Server())  # type: ignore[arg-type]
+            try:
+                page.command("left", "home")  # started; the server's refusal ends it
+                (refused,) = wait_for(lambda: page.done, "the home's outcome")
+                assert refused["error"] == "AccessDenied" and "robot" in refused["message"], refused
+                assert page.command("left", "stop")["ok"]  # never refused
+                robot.release_control()
+                assert page.command("left", "home")["ok"]
+            finally:
+                page.close()
+    finally:
+        proc.send_signal(signal.SIGTERM)
+        out, err = proc.communicate(timeout=30)
+    assert proc.returncode == 0, err
