@@ -22,7 +22,7 @@ from typing import Any
 
 from ..cli.output import info_dict, limits_dict, state_dict
 from ..errors import GripperError, LimitError
-from ..gripper import Gripper, GripperState
+from ..gripper import Capability, Gripper, GripperState
 from .control import Control, Page
 from .recording import PanelRecording
 
@@ -42,6 +42,7 @@ ARGS = {
     "record": ("on",),
 }
 MOTIONS = frozenset({"home", "move", "jog", "grasp", "release"})
+TEMPERATURE_EVERY = 50  # states (2 s at 25 Hz): a temperature changes slowly and costs an exchange
 
 Tell = Callable[[str, dict[str, Any]], None]  # (page id, message): a message for one page
 
@@ -78,6 +79,8 @@ class GripperSession:
         self.state: dict[str, Any] | None = None
         self.moving = False
         self.info: dict[str, Any] | None = None
+        self.temperature: float | None = None  # °C, where the device reports it
+        self._states = 0
         self.connected = gripper.connected
         self.lost: str | None = None
         self._stream: Any = None
@@ -105,6 +108,7 @@ class GripperSession:
             "connected": self.connected,
             "lost": self.lost,
             "state": self.state,
+            "temperature_c": self.temperature,
             "controller": None if holder is None else {"id": holder.id, "label": holder.label},
             "recording": self._recording.running,
             "downloads": self._recording.downloads,
@@ -117,7 +121,17 @@ class GripperSession:
     def _on_state(self, st: GripperState) -> None:
         self.moving = st.moving
         self.state = {**state_dict(st), "t": st.timestamp}
+        if self._states % TEMPERATURE_EVERY == 0 and Capability.TEMPERATURE in self.gripper.capabilities:
+            # not on this thread: a zenoh:// gripper calls back from Zenoh's, where a query must not wait
+            threading.Thread(target=self._read_temperature, name="grippers-panel-temp", daemon=True).start()
+        self._states += 1
         self._bump()
+
+    def _read_temperature(self) -> None:
+        try:
+            self.temperature = round(self.gripper.temperature(), 1)
+        except GripperError:
+            self.temperature = None
 
     def _open_stream(self, rate_hz: float = 25.0) -> None:
         try:

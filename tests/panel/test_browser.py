@@ -57,6 +57,9 @@ def test_the_page_loads_without_console_errors(opened, serve, tab) -> None:
     expect(t.readout("left", "Force")).to_have_text(re.compile(r"^\d+\.\d N$"))
     expect(t.readout("right", "Force")).to_have_text(re.compile(r"^\d+\.\d\d A$"))  # the MSG reports current
     expect(t.readout("left", "Faults")).to_have_text("none")
+    expect(t.readout("left", "Speed")).to_have_text(re.compile(r"^\d+\.\d mm/s$"))
+    expect(t.readout("left", "Temperature")).to_have_text(re.compile(r"^\d+\.\d °C$"))  # the WSG reports it
+    expect(t.readout("right", "Temperature")).to_have_text(re.compile(r"^\d+\.\d °C$"))  # the MSG's driver
     expect(t.card("left").get_by_label("Width (mm)", exact=True)).to_have_attribute("max", "110")
     expect(t.card("left")).to_contain_text("WSG 50")
     expect(t.card("left")).to_contain_text("serial 12345")
@@ -230,6 +233,8 @@ def test_four_grippers_on_one_page(opened, serve, tab, tmp_path: Path) -> None:
     t.press("hand", "Move")
     wait_for(lambda: abs(named["hand"].state().width - 0.040) < 1e-3, "the 2F-85 moved")
     expect(t.readout("hand", "Width")).to_have_text(re.compile(r"^(39\.\d|40\.\d) mm$"))
+    expect(t.readout("hand", "Temperature")).to_be_hidden()  # the Robotiq reports none
+    expect(t.readout("hand", "Speed")).to_have_text("not reported")
     time.sleep(1.5)  # some history on the charts
     # GRIPPERS_PANEL_SCREENSHOT=docs/images/panel.png renews the documentation's picture
     shot = os.environ.get("GRIPPERS_PANEL_SCREENSHOT") or str(tmp_path / "panel.png")

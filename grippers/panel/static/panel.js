@@ -128,6 +128,7 @@ function render(card) {
   const st = snap.state;
   if (st) {
     card.out("width").textContent = fmt(st.width_mm, 1, "mm");
+    card.out("speed").textContent = fmt(st.speed_mm_s, 1, "mm/s");
     card.out("force").textContent = st.force_n !== null ? fmt(st.force_n, 1, "N")
       : st.current_a !== null ? fmt(st.current_a, 2, "A") : "not reported";
     const flags = [st.grasp_state];
@@ -136,6 +137,9 @@ function render(card) {
     card.out("state").textContent = flags.join(", ");
     card.out("faults").textContent = st.faults.length ? st.faults.join(", ") : "none";
   }
+  const hot = snap.temperature_c;
+  node.querySelector(".temperature").hidden = hot === null || hot === undefined;
+  if (!node.querySelector(".temperature").hidden) card.out("temperature").textContent = fmt(hot, 1, "°C");
   const limits = snap.limits;
   if (limits) {
     bound(card.input("width_mm"), limits.min_width_mm, limits.max_width_mm);
