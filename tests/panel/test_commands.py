@@ -7,6 +7,7 @@ from __future__ import annotations
 import csv
 import io
 import time
+from typing import Any
 
 import httpx
 
@@ -75,14 +76,19 @@ def test_one_page_controls_others_observe_and_may_stop(opened, serve, page) -> N
     assert first.snapshots["left"]["controller"] == {"id": second.page, "label": second.label}
 
 
+def _closing_from(p: Any, g: Any, speed_mm_s: float) -> None:
+    """``p`` homes ``g`` and sets it closing from 110 mm at ``speed_mm_s`` (real time)."""
+    assert p.command("left", "home")["ok"]
+    wait_for(lambda: g.state().referenced and not g.state().moving, "homed", timeout=30)
+    assert p.command("left", "move", width_mm=0, speed_mm_s=speed_mm_s)["ok"]
+    wait_for(lambda: g.state().moving, "moving")
+
+
 def test_a_controlling_page_gone_mid_motion_stops_the_jaws(opened, serve, page) -> None:
     g = opened("sim://wsg50")  # real time: a 100 mm move at 5 mm/s lasts 20 s
     server = serve({"left": g})
     observer, p = page(server), page(server)
-    assert p.command("left", "home")["ok"]
-    wait_for(lambda: g.state().referenced and not g.state().moving, "homed", timeout=30)
-    assert p.command("left", "move", width_mm=0, speed_mm_s=5)["ok"]
-    wait_for(lambda: g.state().moving, "moving")
+    _closing_from(p, g, 5)
     p.close()
     gone = time.monotonic()
     wait_for(lambda: not g.state().moving, "stopped after the page left", timeout=5)
@@ -99,10 +105,7 @@ def test_an_observer_leaving_stops_nothing(opened, serve, page) -> None:
     g = opened("sim://wsg50")
     server = serve({"left": g})
     p, observer = page(server), page(server)
-    assert p.command("left", "home")["ok"]
-    wait_for(lambda: g.state().referenced and not g.state().moving, "homed", timeout=30)
-    assert p.command("left", "move", width_mm=0, speed_mm_s=20)["ok"]
-    wait_for(lambda: g.state().moving, "moving")
+    _closing_from(p, g, 20)
     observer.close()
     time.sleep(0.5)
     assert g.state().moving
@@ -117,6 +120,7 @@ def test_record_then_download_csv_and_mcap(opened, serve, page) -> None:
     assert p.snapshots["left-1"]["recording"] is True
     assert p.command("left-1", "home")["ok"]
     wait_for(lambda: g.state().referenced and not g.state().moving, "homed")
+    time.sleep(0.2)  # the recorder samples at 50 Hz: the homed jaws in it too
     assert p.command("left-1", "record", on=False)["ok"]
     p.pump(0.1)
     snap = p.snapshots["left-1"]
