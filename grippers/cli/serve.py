@@ -66,7 +66,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="stop the motion of a controlling client that vanished or went silent within this long, "
         "whatever Zenoh lease it announced (default 1)",
     )
-    from .panel import add_http_arguments  # the panel's options: --http HOST:PORT, --token, --tls-*
+    from grippers.panel.launch import add_http_arguments  # --http HOST:PORT, --token, --tls-*: docs/panel.md
 
     add_http_arguments(parser, "--http", "also serve the panel (docs/panel.md) on HOST:PORT (port 0: free)")
     parser.add_argument(
@@ -173,7 +173,7 @@ def run(args: argparse.Namespace) -> int:
             raise UsageError(str(exc)) from None
         server.start()
         if args.http:
-            from .panel import ServedPanel
+            from grippers.panel.launch import ServedPanel
 
             panel = ServedPanel(args, server, list(opened))
         if args.json:

@@ -73,7 +73,7 @@ def test_help_does_not_load_the_web_stack() -> None:
         "            main(argv)\n"
         "        except SystemExit:\n"
         "            pass\n"
-        "web = ('starlette', 'uvicorn', 'websockets', 'grippers.panel')\n"
+        "web = ('starlette', 'uvicorn', 'websockets', 'grippers.panel.server', 'grippers.panel.app')\n"
         "print(sorted(m for m in web if m in sys.modules))\n"
     )
     done = subprocess.run(
