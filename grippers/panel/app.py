@@ -130,6 +130,9 @@ class Panel:
             del self.pages[page.id]
             sender.cancel()
             log.info("%s left", page.label)
+            # Its last commands first: a motion sent just before the page closed must not start after the
+            # deadman looked, under a page that is gone.
+            await asyncio.gather(*tasks, return_exceptions=True)
             loop = asyncio.get_running_loop()
             await asyncio.gather(
                 *(loop.run_in_executor(self.pool, s.page_left, page) for s in self.sessions.values())

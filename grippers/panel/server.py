@@ -24,7 +24,7 @@ import uvicorn
 
 from ..errors import URLError
 from ..gripper import Gripper
-from .app import Panel, make_app
+from .app import MAX_MESSAGE, Panel, make_app
 from .security import Guard, is_loopback, new_token
 
 log = logging.getLogger("grippers.panel")
@@ -82,6 +82,7 @@ class PanelServer:
                 lifespan="off",
                 ws_ping_interval=PING_INTERVAL_S,
                 ws_ping_timeout=PING_TIMEOUT_S,
+                ws_max_size=MAX_MESSAGE,  # a larger frame closes the connection unread
                 ssl_certfile=certfile,
                 ssl_keyfile=keyfile,
                 timeout_graceful_shutdown=1,

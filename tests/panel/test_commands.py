@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import csv
 import io
+import json
 import time
 from typing import Any
 
@@ -143,3 +144,21 @@ def test_updates_carry_identity_limits_and_state(opened, serve, page) -> None:
     assert left["limits"]["max_width_mm"] == 110.0
     assert right["info"]["family"] == "stepfoc"
     assert right["state"]["force_n"] is None and right["state"]["current_a"] is not None
+
+
+def test_a_page_closed_right_after_its_command_leaves_nothing_moving(opened, serve, page) -> None:
+    """The command still in flight when the page goes is carried out before the deadman looks, so the motion
+    it starts is stopped, not left running under a page that is gone."""
+    g = opened("sim://wsg50")
+    g.home()
+    server = serve({"left": g})
+    observer = page(server)
+    for _ in range(3):
+        p = page(server)
+        p.send_raw(
+            json.dumps({"id": 1, "name": "left", "command": "move", "args": {"width_mm": 0, "speed_mm_s": 5}})
+        )
+        p.close()
+        time.sleep(1.0)
+        assert not g.state().moving
+        assert observer.snapshots["left"]["controller"] is None
