@@ -6,7 +6,7 @@ What crosses, and how (docs/panel.md):
 - ``GET /api/grippers``: every gripper's snapshot (read only). ``GET /api/grippers/NAME/recording.csv`` (or
   ``.mcap``): the last finished recording. No GET acts on a gripper.
 - ``/ws``: the WebSocket each page opens. The server sends ``hello`` (the page's id, the server's choice),
-  then ``update`` with the snapshots that changed (``STATE_HZ`` times a second at most), ``reply`` to each
+  then ``update`` with the snapshots that changed (grippers/panel/pump.py), ``reply`` to each
   command, ``done`` when a motion the page started ends. The page sends commands: ``{"id": N, "name": GRIPPER,
   "command": "move", "args": {"width_mm": 40, "speed_mm_s": 50}}``. Commands travel nowhere else.
 
@@ -20,7 +20,6 @@ import itertools
 import json
 import logging
 import secrets
-import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
@@ -34,29 +33,14 @@ from starlette.websockets import WebSocket, WebSocketDisconnect
 
 from ..gripper import Gripper
 from .control import Page
+from .pump import PageLink, pump
 from .session import GripperSession
 
 log = logging.getLogger("grippers.panel")
 
 STATIC = Path(__file__).resolve().parent / "static"
-STATE_HZ = 30.0  # snapshots to each page at most this often (the issue asks 20 Hz or more)
 MAX_MESSAGE = 64 * 1024  # a command document larger than this is refused unread
 MEDIA = {"csv": "text/csv", "mcap": "application/octet-stream"}
-
-
-class PageLink:
-    """A connected page's outbox: messages from any thread, sent by the page's own task."""
-
-    def __init__(self, page: Page, loop: asyncio.AbstractEventLoop) -> None:
-        self.page = page
-        self.loop = loop
-        self.queue: asyncio.Queue[dict[str, Any]] = asyncio.Queue()
-
-    def post(self, message: dict[str, Any]) -> None:
-        try:
-            self.loop.call_soon_threadsafe(self.queue.put_nowait, message)
-        except RuntimeError:  # the loop has closed: the page is gone
-            pass
 
 
 class Panel:
@@ -113,7 +97,7 @@ class Panel:
         link = PageLink(page, asyncio.get_running_loop())
         self.pages[page.id] = link
         log.info("%s connected", page.label)
-        sender = asyncio.create_task(self._send(ws, link))
+        sender = asyncio.create_task(pump(ws, link, self.sessions))
         tasks: set[asyncio.Task[None]] = set()
         try:
             await ws.send_json(
@@ -160,33 +144,6 @@ class Panel:
         loop = asyncio.get_running_loop()
         reply = await loop.run_in_executor(self.pool, session.run, link.page, command, args)
         link.post({"type": "reply", "id": request_id, "name": name, "command": command, **reply})
-
-    async def _send(self, ws: WebSocket, link: PageLink) -> None:
-        """The page's one writer: queued messages at once, changed snapshots every tick."""
-        seen: dict[str, int] = {}
-        seen_info: dict[str, int] = {}
-        period = 1.0 / STATE_HZ
-        next_tick = time.monotonic()
-        try:
-            while True:
-                try:
-                    message = await asyncio.wait_for(link.queue.get(), max(0.0, next_tick - time.monotonic()))
-                    await ws.send_text(json.dumps(message))
-                    continue
-                except TimeoutError:
-                    pass
-                next_tick = max(next_tick + period, time.monotonic())
-                changed = [
-                    s.snapshot(identity=seen_info.get(n) != s.info_seq)
-                    for n, s in self.sessions.items()
-                    if seen.get(n) != s.seq
-                ]
-                for snap in changed:
-                    seen[snap["name"]], seen_info[snap["name"]] = snap["seq"], snap["info_seq"]
-                if changed:
-                    await ws.send_text(json.dumps({"type": "update", "grippers": changed}))
-        except (WebSocketDisconnect, RuntimeError, OSError):
-            pass  # the page went; the receiving side cleans up
 
     def routes(self) -> list[Any]:
         return [
