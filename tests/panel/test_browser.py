@@ -195,7 +195,7 @@ def test_a_page_closed_mid_motion_stops_the_jaws(opened, serve, tab) -> None:
     t.page.close()
     closed = time.monotonic()
     wait_for(lambda: not g.state().moving, "stopped once the page closed", timeout=5)
-    assert time.monotonic() - closed < 1.0
+    assert time.monotonic() - closed < 1.5  # the 1 s, and a state read and a stop on a busy machine
     assert model(g).position > 50.0
 
 
