@@ -17,6 +17,7 @@ import time
 import traceback
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
@@ -44,7 +45,15 @@ def _targets() -> dict[int, Callable[[bool], list[Result]]]:
         13: aio.run,  # issue 20 §2: the asyncio face's state() against the threaded one
         14: robotiq.run,  # issue 29 §5: a Robotiq poll's CPU against its wire time, servo over a pty
         15: _ros2_node,  # issue 34 §6: a goal through `grippers ros2` against a bare rclpy server
+        16: lambda quick: [_panel().state_load(quick)],  # issue 42 §5: the panel's states and CPU
+        17: lambda quick: [_panel().stop_click(quick)],  # issue 42 §5: a click on Stop to the device
     }
+
+
+def _panel() -> Any:
+    from benchmarks import panel
+
+    return panel
 
 
 def _servo(quick: bool) -> list[Result]:

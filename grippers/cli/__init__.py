@@ -39,6 +39,7 @@ SUBCOMMANDS: dict[str, str] = {
     "sim": ".sim",
     "doctor": ".doctor",
     "serve": ".serve",
+    "panel": ".panel",
     "ros2": ".ros2_cmd",
 }
 

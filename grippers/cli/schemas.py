@@ -300,6 +300,7 @@ class ServeDocument(_Strict):
 
     schema_: Literal["grippers.serve/1"] = Field(alias="schema")
     grippers: list[ServedGripper]
+    panel: str | None = Field(None, description="the panel's address, with --http (docs/panel.md)")
 
 
 class PlottedRecording(_Strict):

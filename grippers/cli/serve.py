@@ -66,6 +66,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="stop the motion of a controlling client that vanished or went silent within this long, "
         "whatever Zenoh lease it announced (default 1)",
     )
+    from grippers.panel.launch import add_http_arguments  # --http HOST:PORT, --token, --tls-*: docs/panel.md
+
+    add_http_arguments(parser, "--http", "also serve the panel (docs/panel.md) on HOST:PORT (port 0: free)")
     parser.add_argument(
         "--log-file",
         metavar="PATH",
@@ -144,7 +147,7 @@ def run(args: argparse.Namespace) -> int:
     opened: dict[str, Any] = {}
     stop = threading.Event()
     signal.signal(signal.SIGTERM, lambda *_: stop.set())
-    server = None
+    server = panel = None
     handler = start_logging(args.log_file)
     log = logging.getLogger("grippers.remote")
     try:
@@ -169,12 +172,17 @@ def run(args: argparse.Namespace) -> int:
         except ValueError as exc:
             raise UsageError(str(exc)) from None
         server.start()
+        if args.http:
+            from grippers.panel.launch import ServedPanel
+
+            panel = ServedPanel(args, server, list(opened))
         if args.json:
             listing = [
                 {"name": n, "model": g.profile.model, "target": g.url, "url": server.url(n)}
                 for n, g in opened.items()
             ]
-            write_json({"schema": "grippers.serve/1", "grippers": listing})
+            panel_url = {"panel": panel.url} if panel is not None else {}
+            write_json({"schema": "grippers.serve/1", "grippers": listing, **panel_url})
         for name, gripper in opened.items():
             if not args.json:
                 print(
@@ -184,12 +192,16 @@ def run(args: argparse.Namespace) -> int:
             log.info(
                 "serving %s (%s at %s) at %s", name, gripper.profile.model, gripper.url, server.url(name)
             )
+        if panel is not None and not args.json:
+            print(f"panel at {panel.url}", flush=True)
         print("press Ctrl-C to stop", file=sys.stderr, flush=True)
         while not stop.wait(0.5):
             pass
         log.info("SIGTERM: withdrawing and closing")
     finally:
         # Ctrl-C leaves through here too: the CLI's own handler then says "interrupted" and exits 130.
+        if panel is not None:
+            panel.close()
         if server is not None:
             server.close()  # closes every gripper
         else:
