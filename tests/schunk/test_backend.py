@@ -136,3 +136,13 @@ def test_grippers_sim_schunk_prints_its_url_first() -> None:
     finally:
         proc.terminate()
         proc.wait(10)
+
+
+def test_the_getting_started_example_runs_as_printed() -> None:
+    from pathlib import Path
+
+    page = (Path(__file__).resolve().parents[2] / "docs" / "getting-started-schunk.md").read_text()
+    block = page.split("```python\n", 1)[1].split("```", 1)[0]
+    out = subprocess.run([sys.executable, "-c", block], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.split() == ["True", "40.0"]
