@@ -24,6 +24,9 @@ from .protocol import CodecError, from_hex, inst_text, padded, parameter
 Trace = Callable[[str, bytes], None]
 
 
+_READ_PATHS: dict[int, str] = {}  # inst -> the GET's path: built once, a poll is one lookup
+
+
 class WebLink:
     """Reads and writes of parameters over HTTP. Thread-safe: one request at a time on the connection."""
 
@@ -111,8 +114,10 @@ class WebLink:
 
     def read(self, inst: int, command: str) -> bytes:
         """The instance's bytes, padded to the parameter's size as SCHUNK's driver pads them."""
-        query = urlencode({"inst": inst_text(inst), "count": "1"})
-        status, data = self.request("GET", f"/adi/data.json?{query}", None, command)
+        path = _READ_PATHS.get(inst) or _READ_PATHS.setdefault(
+            inst, f"/adi/data.json?{urlencode({'inst': inst_text(inst), 'count': '1'})}"
+        )
+        status, data = self.request("GET", path, None, command)
         self._status(status, command)
         try:
             values = json.loads(data)
