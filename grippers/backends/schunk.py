@@ -74,6 +74,15 @@ def device_error(reading: ProcessInput, *, device: str, command: str) -> Gripper
     )
 
 
+def firmware_version(text: str) -> str | None:
+    """The unit's ``sw_version_txt`` (``5.3.0.90971``: version and build) as the library writes versions,
+    ``5.3.0-90971``; a text of another shape is kept as it is."""
+    parts = text.split(".")
+    if len(parts) == 4 and all(p.isdigit() for p in parts):
+        return f"{'.'.join(parts[:3])}-{parts[3]}"
+    return text or None
+
+
 class SchunkDevice(Device):
     """One unit in SI units (positions: the distance between the jaws). It keeps its fast stop (0xD9) until
     acknowledged, but home() acknowledges the power-up fast stop, so the gripper's latch is the one for
@@ -310,13 +319,14 @@ class SchunkDevice(Device):
             vendor=prof.vendor,
             model=prof.model,
             serial=str(p.get("serial_no_txt") or "") or None,
-            firmware=str(p.get("sw_version_txt") or "") or None,
+            firmware=firmware_version(str(p.get("sw_version_txt") or "")),
             hardware=None,
             limits=self.narrow_limits(prof.limits()),
             url=self.url,
             profile=prof.name,
             extra={
                 "module_type": self.client.module_type,
+                "firmware_text": p.get("sw_version_txt"),
                 "fieldbus": self.client.fieldbus.short,
                 "gpe_available": self.client.gpe_available,
                 "gpe": self.gpe,

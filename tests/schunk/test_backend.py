@@ -19,8 +19,9 @@ def test_open_reads_the_unit_and_never_clears_its_power_up_error(schunk_sim) -> 
         st = g.state()
         assert st.faults == ("ERR_FAST_STOP",) and not st.referenced
         info = g.info()
-        assert (info.model, info.serial, info.firmware) == ("EGU 60", "SIM00001", "5.3.0.90971")
+        assert (info.model, info.serial, info.firmware) == ("EGU 60", "SIM00001", "5.3.0-90971")
         assert info.extra["module_type"] == "EGU_60_M_B" and info.extra["fieldbus"] == "EI"
+        assert info.extra["firmware_text"] == "5.3.0.90971"  # as the unit writes it
         assert (g.limits.min_width, g.limits.max_width, g.limits.max_force) == (0.0, 0.12, 650.0)
         with pytest.raises(FastStopActive, match="ERR_FAST_STOP"):
             g.move(0.05)  # the unit refuses it (only the toggle), and says why
