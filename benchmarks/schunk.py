@@ -16,7 +16,6 @@ from __future__ import annotations
 import argparse
 import http.client
 import os
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -24,7 +23,7 @@ from pathlib import Path
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from benchmarks.common import REPO, Result
+from benchmarks.common import Result, SimChild
 from grippers.drivers import modbus
 from grippers.drivers.links import ByteLink
 from grippers.drivers.schunk.protocol import PLC_INPUT, ProcessInput, Status
@@ -34,27 +33,6 @@ BITS_PER_CHAR = 11  # 8E1: start, 8 data, parity, stop
 HTTP_RATIO_TARGET = 1.5
 RTU_FRACTION_TARGET = 0.10
 SCHUNK_POLL_HZ = 20.0  # SCHUNK's driver: update_cycle 0.05 s
-
-
-class _Child:
-    """The simulator (web API) in a child process: ``.url``; ``close()`` ends it."""
-
-    def __init__(self) -> None:
-        cmd = [sys.executable, str(REPO / "benchmarks" / "schunk.py"), "--serve-http"]
-        self._proc = subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
-        assert self._proc.stdout is not None
-        self.url = self._proc.stdout.readline().strip()
-        if not self.url.startswith("schunk+http://"):
-            self._proc.kill()
-            raise RuntimeError(f"simulator child did not start: {self.url!r}")
-
-    def close(self) -> None:
-        assert self._proc.stdin is not None
-        self._proc.stdin.close()
-        try:
-            self._proc.wait(10)
-        except subprocess.TimeoutExpired:
-            self._proc.kill()
 
 
 def _best(polls: int, call) -> tuple[float, float]:  # noqa: ANN001 - a zero-argument callable
@@ -73,9 +51,9 @@ def http_poll(polls: int) -> tuple[float, float, float]:
     """(our CPU per state(), the bare GET's CPU, our wall time per state()) against the child simulator."""
     import grippers
 
-    child = _Child()
+    child = SimChild("schunk.py", "--serve-http", "schunk+http://")
     try:
-        host, _, port = child.url.removeprefix("schunk+http://").rpartition(":")
+        host, _, port = child.where.removeprefix("schunk+http://").rpartition(":")
         bare = http.client.HTTPConnection(host, int(port), timeout=1.0)
 
         def get() -> None:
@@ -84,7 +62,7 @@ def http_poll(polls: int) -> tuple[float, float, float]:
 
         base_cpu, _ = _best(polls, get)
         bare.close()
-        with grippers.open(child.url) as g:
+        with grippers.open(child.where) as g:
             cpu, wall = _best(polls, g.state)
         return cpu, base_cpu, wall
     finally:

@@ -417,6 +417,15 @@ class SchunkBackend:
         "         grippers sim schunk --listen pty --model egk-25"
     )
 
+    def probe_candidates(self, transport: str, where: ConnectionURL, options: dict[str, Any]) -> list[Any]:
+        """``grippers probe`` on a bare serial port: Modbus RTU at SCHUNK's device id 12 (the unit's module
+        type, 0x0500, then says which gripper it is)."""
+        from . import ProbeCandidate
+
+        if transport != "serial" or not where.serial_port:
+            return []
+        return [ProbeCandidate(f"schunk+serial://{where.serial_port}", order=40)]
+
     def open(self, url: ConnectionURL, profile: ProfileBase | None, settings: Settings) -> Gripper:
         from ..profiles import load_profile
 

@@ -147,3 +147,16 @@ def test_the_getting_started_example_runs_as_printed() -> None:
     out = subprocess.run([sys.executable, "-c", block], capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr
     assert out.stdout.split() == ["True", "40.0"]
+
+
+def test_probe_finds_a_unit_on_a_bare_serial_port(schunk_sim) -> None:
+    """``grippers probe /dev/ttyUSB0``: the unit at id 12 answers, and its module type names the model."""
+    server = schunk_sim("schunk-egk-25", "pty")
+    proc = subprocess.run(
+        [sys.executable, "-m", "grippers", "probe", server.path, "--json", "--timeout", "0.3"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert "schunk+serial://" + server.path in proc.stdout, (proc.stdout, proc.stderr)
+    assert "EGK 25" in proc.stdout
