@@ -417,6 +417,15 @@ class SchunkBackend:
         "         grippers sim schunk --listen pty --model egk-25"
     )
 
+    def dissector(self) -> Any:
+        """``grippers monitor``: a unit's Modbus RTU frames (a capture or stdin), instances named and the
+        process data decoded."""
+        from grippers.drivers.schunk.dissect import PROTOCOL, SchunkDissector
+
+        from . import Dissector
+
+        return Dissector(PROTOCOL, stream=SchunkDissector)
+
     def probe_candidates(self, transport: str, where: ConnectionURL, options: dict[str, Any]) -> list[Any]:
         """``grippers probe`` on a bare serial port: Modbus RTU at SCHUNK's device id 12 (the unit's module
         type, 0x0500, then says which gripper it is)."""

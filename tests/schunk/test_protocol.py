@@ -102,3 +102,25 @@ def test_grip_outcomes_and_names() -> None:
     assert t.outcome(ProcessInput(received | Status.NOT_FEASIBLE, 0, 0, 0, 0)) is Outcome.NOT_FEASIBLE
     assert error_name(0xD9) == "ERR_FAST_STOP" and error_name(0xEF) == "error 0xEF"
     assert profile_name("EGU_60_M_B") == "schunk-egu-60" and profile_name("EGK_25_N_SD") == "schunk-egk-25"
+
+
+def test_the_monitor_reads_a_command_and_a_status_poll() -> None:
+    from grippers.drivers import modbus
+    from grippers.drivers.dissect import FROM_GRIPPER, TO_GRIPPER
+    from grippers.drivers.schunk.dissect import SchunkDissector
+    from grippers.drivers.schunk.rtu import registers_of
+
+    d = SchunkDissector()
+    word = ControlWord(Control.FAST_STOP_OFF | Control.MOVE_ABSOLUTE, 50_000, 20_000, 0).encode(
+        Fieldbus.MODBUS
+    )
+    (rec,) = d.feed(TO_GRIPPER, modbus.write_request(12, 0x0047, registers_of(word)), None)
+    assert rec["text"] == (
+        "id 12 write 0x0048 plc_sync_output: FAST_STOP_OFF|MOVE_ABSOLUTE target 50000 um at 20000 um/s, "
+        "force 0 %"
+    )
+    (rec,) = d.feed(TO_GRIPPER, modbus.read_request(12, 0x003F, 8), None)
+    assert rec["text"] == "id 12 read 0x0040 plc_sync_input x8"
+    status = ProcessInput(Status.ERROR, 251, ERR_FAST_STOP, 0, 0).encode(Fieldbus.MODBUS)
+    (rec,) = d.feed(FROM_GRIPPER, modbus.read_response(12, 3, registers_of(status)), None)
+    assert rec["text"] == "id 12: 0x0040 plc_sync_input = ERROR at 251 um ERR_FAST_STOP"
