@@ -10,6 +10,7 @@ Units are the unit's: µm, µm/s, % of the maximum gripping force; the backend c
 
 from __future__ import annotations
 
+import logging
 from typing import Protocol
 
 from ..errors import CommandFailed, ProtocolError
@@ -97,6 +98,7 @@ class SchunkClient:
     def read_parameter(self, name: str, command: str) -> float | int | str | bool:
         p = BY_NAME[name]
         data = self.link.read(p.inst, command)
+        self._logged(p.inst, data, write=False)
         try:
             return decode(p.inst, data, self.fieldbus)
         except CodecError as exc:
@@ -105,8 +107,21 @@ class SchunkClient:
     def write_raw(self, name: str, data: bytes, command: str) -> None:
         self.link.write(BY_NAME[name].inst, data, command)
 
+    def _logged(self, inst: int, data: bytes, *, write: bool) -> None:
+        from ..dissect import wire_log
+
+        if wire_log.isEnabledFor(logging.DEBUG):
+            from .dissect import log_exchange
+
+            log_exchange(self.device, self.transport, inst, data, self.fieldbus, write=write)
+
+    @property
+    def transport(self) -> str:
+        return "rtu" if type(self.link).__name__ == "RtuLink" else "http"
+
     def read_input(self, command: str) -> ProcessInput:
         data = self.link.read(PLC_INPUT, command)
+        self._logged(PLC_INPUT, data, write=False)
         try:
             return ProcessInput.decode(data, self.fieldbus)
         except CodecError as exc:
@@ -117,6 +132,7 @@ class SchunkClient:
             data = word.encode(self.fieldbus)
         except CodecError as exc:
             raise ProtocolError(str(exc), device=self.device, command=command) from None
+        self._logged(PLC_OUTPUT, data, write=True)
         self.link.write(PLC_OUTPUT, data, command)
 
     def start(self, word: ControlWord, kind: str, command: str) -> CommandTracker:

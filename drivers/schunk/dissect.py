@@ -8,7 +8,7 @@ from __future__ import annotations
 from typing import Any
 
 from .. import modbus
-from ..dissect import FROM_GRIPPER, TO_GRIPPER, record
+from ..dissect import FROM_GRIPPER, TO_GRIPPER, log_record, record
 from .protocol import (
     PARAMETERS,
     PLC_INPUT,
@@ -17,6 +17,7 @@ from .protocol import (
     ControlWord,
     Fieldbus,
     ProcessInput,
+    decode,
     error_name,
 )
 from .rtu import bytes_of
@@ -33,18 +34,20 @@ def _flags(value: Any) -> str:
     return "|".join(f.name or "" for f in type(value) if f in value and f.value) or "-"
 
 
-def _input_text(data: bytes) -> str:
+def input_text(data: bytes, fieldbus: Fieldbus = Fieldbus.MODBUS) -> str:
+    """0x0040 as a line: the status bits, the position and the error."""
     try:
-        pi = ProcessInput.decode(data, Fieldbus.MODBUS)
+        pi = ProcessInput.decode(data, fieldbus)
     except CodecError:
         return data.hex(" ")
     error = f" {error_name(pi.error)}" if pi.error else ""
     return f"{_flags(pi.status)} at {pi.position_um} um{error}"
 
 
-def _output_text(data: bytes) -> str:
+def output_text(data: bytes, fieldbus: Fieldbus = Fieldbus.MODBUS) -> str:
+    """0x0048 as a line: the command bits and the targets."""
     try:
-        word = ControlWord.decode(data, Fieldbus.MODBUS)
+        word = ControlWord.decode(data, fieldbus)
     except CodecError:
         return data.hex(" ")
     fast_stop = "" if word.control & 1 else " FAST STOP (bit 0 low)"
@@ -77,7 +80,7 @@ class SchunkDissector:
         inst = req.address + 1
         if req.function == modbus.WRITE_MULTIPLE:
             data = bytes_of(req.values)
-            detail = _output_text(data) if inst == PLC_OUTPUT else data.hex(" ")
+            detail = output_text(data) if inst == PLC_OUTPUT else data.hex(" ")
             text = f"id {req.slave} write {_name(inst)}: {detail}"
         else:
             self._last_read = inst
@@ -102,7 +105,7 @@ class SchunkDissector:
             text = f"id {rep.slave}: {_name(rep.address + 1)} written"
         else:
             data, inst = bytes_of(rep.values), self._last_read
-            detail = _input_text(data) if inst == PLC_INPUT else data.hex(" ")
+            detail = input_text(data) if inst == PLC_INPUT else data.hex(" ")
             text = f"id {rep.slave}: {_name(inst) if inst is not None else 'read'} = {detail}"
         return record(
             time=stamp,
@@ -114,3 +117,26 @@ class SchunkDissector:
             text=text,
             raw=rep.raw.hex(),
         )
+
+
+def log_exchange(
+    device: str, transport: str, inst: int, data: bytes, fieldbus: Fieldbus, *, write: bool
+) -> None:
+    """One parameter read or write to the ``grippers.wire`` logger (``-vv``), decoded: what went to the unit
+    and what came back, on either transport (the caller checks that DEBUG is on)."""
+    if inst == PLC_INPUT:
+        detail = input_text(data, fieldbus)
+    elif inst == PLC_OUTPUT:
+        detail = output_text(data, fieldbus)
+    else:
+        try:
+            detail = repr(decode(inst, data, fieldbus))
+        except CodecError:
+            detail = data.hex(" ")
+    if write:
+        rec = record(
+            protocol=f"schunk-{transport}", direction=TO_GRIPPER, text=f"write {_name(inst)}: {detail}"
+        )
+    else:
+        rec = record(protocol=f"schunk-{transport}", direction=FROM_GRIPPER, text=f"{_name(inst)} = {detail}")
+    log_record(device, rec)

@@ -160,3 +160,17 @@ def test_probe_finds_a_unit_on_a_bare_serial_port(schunk_sim) -> None:
     )
     assert "schunk+serial://" + server.path in proc.stdout, (proc.stdout, proc.stderr)
     assert "EGK 25" in proc.stdout
+
+
+def test_wire_lines_at_debug_on_both_transports(schunk_sim, caplog: pytest.LogCaptureFixture) -> None:
+    """``-vv`` shows every parameter exchange, decoded (docs/logging.md: wire lines for every family)."""
+    import logging
+
+    for listen in (None, "pty"):
+        server = schunk_sim("schunk-egu-60", listen, time_scale="20")
+        caplog.clear()
+        with caplog.at_level(logging.DEBUG, logger="grippers.wire"), grippers.open(server.url) as g:
+            g.home()
+        lines = [r.getMessage() for r in caplog.records if r.name == "grippers.wire"]
+        assert any("0x0040 plc_sync_input = ERROR|GPE at 0 um ERR_FAST_STOP" in ln for ln in lines), lines
+        assert any("write 0x0048 plc_sync_output: FAST_STOP_OFF|ACKNOWLEDGE" in ln for ln in lines), lines
