@@ -88,7 +88,7 @@ class SchunkDevice(Device):
     acknowledged, but home() acknowledges the power-up fast stop, so the gripper's latch is the one for
     this client's own ``fast_stop()`` (``reports_fast_stop`` False)."""
 
-    capabilities = frozenset({Capability.FORCE_CONTROL, Capability.TEMPERATURE})
+    capabilities = frozenset({Capability.FORCE_CONTROL, Capability.TEMPERATURE, Capability.SOFT_LIMITS})
     reports_fast_stop = False
 
     def __init__(
@@ -108,6 +108,9 @@ class SchunkDevice(Device):
         self.tracker: CommandTracker | None = None  # the last motion command, while its answer is pending
         self.reconnection = SchunkReconnection(self) if connect is not None else None
         self.temperature = SchunkTemperature(self)
+        from .schunk_settings import SchunkSoftLimits
+
+        self.soft_limits = SchunkSoftLimits(self)
 
     @property
     def driver(self) -> SchunkClient:
@@ -416,6 +419,13 @@ class SchunkBackend:
         "grippers sim schunk --listen http://127.0.0.1:8080 --model egu-60\n"
         "         grippers sim schunk --listen pty --model egk-25"
     )
+
+    @property
+    def device_settings(self) -> Any:
+        """``grippers settings`` and ``selftest``: the unit's position limits, temperature, release delta."""
+        from .schunk_settings import SchunkDeviceSettings
+
+        return SchunkDeviceSettings()
 
     def dissector(self) -> Any:
         """``grippers monitor``: a unit's Modbus RTU frames (a capture or stdin), instances named and the

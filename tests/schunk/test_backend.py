@@ -174,3 +174,23 @@ def test_wire_lines_at_debug_on_both_transports(schunk_sim, caplog: pytest.LogCa
         lines = [r.getMessage() for r in caplog.records if r.name == "grippers.wire"]
         assert any("0x0040 plc_sync_input = ERROR|GPE at 0 um ERR_FAST_STOP" in ln for ln in lines), lines
         assert any("write 0x0048 plc_sync_output: FAST_STOP_OFF|ACKNOWLEDGE" in ln for ln in lines), lines
+
+
+def test_soft_limits_are_the_units_position_limits(schunk_sim) -> None:
+    server = schunk_sim("schunk-egu-60", time_scale="20")
+    with grippers.open(server.url) as g:
+        g.home()
+        g.set_soft_limits(0.010, 0.100)
+        assert server.model.read(0x0600, 0) == b"\x00\x00\x20\x41"  # 10.0 mm, little-endian float
+        with pytest.raises(CommandFailed, match="not feasible"):
+            g.move(0.110)  # the unit refuses a target outside its limits
+        g.clear_soft_limits()
+        assert g.move(0.110).width == pytest.approx(0.110, abs=1e-6)
+    proc = subprocess.run(
+        [sys.executable, "-m", "grippers", "settings", server.url, "--soft-limits", "5", "115", "--json"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert '"min_mm": 5.0' in proc.stdout and '"max_mm": 115.0' in proc.stdout, proc.stdout
