@@ -19,6 +19,7 @@ import os
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
@@ -47,8 +48,25 @@ def _best(polls: int, call) -> tuple[float, float]:  # noqa: ANN001 - a zero-arg
     return cpu, wall
 
 
-def http_poll(polls: int) -> tuple[float, float, float]:
-    """(our CPU per state(), the bare GET's CPU, our wall time per state()) against the child simulator."""
+def servo_rate(g: Any, seconds: float) -> float:
+    """Servo targets per second the device's servo feature puts on the wire (each: the empty word and a
+    move word, two POSTs), new targets back to back."""
+    from grippers.servo import ServoTarget
+
+    g.home()
+    servo = g.device.servo
+    servo.begin()
+    n, t0 = 0, time.perf_counter()
+    while time.perf_counter() - t0 < seconds:
+        n += 1
+        servo.send(ServoTarget(0.04 + (n % 50) / 1e4, 0.05, None))
+    servo.end()
+    return n / (time.perf_counter() - t0)
+
+
+def http_poll(polls: int) -> tuple[float, float, float, float]:
+    """(our CPU per state(), the bare GET's CPU, our wall time per state(), servo targets per second)
+    against the child simulator."""
     import grippers
 
     child = SimChild("schunk.py", "--serve-http", "schunk+http://")
@@ -64,7 +82,8 @@ def http_poll(polls: int) -> tuple[float, float, float]:
         bare.close()
         with grippers.open(child.where) as g:
             cpu, wall = _best(polls, g.state)
-        return cpu, base_cpu, wall
+            rate = servo_rate(g, 0.5 if polls < 1000 else 2.0)
+        return cpu, base_cpu, wall, rate
     finally:
         child.close()
 
@@ -134,7 +153,7 @@ def rtu_poll(polls: int) -> tuple[float, float]:
 
 def run(quick: bool) -> list[Result]:
     polls = 300 if quick else 2000
-    cpu, base, wall = http_poll(polls)
+    cpu, base, wall, servo = http_poll(polls)
     ratio = cpu / base
     rtu_cpu, wire = rtu_poll(polls)
     fraction = rtu_cpu / wire
@@ -160,7 +179,26 @@ def run(quick: bool) -> list[Result]:
             fraction <= RTU_FRACTION_TARGET,
             ["FC 03 of 8 registers: 8 B + 21 B at 115200 baud 8E1 (11 bits per character) + 2 x t3.5"],
         ),
+        Result(
+            "16 schunk servo, HTTP",
+            f"{servo:.0f} targets/s",
+            f"{SCHUNK_POLL_HZ:.0f} Hz (SCHUNK's cycle)",
+            f"{servo / SCHUNK_POLL_HZ:.1f}x",
+            f">= {SCHUNK_POLL_HZ:.0f} Hz",
+            servo >= SCHUNK_POLL_HZ,
+            [
+                "each target: the empty word and a move word (two POSTs); on RTU the two FC 16 writes of "
+                f"8 registers take {2 * (_rtu_write_wire()) * 1e3:.1f} ms of wire, "
+                f"{1 / (2 * _rtu_write_wire()):.0f} targets/s at most"
+            ],
+        ),
     ]
+
+
+def _rtu_write_wire() -> float:
+    request = len(modbus.write_request(12, PLC_INPUT + 7, [0] * 8))
+    reply = len(modbus.write_response(12, PLC_INPUT + 7, 8))
+    return modbus.wire_seconds(request + reply, BAUD, BITS_PER_CHAR) + 2 * modbus.silent_interval(BAUD)
 
 
 def _serve_http() -> None:

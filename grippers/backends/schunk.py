@@ -48,6 +48,7 @@ from .schunk_profile import SchunkProfile
 
 if TYPE_CHECKING:
     from ..profile_model import Limits
+    from ..servo import ServoTarget
     from ..settings import Settings
     from ..urls import ConnectionURL
 
@@ -111,6 +112,7 @@ class SchunkDevice(Device):
         from .schunk_settings import SchunkSoftLimits
 
         self.soft_limits = SchunkSoftLimits(self)
+        self.servo = SchunkServo(self)
 
     @property
     def driver(self) -> SchunkClient:
@@ -341,6 +343,38 @@ class SchunkDevice(Device):
 
     def close(self) -> None:
         self.client.close()
+
+
+class SchunkServo:
+    """``servo()``: each new target is the empty word and a "move to absolute position" word (two writes,
+    no status read and no wait): the unit takes a command on a new command word, as SCHUNK's driver's empty
+    word before every command shows. The same target again sends nothing."""
+
+    def __init__(self, device: SchunkDevice) -> None:
+        self._device = device
+        self._last: ControlWord | None = None
+
+    def begin(self) -> None:
+        reading = self._device._read("servo")
+        if reading.has(Status.ERROR):
+            raise device_error(reading, device=self._device.name, command="servo")
+        self._last = None
+
+    def send(self, target: ServoTarget) -> bool | None:
+        d = self._device
+        word = ControlWord(
+            GO | Control.MOVE_ABSOLUTE | d._gpe(), round(target.width * 1e6), round(target.speed * 1e6)
+        )
+        if word == self._last:
+            return False
+        d.epochs.begin("superseded by a servo target")
+        d.client.send(ControlWord(GO), "servo")
+        d.client.send(word, "servo")
+        self._last = word
+        return True
+
+    def end(self) -> None:
+        self._last = None
 
 
 class SchunkTemperature:

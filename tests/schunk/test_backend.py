@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
+import time
 
 import pytest
 
@@ -194,3 +195,19 @@ def test_soft_limits_are_the_units_position_limits(schunk_sim) -> None:
     )
     assert proc.returncode == 0, proc.stderr
     assert '"min_mm": 5.0' in proc.stdout and '"max_mm": 115.0' in proc.stdout, proc.stdout
+
+
+def test_servo_streams_targets_as_move_commands(schunk_sim) -> None:
+    server = schunk_sim("schunk-egu-60", time_scale="20")
+    with grippers.open(server.url) as g:
+        g.home()
+        before = server.model.commands
+        for mm in (40, 50, 60):
+            g.servo(mm / 1000, speed=0.1)
+            assert g.servo_flush(10)
+            deadline = time.monotonic() + 10
+            while abs(g.state().width - mm / 1000) > 1e-6 and time.monotonic() < deadline:
+                time.sleep(0.01)
+            assert g.state().width == pytest.approx(mm / 1000, abs=1e-6)
+        assert server.model.commands - before >= 3
+        assert g.move(0.02).width == pytest.approx(0.02, abs=1e-6)  # a motion after servoing
