@@ -19,6 +19,7 @@ The semantics on the common interface (docs/getting-started-schunk.md says the s
 
 from __future__ import annotations
 
+import threading
 import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
@@ -106,6 +107,7 @@ class SchunkDevice(Device):
         self.client, self.profile, self.url, self.timeout = client, profile, url, timeout
         self.connect, self.gpe, self.toggle_timeout = connect, gpe, toggle_timeout
         self.epochs = MotionEpochs()
+        self.commanding = threading.Lock()  # one command sequence at a time (_send); fast_stop() never waits
         self.tracker: CommandTracker | None = None  # the last motion command, while its answer is pending
         self.reconnection = SchunkReconnection(self) if connect is not None else None
         self.temperature = SchunkTemperature(self)
@@ -153,20 +155,25 @@ class SchunkDevice(Device):
         return self.client.read_input(command)
 
     def _send(self, word: ControlWord, kind: str, command: str) -> CommandTracker:
-        """Send a command and wait (bounded) until the unit has toggled "command received"."""
-        tracker = self.client.start(word, kind, command)
-        deadline = time.monotonic() + max(self.toggle_timeout, 0.0)
-        while True:
-            reading = self._read(command)
-            if tracker.received(reading):
-                return tracker
-            if time.monotonic() > deadline:
-                raise GripperTimeout(
-                    f"the unit did not toggle 'command received' within {self.toggle_timeout:g} s",
-                    device=self.name,
-                    command=command,
-                )
-            time.sleep(0.002)
+        """Send a command and wait (bounded) until the unit has toggled "command received".
+
+        One command's three steps at a time (``commanding``): a stop from another thread between a move's
+        status read and its command word would toggle bit 5 for the move's tracker, and the move's word,
+        written after the stop, would start the jaws again."""
+        with self.commanding:
+            tracker = self.client.start(word, kind, command)
+            deadline = time.monotonic() + max(self.toggle_timeout, 0.0)
+            while True:
+                reading = self._read(command)
+                if tracker.received(reading):
+                    return tracker
+                if time.monotonic() > deadline:
+                    raise GripperTimeout(
+                        f"the unit did not toggle 'command received' within {self.toggle_timeout:g} s",
+                        device=self.name,
+                        command=command,
+                    )
+                time.sleep(0.002)
 
     def _wait(
         self, tracker: CommandTracker, command: str, timeout: float, motion: int | None
@@ -368,8 +375,9 @@ class SchunkServo:
         if word == self._last:
             return False
         d.epochs.begin("superseded by a servo target")
-        d.client.send(ControlWord(GO), "servo")
-        d.client.send(word, "servo")
+        with d.commanding:
+            d.client.send(ControlWord(GO), "servo")
+            d.client.send(word, "servo")
         self._last = word
         return True
 
