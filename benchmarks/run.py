@@ -44,7 +44,7 @@ def _targets() -> dict[int, Callable[[bool], list[Result]]]:
         13: aio.run,  # issue 20 §2: the asyncio face's state() against the threaded one
         14: robotiq.run,  # issue 29 §5: a Robotiq poll's CPU against its wire time, servo over a pty
         15: _ros2_node,  # issue 34 §6: a goal through `grippers ros2` against a bare rclpy server
-        16: _schunk,  # issue 41 §5: a SCHUNK poll's CPU against the bare HTTP request and the RTU wire
+        18: _schunk,  # issue 41 §5: a SCHUNK poll's CPU against the bare HTTP request and the RTU wire
     }
 
 

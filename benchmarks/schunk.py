@@ -1,4 +1,4 @@
-"""Target 16: a SCHUNK state poll's CPU against the wire (issue 41 §5).
+"""Target 18: a SCHUNK state poll's CPU against the wire (issue 41 §5).
 
 * Web API on loopback: the simulator serves in a child process (its own interpreter, so it does not share
   our GIL). The figure is this thread's CPU time per ``Gripper.state()`` of the SCHUNK backend (one ``GET
@@ -159,7 +159,7 @@ def run(quick: bool) -> list[Result]:
     fraction = rtu_cpu / wire
     return [
         Result(
-            "16 schunk poll CPU, HTTP",
+            "18 schunk poll CPU, HTTP",
             f"{cpu * 1e6:.0f} us CPU",
             f"{base * 1e6:.0f} us bare GET",
             f"{ratio:.2f}x",
@@ -171,7 +171,7 @@ def run(quick: bool) -> list[Result]:
             ],
         ),
         Result(
-            "16 schunk poll CPU/wire, RTU",
+            "18 schunk poll CPU/wire, RTU",
             f"{rtu_cpu * 1e6:.0f} us CPU",
             f"{wire * 1e3:.2f} ms wire",
             f"{fraction:.1%}",
@@ -180,7 +180,7 @@ def run(quick: bool) -> list[Result]:
             ["FC 03 of 8 registers: 8 B + 21 B at 115200 baud 8E1 (11 bits per character) + 2 x t3.5"],
         ),
         Result(
-            "16 schunk servo, HTTP",
+            "18 schunk servo, HTTP",
             f"{servo:.0f} targets/s",
             f"{SCHUNK_POLL_HZ:.0f} Hz (SCHUNK's cycle)",
             f"{servo / SCHUNK_POLL_HZ:.1f}x",

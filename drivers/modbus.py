@@ -193,6 +193,7 @@ class _Parser:
         self._buf = bytearray()
         self.dropped = 0  # bytes thrown away while resynchronising (bad CRC, no known layout)
         self.other_slaves = 0  # valid frames for another slave id, ignored
+        self.other_slave: int | None = None  # the id of the last of them (a message names it)
 
     def reset(self) -> None:
         """A silent interval (or a new exchange): a partial frame is abandoned."""
@@ -228,6 +229,7 @@ class _Parser:
             del buf[:length]
             if self.slave is not None and frame[0] != self.slave:
                 self.other_slaves += 1
+                self.other_slave = frame[0]
                 continue
             out.append(frame)
         return out

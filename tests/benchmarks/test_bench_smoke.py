@@ -98,7 +98,7 @@ def test_robotiq_poll_counts_its_bytes_and_silences() -> None:
 
 
 def test_schunk_poll_counts_its_bytes_and_reaches_a_verdict() -> None:
-    """Target 16 reaches into the SCHUNK backend and codec: a change that breaks it shows here."""
+    """Target 18 reaches into the SCHUNK backend and codec: a change that breaks it shows here."""
     from benchmarks import schunk
 
     cpu, wire = schunk.rtu_poll(20)
