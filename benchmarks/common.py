@@ -97,3 +97,35 @@ def rate(per_s: float, unit: str) -> str:
     if per_s >= 1e3:
         return f"{per_s / 1e3:.1f} k {unit}/s"
     return f"{per_s:.0f} {unit}/s"
+
+
+class SimChild:
+    """A simulator serving in a child process (its own interpreter: it does not share our GIL), started as
+    ``python benchmarks/SCRIPT FLAG``: the child prints where it serves on its first line (``.where``, which
+    must start with ``prefix``) and serves until its stdin closes (``close()``)."""
+
+    def __init__(self, script: str, flag: str, prefix: str) -> None:
+        import subprocess
+        import sys
+
+        self._proc = subprocess.Popen(
+            [sys.executable, str(REPO / "benchmarks" / script), flag],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            text=True,
+        )
+        assert self._proc.stdout is not None
+        self.where = self._proc.stdout.readline().strip()
+        if not self.where.startswith(prefix):
+            self._proc.kill()
+            raise RuntimeError(f"simulator child did not start: {self.where!r}")
+
+    def close(self) -> None:
+        import subprocess
+
+        assert self._proc.stdin is not None
+        self._proc.stdin.close()
+        try:
+            self._proc.wait(10)
+        except subprocess.TimeoutExpired:
+            self._proc.kill()

@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -24,7 +23,7 @@ from pathlib import Path
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from benchmarks.common import REPO, Result
+from benchmarks.common import Result, SimChild
 from grippers.drivers.links import ByteLink
 from grippers.drivers.robotiq import modbus
 from grippers.drivers.robotiq.client import RobotiqClient
@@ -98,31 +97,10 @@ def cpu_per_poll(polls: int) -> float:
     return best
 
 
-class _SimChild:
-    """The simulator on a pty in a child process: ``.path``; ``close()`` ends it."""
-
-    def __init__(self) -> None:
-        cmd = [sys.executable, str(REPO / "benchmarks" / "robotiq.py"), "--serve-pty"]
-        self._proc = subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
-        assert self._proc.stdout is not None
-        self.path = self._proc.stdout.readline().strip()
-        if not self.path.startswith("/dev/"):
-            self._proc.kill()
-            raise RuntimeError(f"simulator child did not start: {self.path!r}")
-
-    def close(self) -> None:
-        assert self._proc.stdin is not None
-        self._proc.stdin.close()
-        try:
-            self._proc.wait(10)
-        except subprocess.TimeoutExpired:
-            self._proc.kill()
-
-
 def servo_exchanges(seconds: float) -> tuple[float, list[float]]:
     """Exchanges per second and the latency of each (s): FC 16 writes of a new rPR over the pty."""
-    sim = _SimChild()
-    client = RobotiqClient.serial(sim.path, timeout=0.5)
+    sim = SimChild("robotiq.py", "--serve-pty", "/dev/")
+    client = RobotiqClient.serial(sim.where, timeout=0.5)
     try:
         client.write_command(Command(act=True))
         latencies: list[float] = []

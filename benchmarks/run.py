@@ -47,6 +47,7 @@ def _targets() -> dict[int, Callable[[bool], list[Result]]]:
         15: _ros2_node,  # issue 34 §6: a goal through `grippers ros2` against a bare rclpy server
         16: lambda quick: [_panel().state_load(quick)],  # issue 42 §5: the panel's states and CPU
         17: lambda quick: [_panel().stop_click(quick)],  # issue 42 §5: a click on Stop to the device
+        18: _schunk,  # issue 41 §5: a SCHUNK poll's CPU against the bare HTTP request and the RTU wire
     }
 
 
@@ -66,6 +67,12 @@ def _servo_remote(quick: bool) -> list[Result]:
     from benchmarks import servo
 
     return servo.run_remote(quick)
+
+
+def _schunk(quick: bool) -> list[Result]:
+    from benchmarks import schunk
+
+    return schunk.run(quick)
 
 
 def _ros2_node(quick: bool) -> list[Result]:

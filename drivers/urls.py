@@ -46,7 +46,7 @@ from __future__ import annotations
 import difflib
 import ipaddress
 import re
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from typing import Any
 from urllib.parse import parse_qsl, quote, unquote, unquote_plus, urlencode, urlsplit, urlunsplit
@@ -250,12 +250,14 @@ def without_secrets(url: str) -> str:
     return urlunsplit((parts.scheme, netloc, parts.path, urlencode(query, safe="/:,"), parts.fragment))
 
 
-def with_params(url: str, **values: Any) -> str:
+def with_params(url: str, *, check: Callable[[str], Any] | None = None, **values: Any) -> str:
     """``url`` with these query parameters set, first and in this order; the others kept as written.
 
     For a URL the CLI hands back to the user (``grippers settings --node-id`` names the node's new URL).
+    ``check``: the parser that must accept ``url`` first (:func:`grippers.urls.parse_url` takes a family's own
+    schemes too); this module's :func:`parse_url` by default.
     """
-    parse_url(url)  # only a URL of the grammar is rewritten
+    (check or parse_url)(url)  # only a URL of the grammar is rewritten
     serial = url.partition("://")[0].lower().endswith("+serial")
     base, _, query = url.rpartition("?") if serial and "?" in url else url.partition("?")
     kept = [f for f in query.split("&") if f and unquote_plus(f.partition("=")[0]) not in values]

@@ -2,13 +2,12 @@
 
 from __future__ import annotations
 
-import dataclasses
 import logging
 import os
 import warnings
 from typing import Any
 
-from .backends import find_backend, get_backend
+from .backends import get_backend
 from .errors import GripperError, ProfileAssumed, ProfileError, URLError
 from .gripper import Gripper
 from .profiles import ProfileBase, load_profile
@@ -71,22 +70,9 @@ def open(target: str | os.PathLike[str], **overrides: Any) -> Gripper:  # noqa: 
 
 
 def _parse(text: str) -> ConnectionURL:
-    """:func:`parse_url`, and a family's own protocol scheme: a backend that declares ``url_protocols``
-    (``{"urcap": "tcp"}``: Robotiq's URCap socket) is reached as ``FAMILY+NAME://…``, read as
-    ``FAMILY+TRANSPORT://…?protocol=NAME`` and named as typed. The generic grammar (drivers/urls.py) stays
-    the same for every family; only a family that says so gets a scheme of its own."""
-    try:
-        return parse_url(text)
-    except URLError as exc:
-        refused = exc
-    scheme, sep, rest = text.partition("://")
-    family, plus, name = scheme.lower().partition("+")
-    backend = find_backend(family) if sep and plus and family not in ("sim", "zenoh") else None
-    base = getattr(backend, "url_protocols", {}).get(name) if backend is not None else None
-    if base is None:
-        raise refused
-    parsed = parse_url(f"{family}+{base}://{rest}{'&' if '?' in rest else '?'}protocol={name}")
-    return dataclasses.replace(parsed, url=text)
+    """:func:`grippers.urls.parse_url`: the grammar, with a family's own schemes (``robotiq+urcap://``,
+    ``schunk+http://``)."""
+    return parse_url(text)
 
 
 def warn_if_assumed(gripper: Gripper, stacklevel: int = 3) -> None:

@@ -10,9 +10,10 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any, TypeVar
 
+from grippers.drivers.urls import refuse_unknown, to_bool, to_float, to_int
+
 from .errors import URLError
 from .timeouts import MAX_TIMEOUT_S
-from .urls import refuse_unknown, to_bool, to_float, to_int
 
 T = TypeVar("T")
 _text = str  # the builtin, for use inside Settings (whose method ``str`` hides it in the class body)

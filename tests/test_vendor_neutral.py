@@ -1,11 +1,11 @@
 """No generic module names a vendor (issue 28 §2, "done when"): only a family's own modules do.
 
 Walks the syntax tree of every module in ``grippers/`` and ``drivers/`` outside the families' own ones
-(``grippers/backends/FAMILY*.py``, ``drivers/FAMILY/``) and fails on an identifier, an import, a keyword or a
-string constant that names one (``wsg``, ``stepfoc``, ``robotiq`` in any case; ``MSG`` as a word and
-``msg-N`` profile names; a plain ``msg`` is a message). Docstrings and comments are prose and may give a
-family as an example; help texts, error messages and option names are what a user of any family reads, so
-they may not. The allow-list below is short, and each entry says why it stays.
+(``grippers/backends/FAMILY*.py``, ``drivers/FAMILY/``) and fails on an identifier, an import, a keyword or
+a string constant that names one (``wsg``, ``stepfoc``, ``robotiq``, ``schunk`` in any case; ``MSG`` as a
+word and ``msg-N`` profile names; a plain ``msg`` is a message). Docstrings and comments are prose and may
+give a family as an example; help texts, error messages and option names are what a user of any family
+reads, so they may not. The allow-list below is short, and each entry says why it stays.
 """
 
 from __future__ import annotations
@@ -15,8 +15,8 @@ import re
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-FAMILIES = ("wsg", "stepfoc", "robotiq")
-VENDOR = re.compile(r"wsg|stepfoc|robotiq", re.IGNORECASE)
+FAMILIES = ("wsg", "stepfoc", "robotiq", "schunk")
+VENDOR = re.compile(r"wsg|stepfoc|robotiq|schunk", re.IGNORECASE)
 PRODUCT = re.compile(r"\bMSG\b(?!: )|\bmsg-\d")  # the MSG gripper by name; not a message, nor ROS's "MSG: "
 
 # A family's own modules: they are where its names belong.
@@ -32,6 +32,7 @@ ALLOWED: dict[tuple[str, str], str] = {
             ("wsg", "grippers.backends.wsg:WsgBackend"),
             ("stepfoc", "grippers.backends.stepfoc:StepfocBackend"),
             ("robotiq", "grippers.backends.robotiq:RobotiqBackend"),
+            ("schunk", "grippers.backends.schunk:SchunkBackend"),
         )
         for text in (family, spec)
     },

@@ -33,10 +33,10 @@ from typing import TYPE_CHECKING, Any, Protocol
 from ..errors import URLError
 
 if TYPE_CHECKING:
+    from ..drivers.urls import ConnectionURL
     from ..gripper import Gripper
     from ..profile_model import ProfileBase
     from ..settings import Settings
-    from ..urls import ConnectionURL
 
 __all__ = [
     "BUILTIN_BACKENDS",
@@ -63,6 +63,7 @@ BUILTIN_BACKENDS: dict[str, str] = {
     "wsg": "grippers.backends.wsg:WsgBackend",
     "stepfoc": "grippers.backends.stepfoc:StepfocBackend",
     "robotiq": "grippers.backends.robotiq:RobotiqBackend",
+    "schunk": "grippers.backends.schunk:SchunkBackend",
     "zenoh": "grippers.remote.client:ZenohBackend",  # served grippers (docs/remote.md); needs [remote]
 }
 

@@ -168,14 +168,11 @@ def _backends() -> list[Any]:
 
 
 def _is_family_scheme(scheme: str) -> bool:
-    """``wsg+tcp``, ``acme+tcp``: a family built in or installed through the ``grippers.backends`` entry
-    points (docs/backends.md), on a transport."""
-    family, plus, transport = scheme.partition("+")
-    if not plus or transport not in BARE_SCHEMES:
-        return False
-    from grippers.backends import available_backends
+    """``wsg+tcp``, ``acme+tcp``, ``robotiq+urcap``: a family built in or installed through the
+    ``grippers.backends`` entry points (docs/backends.md), on a transport or a scheme of its own."""
+    from grippers.urls import family_scheme
 
-    return family in available_backends()
+    return family_scheme(scheme)
 
 
 def _group_of(url: str) -> str:

@@ -51,9 +51,10 @@ from grippers import (
     LimitError,
     URLError,
 )
-from grippers.drivers.urls import parse_query, with_params
+from grippers.drivers.urls import parse_query
 from grippers.motions import MotionHandle
 from grippers.units import to_m, to_mm
+from grippers.urls import with_params
 
 from . import GripperSims, SimURL
 

@@ -10,6 +10,7 @@ same answer: the grammar's :class:`URLError`, naming the URL.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import io
 import re
 from collections.abc import Callable
@@ -48,7 +49,14 @@ def test_the_url_parsers_of_the_standard_library_are_called_only_by_the_grammar(
 
 
 def test_the_api_names_are_the_drivers_grammar_not_a_copy() -> None:
-    assert parse_url is driver_urls.parse_url
+    # grippers.urls.parse_url is the drivers' grammar plus the families' own schemes (robotiq+urcap://,
+    # schunk+http://), which it rewrites into that grammar: it delegates, it does not parse a second time.
+    assert grippers.urls.parse_transport_url is driver_urls.parse_url
+    for url in ("wsg+tcp://127.0.0.1:1000?timeout=1", "sim://wsg50?transport=udp", "robotiq+serial:///dev/x"):
+        assert parse_url(url) == driver_urls.parse_url(url)
+    assert parse_url("schunk+http://10.0.0.5") == dataclasses.replace(
+        driver_urls.parse_url("schunk+tcp://10.0.0.5?protocol=http"), url="schunk+http://10.0.0.5"
+    )
     assert grippers.URLError is driver_urls.URLError
     assert issubclass(URLError, ValueError) and issubclass(URLError, grippers.GripperError)
 

@@ -95,3 +95,13 @@ def test_robotiq_poll_counts_its_bytes_and_silences() -> None:
     assert (req, rep) == (8, 11)  # 09 03 07 D0 00 03 CRC; 09 03 06 + 6 data bytes + CRC
     assert abs(wire - (19 * 10 / 115200 + 2 * 0.00175)) < 1e-9
     assert robotiq.cpu_per_poll(20) > 0
+
+
+def test_schunk_poll_counts_its_bytes_and_reaches_a_verdict() -> None:
+    """Target 18 reaches into the SCHUNK backend and codec: a change that breaks it shows here."""
+    from benchmarks import schunk
+
+    cpu, wire = schunk.rtu_poll(20)
+    assert cpu > 0
+    assert abs(wire - (29 * 11 / 115200 + 2 * 0.00175)) < 1e-9  # 8 B + 21 B at 8E1, two t3.5
+    assert all(r.verdict in ("PASS", "FAIL") for r in schunk.run(quick=True))

@@ -160,7 +160,7 @@ def test_probe_sim_lists_every_shipped_profile(cli, cli_json) -> None:
     profiles = [p["name"] for p in cli_json("profiles", "list")["profiles"]]
     doc = cli_json("probe", "sim://", "--timeout", T, timeout=60)
     assert sorted(d["location"]["profile"] for d in doc["grippers"]) == sorted(profiles)
-    assert {d["family"] for d in doc["grippers"]} == {"wsg", "stepfoc", "robotiq"}
+    assert {d["family"] for d in doc["grippers"]} == {"wsg", "stepfoc", "robotiq", "schunk"}
     assert all(d["url"] == f"sim://{d['profile']}" for d in doc["grippers"])
     r = cli("probe", "sim://", "--timeout", T, timeout=60)
     assert r.returncode == 0 and "WSG 70" in r.stdout and "MSG 200" in r.stdout

@@ -11,6 +11,7 @@ from pathlib import Path
 BUILTIN = {
     *("wsg25", "wsg32", "wsg50", "wsg70", "msg-100", "msg-150", "msg-200"),
     *("robotiq-2f85", "robotiq-2f140", "robotiq-hande"),
+    *("schunk-egu-60", "schunk-egk-25"),
 }
 
 

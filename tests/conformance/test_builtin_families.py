@@ -14,6 +14,8 @@ TARGETS = {
     "msg-pty": "sim://msg-150?transport=pty",  # the STEPFOC UART on a pseudo-terminal
     "robotiq-tcp": "sim://robotiq-2f85",  # Modbus RTU over TCP, as a UR tool forwarder serves it
     "robotiq-pty": "sim://robotiq-2f85?transport=pty",  # Modbus RTU on an RS-485 line (a pseudo-terminal)
+    "schunk-http": "sim://schunk-egu-60",  # the unit's web API (HTTP) on loopback
+    "schunk-rtu": "sim://schunk-egk-25?transport=pty",  # Modbus RTU on an RS-485 line (a pseudo-terminal)
 }
 
 
