@@ -154,7 +154,7 @@ class Gripper:
         self, name: str, call: Callable[[], Any], wait: bool, *, timeout: float, what: str = ""
     ) -> Any:
         """Run a device motion under the one rule (grippers/motions.py): supersede, abort, Ctrl-C stops."""
-        body = lambda: named(name, lambda: self._latch.latching(call))  # noqa: E731
+        body = lambda: named(name, self.name, lambda: self._latch.latching(call))  # noqa: E731
         return self._motions.run(name, body, wait, timeout=timeout, what=what)
 
     # -- motions ------------------------------------------------------------------------------------------
