@@ -7,10 +7,12 @@ asked for (most of the stroke at the default speed), so the motion cannot end fi
 
 from __future__ import annotations
 
+import argparse
+
 import pytest
 
 import grippers
-from grippers import GripperTimeout
+from grippers import CommandFailed, GripperTimeout, GripperWarning
 
 FAMILIES = ["sim://wsg50", "sim://msg-150", "sim://robotiq-2f85"]
 
@@ -34,3 +36,36 @@ def test_a_motion_timeout_names_the_gripper_and_the_users_command(url: str, comm
         assert error.command == command, str(error)
         assert str(error).startswith(f"{g.name}: {command}: "), str(error)
         g.stop()
+
+
+def test_a_width_outside_the_soft_limits_names_them_not_the_status_code() -> None:
+    """The WSG refuses a width outside the soft limits stored in it with E_RANGE_ERROR: the error names the
+    limits and how to clear them (it said ``PREPOSITION (21h): E_RANGE_ERROR: Range error``)."""
+    with grippers.open("sim://wsg50") as g:
+        g.home()
+        g.set_soft_limits(0.010, 0.040)
+        for call in (lambda: g.move(0.045), lambda: g.grasp(0.045)):
+            with pytest.raises(CommandFailed) as caught:
+                call()
+            text = str(caught.value)
+            assert "outside the soft limits 10..40 mm" in text and "clear_soft_limits()" in text, text
+            assert caught.value.status_name == "E_RANGE_ERROR"  # the device's word is kept for code
+        g.clear_soft_limits()
+        g.move(0.045)  # no soft limits: the same width is fine
+
+
+def test_setting_the_wsg_force_limit_says_the_next_grasp_changes_it() -> None:
+    """Issue 39 §2: ``settings --force-limit`` then a stronger grasp changed the limit silently. Setting it
+    says so (a GripperWarning: a ``warning:`` line of the command), and a grasp does change it."""
+    from grippers.backends.wsg_settings import WsgDeviceSettings
+
+    with grippers.open("sim://wsg50") as g:
+        g.home()
+        args = argparse.Namespace(
+            soft_limits=None, clear_soft_limits=False, tag=None, acceleration=None, force_limit=20.0
+        )
+        with pytest.warns(GripperWarning, match="until the next grasp"):
+            WsgDeviceSettings().change(g, args, [])
+        assert g.driver.force_limit() == pytest.approx(20.0)
+        g.grasp(0.020, force=40.0)
+        assert g.driver.force_limit() == pytest.approx(40.0)  # what the warning and docs/cli.md say
