@@ -396,6 +396,7 @@ class Gripper:
             self._closed = True
             streams, handles = self._streams.take_all(), self._motions.take_all()
             servo, watch, self._link.watch = self._servo.take(), self._link.watch, None
+        self._latch.forget()
         if servo is not None:
             servo.end(self.timeout + 1.0)
         if watch is not None:

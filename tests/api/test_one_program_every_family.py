@@ -8,11 +8,15 @@ asked for (most of the stroke at the default speed), so the motion cannot end fi
 from __future__ import annotations
 
 import argparse
+import subprocess
+import sys
+import warnings
 
 import pytest
 
 import grippers
 from grippers import CommandFailed, GripperTimeout, GripperWarning
+from grippers.errors import FastStopForgotten
 
 FAMILIES = ["sim://wsg50", "sim://msg-150", "sim://robotiq-2f85"]
 
@@ -69,3 +73,42 @@ def test_setting_the_wsg_force_limit_says_the_next_grasp_changes_it() -> None:
         assert g.driver.force_limit() == pytest.approx(20.0)
         g.grasp(0.020, force=40.0)
         assert g.driver.force_limit() == pytest.approx(40.0)  # what the warning and docs/cli.md say
+
+
+def test_closing_a_robotiq_that_is_fast_stopped_says_the_stop_is_forgotten() -> None:
+    """Issue 39 §2: ``grippers stop R --fast`` then ``grippers move R 45`` moved a Robotiq: its fast-stop
+    latch lived in one process, and nothing said so. The device keeps no latch of its own (no fast-stop state
+    in its registers), so closing a latched one warns that the next program can move it."""
+    g = grippers.open("sim://robotiq-2f85")
+    g.home()
+    g.fast_stop()
+    with pytest.warns(FastStopForgotten, match="next command or program that opens it can move it"):
+        g.close()
+    with grippers.open("sim://robotiq-2f85") as g:  # acknowledged: nothing is forgotten
+        g.home()
+        g.fast_stop()
+        g.acknowledge()
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", FastStopForgotten)
+            g.close()
+
+
+def test_closing_a_wsg_that_is_fast_stopped_says_nothing() -> None:
+    """The WSG latches its fast stop itself (SF_FAST_STOP): the next command sees it, nothing is forgotten."""
+    with grippers.open("sim://wsg50") as g:
+        g.fast_stop()
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", FastStopForgotten)
+            g.close()
+
+
+def test_the_command_line_fast_stop_of_a_robotiq_says_it_is_forgotten() -> None:
+    r = subprocess.run(
+        [sys.executable, "-m", "grippers", "stop", "sim://robotiq-2f85", "--fast"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert r.returncode == 0, r.stderr
+    warning = [line for line in r.stderr.splitlines() if "warning:" in line]
+    assert warning and "the fast stop ends with this session" in warning[0], r.stderr
