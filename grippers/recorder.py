@@ -50,12 +50,7 @@ CLOSE_BOUND_S = 30.0  # close() waits this long for the writer (a disk that hang
 _END = object()
 
 
-def names_of(
-    grippers: Gripper
-    | AsyncGripper
-    | Mapping[str, Gripper | AsyncGripper]
-    | Sequence[Gripper | AsyncGripper],
-) -> dict[str, Gripper]:
+def names_of(grippers: Recordable) -> dict[str, Gripper]:
     """``{name: gripper}``: one gripper is ``gripper``, a sequence ``g1``, ``g2``..., a mapping as given.
     An asyncio gripper is recorded through the threaded one it holds (``.sync``; its stream thread samples
     whatever the event loop does)."""
@@ -70,6 +65,7 @@ def names_of(
         named = {f"g{i}": g for i, g in enumerate(grippers, start=1)}
     if not named:
         raise RecordingError("nothing to record: no gripper given")
+    out: dict[str, Gripper] = {}
     for name, g in named.items():
         if not isinstance(name, str) or not NAME.fullmatch(name):
             raise RecordingError(
@@ -77,10 +73,11 @@ def names_of(
                 "(it becomes a CSV value and a ROS topic namespace)"
             )
         if isinstance(g, AsyncGripper):
-            named[name] = g = g.sync
+            g = g.sync
         if not isinstance(g, Gripper):
             raise RecordingError(f"{name}: not a Gripper but {type(g).__name__}")
-    return named
+        out[name] = g
+    return out
 
 
 class Recorder:
