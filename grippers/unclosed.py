@@ -14,6 +14,7 @@ deadlock, and ``close()`` joins the reader. The finalizer only starts the close 
 from __future__ import annotations
 
 import logging
+import sys
 import threading
 import warnings
 from collections.abc import Callable
@@ -25,10 +26,10 @@ log = logging.getLogger(__name__)
 def close_unreferenced(owner: Any, what: str, close: Callable[[], object]) -> None:
     """From ``owner.__del__``: unless ``owner`` is closed (or its ``__init__`` failed before it set
     ``_closed``), run ``close`` on a short-lived thread, then warn ``unclosed WHAT NAME``.
-    Never raises (a finalizer's exception is only printed); at interpreter shutdown, when no thread can start
-    any more, the process ending releases everything anyway."""
-    if owner.__dict__.get("_closed", True):
-        return
+    Never raises (a finalizer's exception is only printed); at interpreter exit, when no thread can start any
+    more, it does nothing: the process ending releases everything anyway."""
+    if owner.__dict__.get("_closed", True) or sys.is_finalizing():
+        return  # at interpreter exit a new thread never starts (Thread.start() waits for ever on 3.11)
     name = f"{what} {owner.name}"
 
     def run() -> None:

@@ -5,6 +5,8 @@ threads per gripper (the simulator's and the driver's reader) and the transport 
 from __future__ import annotations
 
 import gc
+import subprocess
+import sys
 import threading
 import time
 import warnings
@@ -53,3 +55,19 @@ def test_a_closed_gripper_is_collected_without_a_warning() -> None:
         del g
         gc.collect()
     assert not [w for w in caught if "unclosed gripper" in str(w.message)]
+
+
+def test_a_program_that_exits_with_grippers_open_ends() -> None:
+    """Found with the finalizer: at interpreter exit a new thread never starts, and Python 3.11's
+    ``Thread.start()`` then waits for ever, so a script that never closed its grippers hung at its end."""
+    script = (
+        "import asyncio, grippers, grippers.aio\n"
+        "g = grippers.open('sim://wsg50')\n"
+        "async def main():\n"
+        "    global a\n"
+        "    a = await grippers.aio.open('sim://wsg50')\n"
+        "asyncio.run(main())\n"
+        "print(g.state().width >= 0)\n"
+    )
+    r = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 0 and r.stdout.strip() == "True", r.stderr
