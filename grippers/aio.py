@@ -49,6 +49,8 @@ from . import commands
 from .errors import CommandFailed, ConnectionLost, GripperError, GripperTimeout, LimitError
 from .gripper import Capability, GraspResult, Gripper, GripperState, MotionResult, StartedRead
 from .motions import MotionHandle, wait_seconds
+from .profile_model import ProfileBase
+from .unclosed import close_unreferenced
 
 __all__ = ["AsyncGripper", "AsyncMotionHandle", "open"]
 
@@ -325,6 +327,12 @@ def _forwarded(
     return twin
 
 
+def _read_through(prop: Any) -> Any:
+    """The threaded gripper's property ``prop``, read on ``.sync`` (the same name and docstring)."""
+    getter = prop.fget
+    return property(lambda self: getter(self.sync), doc=getter.__doc__)
+
+
 class AsyncGripper:
     """Every :class:`grippers.Gripper` method, awaitable. Open one with :func:`open`; ``.sync`` is the
     gripper underneath (its limits, profile and capabilities are plain attributes, read without awaiting).
@@ -343,7 +351,6 @@ class AsyncGripper:
             pool.give_up_with(support.abandon, support.resume)
         self._motion_pool = _Workers(f"{gripper.name} motion", MOTION_WORKERS)
         support.run_motions_with(self._motion_pool.spawn)
-        self._closed = False
         # The loop reads the transport itself where the driver can (a CAN bus with a file descriptor): a
         # reply then reaches its task with no thread hand-over (drivers/stepfoc/can_reader.py).
         self._loop_detach: Callable[[], None] | None = None
@@ -354,6 +361,7 @@ class AsyncGripper:
                 pass
             else:
                 self._loop_detach = support.read_on(loop)
+        self._closed = False  # last: one whose __init__ failed has nothing for __del__ to close
 
     # -- plumbing ------------------------------------------------------------------------------------------
 
@@ -387,21 +395,40 @@ class AsyncGripper:
 
     # -- the interface ------------------------------------------------------------------------------------
 
-    @property
-    def name(self) -> str:
-        return self.sync.name
+    # What the threaded gripper holds, read here without awaiting (issue 39 §3: a notebook user reached for
+    # ``g.url`` and ``g.simulator``); ``.sync.device`` alone stays on the threaded gripper (blocking calls).
+    name = _read_through(Gripper.name)
+    limits = _read_through(Gripper.limits)
+    connected = _read_through(Gripper.connected)
+    driver = _read_through(Gripper.driver)
+    servo_stats = _read_through(Gripper.servo_stats)
+    servoing = _read_through(Gripper.servoing)
+    link_watch = _read_through(Gripper.link_watch)
 
     @property
-    def limits(self) -> Any:
-        return self.sync.limits
+    def url(self) -> str:
+        """The gripper's connection URL (``sim://`` grippers: the simulator's own transport)."""
+        return self.sync.url
 
     @property
-    def capabilities(self) -> Any:
+    def profile(self) -> ProfileBase:
+        """The profile in force (its mechanics, limits and defaults)."""
+        return self.sync.profile
+
+    @property
+    def timeout(self) -> float:
+        """Seconds each exchange with the device may take."""
+        return self.sync.timeout
+
+    @property
+    def capabilities(self) -> frozenset[Capability]:
+        """What the device can do beyond the common commands."""
         return self.sync.capabilities
 
     @property
-    def connected(self) -> bool:
-        return self.sync.connected
+    def simulator(self) -> Any:
+        """The in-process simulator behind a ``sim://`` gripper (its model and fault hooks), else None."""
+        return self.sync.simulator
 
     def on_connection(self, callback: Callable[[bool], Any]) -> Callable[[], None]:
         """``callback(connected)`` in this event loop's thread when the link is lost or back."""
@@ -565,6 +592,19 @@ class AsyncGripper:
             self._workers.close()
             self._control.close()
             self._motion_pool.close()
+
+    def _close_now(self) -> None:
+        """The blocking close of a gripper nobody references any more (:meth:`__del__`), off the loop."""
+        self._closed = True
+        self.sync.close()
+        for pool in (self._workers, self._control, self._motion_pool):
+            pool.close()
+
+    def __del__(self) -> None:
+        """Closed when nobody references it any more, with a ResourceWarning (grippers/unclosed.py): the
+        gripper underneath and the worker threads. A loop reading the transport itself hands it back to the
+        driver's reader when it stops reading (0.2 s, :func:`open`)."""
+        close_unreferenced(self, "asyncio gripper", self._close_now)
 
     async def __aenter__(self) -> AsyncGripper:
         return self

@@ -10,7 +10,7 @@ from typing import Any
 from .backends import get_backend
 from .errors import GripperError, ProfileAssumed, ProfileError, URLError
 from .gripper import Gripper
-from .profiles import ProfileBase, load_profile
+from .profiles import PROFILE_SUFFIXES, ProfileBase, load_profile
 from .settings import Settings
 from .urls import ConnectionURL, is_url, parse_url
 
@@ -43,6 +43,7 @@ def open(target: str | os.PathLike[str], **overrides: Any) -> Gripper:  # noqa: 
     if is_url(text):
         url = _parse(text)
     else:
+        _refuse_bare_port(text)
         profile = load_profile(text)
         url = _parse(overrides.pop("url", None) or profile.url)
     settings = Settings(url.url, url.params, overrides)
@@ -67,6 +68,17 @@ def open(target: str | os.PathLike[str], **overrides: Any) -> Gripper:  # noqa: 
     _finish(gripper, settings)
     warn_if_assumed(gripper)
     return gripper
+
+
+def _refuse_bare_port(text: str) -> None:
+    """A serial port given where a URL goes (``/dev/ttyUSB0``): the next step in the user's terms, not
+    "profile file not found" (issue 39 §2). Every family talks over a serial port, so only the user can say
+    which one is plugged in; ``grippers probe`` asks the port."""
+    if text.startswith("/dev/") and not text.lower().endswith(PROFILE_SUFFIXES):
+        raise URLError(
+            f"{text}: a serial port is opened through its family's URL, FAMILY+serial://{text}; "
+            f"`grippers probe serial://{text}` finds which family answers there"
+        )
 
 
 def _parse(text: str) -> ConnectionURL:

@@ -23,6 +23,7 @@ __all__ = [
     "ConnectionLost",
     "DeviceMismatch",
     "FastStopActive",
+    "FastStopForgotten",
     "GripperError",
     "GripperTimeout",
     "LimitError",
@@ -153,3 +154,10 @@ class ProfileAssumed(GripperWarning):
     """A gripper opened without a profile, whose device cannot report its model (an MSG does not know its rail
     length): the library took a default model, so widths are right only if that is the model on the bench.
     Pass ``profile=`` (``--profile`` on the command line) to silence it."""
+
+
+class FastStopForgotten(GripperWarning):
+    """A gripper closed while its fast stop was latched, on a device that keeps no fast-stop latch of its own
+    (a Robotiq: its registers have no such state). The latch lived in this gripper only: the next program or
+    command that opens the device can move it without an ``acknowledge()`` (issue 39 §2). The CLI prints it
+    after ``grippers stop URL --fast``."""

@@ -11,11 +11,12 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+import warnings
 from collections.abc import Callable
 from typing import TypeVar
 
 from .device import Device
-from .errors import FastStopActive
+from .errors import FastStopActive, FastStopForgotten
 from .states import GripperState
 
 T = TypeVar("T")
@@ -57,6 +58,25 @@ class FastStopLatch:
         except FastStopActive:
             self.active = True
             raise
+
+    def forget(self) -> None:
+        """At close: a latch that lived only here (the device keeps none) ends with this gripper; say so, or
+        the next command would move a gripper its user believes stopped (:class:`FastStopForgotten`).
+
+        Why not a latch that outlives the process (a file per device): a Robotiq has no serial number in its
+        registers, so the file could only be keyed by the address, and would latch whatever gripper is next
+        plugged into that port (or a simulator started later on a reused port), while the robot program,
+        the URCap or a PLC driving the same gripper would ignore it anyway."""
+        if self.active and not self.device.reports_fast_stop:
+            warnings.warn(
+                FastStopForgotten(
+                    f"{self.name}: the fast stop ends with this session: the device keeps no fast-stop latch "
+                    "of its own, so the next command or program that opens it can move it without "
+                    "acknowledge() (grippers ack); keep a program holding the gripper, or use the robot's "
+                    "own stop"
+                ),
+                stacklevel=3,
+            )
 
     def shown(self, st: GripperState) -> GripperState:
         """A device that keeps no fast-stop state of its own: the latch shows in the state, and a state read

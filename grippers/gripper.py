@@ -30,6 +30,7 @@ from .servo_face import ServoControl
 # GripperState`` and the like keep working.
 from .states import Capability, DeviceInfo, GraspResult, GraspState, GripperState, MotionResult
 from .streams import StateStream, StreamSet, put_dropping_oldest
+from .unclosed import close_unreferenced
 
 if TYPE_CHECKING:
     from .face_support import AsyncSupport
@@ -70,11 +71,8 @@ class Gripper:
         self.url = url
         self.timeout = timeout
         self.capabilities = frozenset(device.capabilities)
-        # The in-process simulator behind a sim:// gripper, for tests and demos (its model and fault hooks are
-        # the family's own).
-        self.simulator: Any = None
+        self.simulator: Any = None  # a sim:// gripper's in-process simulator (its model and fault hooks)
         self._profile_assumed = device.profile_assumed  # what grippers.open warns of (ProfileAssumed)
-        self._closed = False
         self._lock = threading.Lock()
         self._checks = ValueChecks(self.name, profile, device.narrow_limits(profile.limits()))
         self._latch = FastStopLatch(self.name, device)
@@ -102,6 +100,7 @@ class Gripper:
         )
         if device.liveness is not None:  # a link lost for good ends servoing before the user is told
             device.liveness.add_listener(lambda up: None if up else self._servo.end(stop_device=False))
+        self._closed = False  # last: a gripper whose __init__ failed has nothing for __del__ to close
 
     @property
     def name(self) -> str:
@@ -154,7 +153,7 @@ class Gripper:
         self, name: str, call: Callable[[], Any], wait: bool, *, timeout: float, what: str = ""
     ) -> Any:
         """Run a device motion under the one rule (grippers/motions.py): supersede, abort, Ctrl-C stops."""
-        body = lambda: named(name, lambda: self._latch.latching(call))  # noqa: E731
+        body = lambda: named(name, self.name, lambda: self._latch.latching(call))  # noqa: E731
         return self._motions.run(name, body, wait, timeout=timeout, what=what)
 
     # -- motions ------------------------------------------------------------------------------------------
@@ -397,6 +396,7 @@ class Gripper:
             self._closed = True
             streams, handles = self._streams.take_all(), self._motions.take_all()
             servo, watch, self._link.watch = self._servo.take(), self._link.watch, None
+        self._latch.forget()
         if servo is not None:
             servo.end(self.timeout + 1.0)
         if watch is not None:
@@ -410,6 +410,9 @@ class Gripper:
                 h.join(5.0)
             for fn in reversed(self._on_close):
                 fn()
+
+    def __del__(self) -> None:  # closed when nobody references it, with a ResourceWarning
+        close_unreferenced(self, "gripper", self.close)
 
     def __enter__(self) -> Gripper:
         return self

@@ -11,7 +11,7 @@ from collections.abc import Callable
 from typing import TypeVar
 
 from .device import Device
-from .errors import GripperError, MotionBlocked, NotReferenced
+from .errors import GripperError, GripperTimeout, MotionBlocked, NotReferenced
 from .fast_stop import FastStopLatch
 from .motions import MotionSupervisor
 from .profile_model import Limits
@@ -24,16 +24,26 @@ log = logging.getLogger(__name__)
 GRASP_CLEARANCE = 0.005  # m: where grasp() opens to when the jaws start inside the part's width
 
 
-def named(name: str, call: Callable[[], T]) -> T:
-    """``call()``, with a refusal for an unreferenced axis or an obstacle named after the command the user
-    called: a device raises them from the primitive it was in (a grasp's opening move is ``move``), and
-    "call home() before move" after a ``grasp()`` sends the user looking in the wrong place."""
+def named(name: str, device: str, call: Callable[[], T]) -> T:
+    """``call()``, with its refusals and its timeout named after the command the user called and the
+    gripper (``device``: ``PROFILE@URL``), the same on every family (issue 39 §2).
+
+    A device raises them from the primitive it was in (a grasp's opening move is ``move``; the WSG names its
+    wire command, ``PREPOSITION (21h)``, and its URL without the profile), and "call home() before move"
+    after a ``grasp()``, or a ``timeout=`` ending named after a command the user never called, sends the user
+    looking in the wrong place. The one place where a motion's ending is worded: the device's own words stay
+    in the message (its wire command in parentheses) and as ``__cause__``."""
     try:
         return call()
     except (NotReferenced, MotionBlocked) as exc:
         if exc.command == name:
             raise
         raise exc.renamed(name) from exc
+    except GripperTimeout as exc:
+        if type(exc) is not GripperTimeout or (exc.command == name and exc.device == device):
+            raise
+        said = f" ({exc.command})" if exc.command and exc.command != name else ""
+        raise GripperTimeout(f"{exc.message}{said}", device=device, command=name) from exc
 
 
 def grasp_with_room(

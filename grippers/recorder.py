@@ -32,8 +32,14 @@ from .cli.output import state_dict  # the one state-to-row conversion (mm, mm/s,
 from .recording import DEFAULT_NAME, RecordingError, Sink, open_sink
 
 if TYPE_CHECKING:
+    from .aio import AsyncGripper
     from .gripper import Gripper, StateStream
     from .states import GripperState
+
+    Recordable = (
+        Gripper | AsyncGripper | Mapping[str, Gripper | AsyncGripper] | Sequence[Gripper | AsyncGripper]
+    )
+    """One gripper, ``{name: gripper}`` or a sequence of them, threaded or asyncio."""
 
 __all__ = ["Recorder", "record"]
 
@@ -44,11 +50,14 @@ CLOSE_BOUND_S = 30.0  # close() waits this long for the writer (a disk that hang
 _END = object()
 
 
-def names_of(grippers: Gripper | Mapping[str, Gripper] | Sequence[Gripper]) -> dict[str, Gripper]:
-    """``{name: gripper}``: one gripper is ``gripper``, a sequence ``g1``, ``g2``..., a mapping as given."""
+def names_of(grippers: Recordable) -> dict[str, Gripper]:
+    """``{name: gripper}``: one gripper is ``gripper``, a sequence ``g1``, ``g2``..., a mapping as given.
+    An asyncio gripper is recorded through the threaded one it holds (``.sync``; its stream thread samples
+    whatever the event loop does)."""
+    from .aio import AsyncGripper
     from .gripper import Gripper
 
-    if isinstance(grippers, Gripper):
+    if isinstance(grippers, Gripper | AsyncGripper):
         named = {DEFAULT_NAME: grippers}
     elif isinstance(grippers, Mapping):
         named = dict(grippers)
@@ -56,15 +65,19 @@ def names_of(grippers: Gripper | Mapping[str, Gripper] | Sequence[Gripper]) -> d
         named = {f"g{i}": g for i, g in enumerate(grippers, start=1)}
     if not named:
         raise RecordingError("nothing to record: no gripper given")
+    out: dict[str, Gripper] = {}
     for name, g in named.items():
         if not isinstance(name, str) or not NAME.fullmatch(name):
             raise RecordingError(
                 f"{name!r}: a gripper's name in a recording is a letter, then letters, digits or _ "
                 "(it becomes a CSV value and a ROS topic namespace)"
             )
+        if isinstance(g, AsyncGripper):
+            g = g.sync
         if not isinstance(g, Gripper):
             raise RecordingError(f"{name}: not a Gripper but {type(g).__name__}")
-    return named
+        out[name] = g
+    return out
 
 
 class Recorder:
@@ -78,7 +91,10 @@ class Recorder:
     def __init__(
         self,
         path: str | Path,
-        grippers: Gripper | Mapping[str, Gripper] | Sequence[Gripper],
+        grippers: Gripper
+        | AsyncGripper
+        | Mapping[str, Gripper | AsyncGripper]
+        | Sequence[Gripper | AsyncGripper],
         *,
         rate_hz: float = 50.0,
         header: Mapping[str, Any] | None = None,
@@ -241,14 +257,18 @@ class Recorder:
 
 def record(
     path: str | Path,
-    grippers: Gripper | Mapping[str, Gripper] | Sequence[Gripper],
+    grippers: Gripper
+    | AsyncGripper
+    | Mapping[str, Gripper | AsyncGripper]
+    | Sequence[Gripper | AsyncGripper],
     *,
     rate_hz: float = 50.0,
 ) -> Recorder:
     """Start recording ``grippers`` to ``path`` (``.csv``, ``.jsonl`` or ``.mcap``, the last with
     ``pip install 'grippers[record]'``); use it in ``with`` or call ``close()``.
 
-    ``grippers`` is one :class:`~grippers.Gripper` (named ``gripper`` in the file), a mapping
+    ``grippers`` is one :class:`~grippers.Gripper` or :class:`~grippers.aio.AsyncGripper` (named ``gripper``
+    in the file), a mapping
     ``{"left": g1, "right": g2}``, or a sequence (named ``g1``, ``g2``, ...). States are sampled at
     ``rate_hz`` each; :meth:`Recorder.command` marks what the program does. Raises
     :class:`~grippers.recording.RecordingError` (a :class:`~grippers.GripperError`) for a path that cannot

@@ -34,17 +34,31 @@ THIRD_PARTY = {
 }
 
 
-def _install_lines() -> list[tuple[str, str]]:
+def _install_lines() -> list[tuple[str, str, bool]]:
+    """(where, arguments, whether the docs tell the reader to run it) of every ``pip install`` line."""
     found = []
     for path in DOCS:
         text = path.read_text(encoding="utf-8")
         for match in PIP.finditer(text):
-            found.append((f"{path.relative_to(ROOT)}: pip install {match.group(1).strip()}", match.group(1)))
+            where = f"{path.relative_to(ROOT)}: pip install {match.group(1).strip()}"
+            found.append((where, match.group(1), _is_command(text, match.start())))
     return found
 
 
-def _problem(args: str) -> str | None:
-    """Why ``pip install ARGS`` would fail on a machine with no index serving grippers, or None."""
+def _is_command(text: str, start: int) -> bool:
+    """A line the reader runs (it opens a code span or a code line: `` `pip install …` ``), not a program's
+    message quoted (``fix: pip install …``, printed by a grippers already installed)."""
+    before = text[:start].rstrip(" $")
+    return before == "" or before.endswith(("`", "\n"))
+
+
+def _problem(args: str, command: bool = True) -> str | None:
+    """Why ``pip install ARGS`` would fail on a machine with no index serving grippers, or None.
+
+    ``command``: the docs tell the reader to run it, maybe before grippers is installed (issue 39 §4: a
+    reader of a page ran ``pip install 'grippers[plot]'`` in a fresh environment, which no index serves); a
+    program's quoted message (``command`` False) is printed by an installed grippers, to which pip adds the
+    extra's packages."""
     try:
         words = shlex.split(args)
     except ValueError:
@@ -65,22 +79,26 @@ def _problem(args: str) -> str | None:
             unknown = set(extras.strip("[]").split(",")) - EXTRAS
             if unknown:
                 return f"grippers has no extra {sorted(unknown)} (extras: {sorted(EXTRAS)})"
-            continue  # an extra added to the grippers already installed
+            if command:
+                return f"no package index serves grippers: in the checkout, pip install -e '.{extras}'"
+            continue  # a message of an installed grippers: the extra is added to it
         if name not in THIRD_PARTY:
             return f"{name} is not a dependency of grippers"
     return None
 
 
 def test_the_docs_have_install_lines() -> None:
-    lines = [where for where, _ in _install_lines()]
+    lines = [where for where, _, _ in _install_lines()]
     assert len(lines) >= 10
     for doc in ("docs/ros2.md", "docs/remote.md", "docs/troubleshooting.md", "README.md"):
         assert any(where.startswith(doc) for where in lines), doc
 
 
-@pytest.mark.parametrize(("where", "args"), _install_lines(), ids=[w for w, _ in _install_lines()])
-def test_every_install_line_names_a_form_that_works(where: str, args: str) -> None:
-    problem = _problem(args)
+@pytest.mark.parametrize(
+    ("where", "args", "command"), _install_lines(), ids=[w for w, _, _ in _install_lines()]
+)
+def test_every_install_line_names_a_form_that_works(where: str, args: str, command: bool) -> None:
+    problem = _problem(args, command)
     assert problem is None, f"{where}: {problem}"
 
 
@@ -88,7 +106,11 @@ def test_the_check_refuses_what_failed() -> None:
     assert _problem("grippers") is not None
     assert _problem("'grippers[nosuch]'") is not None
     assert _problem("-e '.[test]'") is None
-    assert _problem("'grippers[plot]'") is None
+    assert _problem("'grippers[plot]'") is not None  # run from a page before grippers is installed
+    assert _problem("'grippers[plot]'", command=False) is None  # a message of the installed grippers
+    assert _problem("-e '.[plot]'") is None
+    text = "MCAP (`pip install 'grippers[record]'`), or: fix: pip install 'grippers[yaml]'"
+    assert [_is_command(text, m.start()) for m in PIP.finditer(text)] == [True, False]
     assert _problem("dist/grippers-0.1.0-py3-none-any.whl") is None
 
 

@@ -167,12 +167,14 @@ class WsgDevice(Device):
         self._client.home(timeout=timeout)
 
     @contextmanager
-    def _typed(self, command: str, target: float | None = None) -> Iterator[None]:
+    def _typed(self, command: str, target: float | None = None, sent: float | None = None) -> Iterator[None]:
         """The device's refusals that every family reports alike (issue 31 §1), as their typed errors:
         E_NOT_INITIALIZED (manual 4.0.x §3.2: a motion before homing) is :class:`NotReferenced`, and
         E_AXIS_BLOCKED on a pre-position or release (§3.2.2: the fingers met an obstacle; with stop-on-block
         they stop there) is :class:`MotionBlocked` with the width where they stopped. ``target`` None: a
-        grasp, where meeting something is the point (its E_AXIS_BLOCKED, if any, passes unchanged)."""
+        grasp, where meeting something is the point (its E_AXIS_BLOCKED, if any, passes unchanged).
+        E_RANGE_ERROR for a width ``sent`` (m) outside the soft limits stored in the device names those
+        limits and how to clear them (issue 39 §2), not only the device's status name."""
         try:
             yield
         except CommandFailed as exc:
@@ -184,12 +186,33 @@ class WsgDevice(Device):
             }
             if exc.status == Status.E_NOT_INITIALIZED:
                 raise NotReferenced(**kw) from exc
+            said = self._outside_soft_limits(target if sent is None else sent, exc)
+            if said is not None:
+                raise CommandFailed(said, **kw) from exc
             if exc.status == Status.E_AXIS_BLOCKED and target is not None:
                 width = self._client.width() / 1000
                 if abs(width - target) <= MotionBlocked.MARGIN:
                     return  # stopped on the part where it was sent: the target was reached
                 raise MotionBlocked(width=width, target=target, **kw) from exc
             raise
+
+    def _outside_soft_limits(self, width: float | None, exc: CommandFailed) -> str | None:
+        """What to tell a user whose width the device refused for its soft limits (WSG manual 4.0.x
+        §3.3.5-§3.3.7: 34h-36h), or None when the refusal has another cause."""
+        if exc.status != Status.E_RANGE_ERROR or width is None:
+            return None
+        try:
+            limits = self._client.soft_limits()
+        except GripperError:  # none set (E_NOT_AVAILABLE), or no answer: the device's own words stand
+            return None
+        mm = width * 1000
+        if limits.minus - 1e-6 <= mm <= limits.plus + 1e-6:
+            return None
+        return (
+            f"width {mm:g} mm is outside the soft limits {limits.minus:g}..{limits.plus:g} mm stored in the "
+            f"device ({exc.status_name}): stay within them, or clear them (clear_soft_limits(); "
+            "grippers settings URL --clear-soft-limits)"
+        )
 
     def _where(self) -> MotionResult:
         c = self._client
@@ -203,7 +226,7 @@ class WsgDevice(Device):
     def grasp(self, width: float, speed: float, force: float, timeout: float) -> GraspResult:
         c = self._client
         try:
-            with self._typed("grasp"):
+            with self._typed("grasp", sent=width):
                 c.grip(width * 1000, speed * 1000, force=force, timeout=timeout)
         except CommandFailed as exc:
             if exc.status != Status.E_CMD_FAILED:

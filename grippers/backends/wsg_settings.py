@@ -5,10 +5,20 @@ hook): temperature, soft limits, device tag, acceleration, force limit, finger i
 from __future__ import annotations
 
 import argparse
+import warnings
 from collections.abc import Callable
 from typing import Any
 
 from ..cli.settings_cmd import try_read
+from ..errors import GripperWarning
+
+FORCE_LIMIT_LASTS = (
+    "the force limit holds until the next grasp: the WSG grips with its force limit (GRIP 25h has no force "
+    "field), so every grasp sets it to the grasp's force first (the profile's default_force_n when none is "
+    "given; WSG manual 4.0.x §3.2.6, §3.3.3)"
+)
+"""Said when ``--force-limit`` is set (issue 39 §2): a user who sets a low limit and then grasps harder would
+otherwise believe the limit still guards the part."""
 
 
 def _read(client: Any) -> dict[str, Any]:
@@ -83,6 +93,7 @@ def _change(gripper: Any, args: argparse.Namespace, changed: list[str]) -> None:
     if args.force_limit is not None:
         client.set_force_limit(args.force_limit)
         changed.append("force_limit_n")
+        warnings.warn(FORCE_LIMIT_LASTS, GripperWarning, stacklevel=2)
 
 
 class WsgDeviceSettings:

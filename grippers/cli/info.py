@@ -10,7 +10,9 @@ from .logs import issued_warnings
 from .output import EXIT_OK, INFO_SCHEMA_ID, fmt_num, info_dict, key_values, write_json
 
 HELP = "show vendor, model, firmware, serial number and limits of a gripper"
-EXAMPLE = "grippers info sim://PROFILE --json\n         grippers info FAMILY+tcp://192.168.1.20"
+EXAMPLE = (
+    "grippers info sim:// --json\n         grippers info FAMILY+tcp://192.168.1.20   (your gripper's URL)"
+)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

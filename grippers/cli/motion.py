@@ -256,43 +256,45 @@ def _ack(g: Gripper, a: argparse.Namespace) -> None:
 home = MotionCommand(
     "home",
     "reference the axis: homing, calibration or activation, as the family does",
-    "grippers home FAMILY+tcp://192.168.1.20",
+    "grippers home sim://\n         grippers home FAMILY+tcp://192.168.1.20   (your gripper's URL)",
     _no_extra,
     _home,
 )
 move = MotionCommand(
     "move",
     "move the fingers to an opening width in mm, without gripping",
-    "grippers move FAMILY+tcp://192.168.1.20 40 --speed 50\n"
-    "         grippers move 'sim://PROFILE?time_scale=20' 30 --home",
+    "grippers move 'sim://?time_scale=20' 30 --home\n"
+    "         grippers move FAMILY+tcp://192.168.1.20 40 --speed 50   (your gripper's URL)",
     _move_args,
     _move,
 )
 grasp = MotionCommand(
     "grasp",
     "grip a part of a nominal width in mm with a force in N (exit 1 if no part was gripped)",
-    "grippers grasp FAMILY+tcp://192.168.1.20 20 --force 30 --speed 50",
+    "grippers grasp 'sim://?part_width_mm=20' 20 --force 30 --speed 50 --home\n"
+    "         grippers grasp FAMILY+tcp://192.168.1.20 20 --force 30   (your gripper's URL)",
     _grasp_args,
     _grasp,
 )
 release = MotionCommand(
     "release",
     "release a gripped part: open to a width in mm (default fully open)",
-    "grippers release FAMILY+tcp://192.168.1.20 60",
+    "grippers release sim:// 60 --home\n"
+    "         grippers release FAMILY+tcp://192.168.1.20 60   (your gripper's URL)",
     _release_args,
     _release,
 )
 stop = MotionCommand(
     "stop",
     "stop the current motion (--fast: FAST STOP, acknowledge with `grippers ack`)",
-    "grippers stop FAMILY+tcp://192.168.1.20",
+    "grippers stop sim://\n         grippers stop FAMILY+tcp://192.168.1.20   (your gripper's URL)",
     _stop_args,
     _stop,
 )
 ack = MotionCommand(
     "ack",
     "acknowledge a FAST STOP or fault so the gripper accepts commands again",
-    "grippers ack FAMILY+tcp://192.168.1.20",
+    "grippers ack sim://\n         grippers ack FAMILY+tcp://192.168.1.20   (your gripper's URL)",
     _no_extra,
     _ack,
 )

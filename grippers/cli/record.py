@@ -33,10 +33,10 @@ HELP = (
     "JSON Lines or MCAP, for grippers plot"
 )
 EXAMPLE = (
-    "grippers record 'sim://PROFILE?part_width_mm=40' -o grasp.csv --do home --do 'grasp 40 --force 20'\n"
-    "         grippers record left=FAMILY+tcp://192.168.1.20 right=sim://PROFILE -o both.csv --do home "
+    "grippers record 'sim://?part_width_mm=40' -o grasp.csv --do home --do 'grasp 40 --force 20'\n"
+    "         grippers record left=FAMILY+tcp://192.168.1.20 right=sim:// -o both.csv --do home "
     "--do 'left: grasp 40'\n"
-    "         grippers record 'FAMILY+can://socketcan/can0?node=0' -o run.mcap --do home  (grippers[record])"
+    "         grippers record 'FAMILY+can://socketcan/can0?node=0' -o run.mcap --do home  (the record extra)"
 )
 RECORD_RESULT_SCHEMA_ID = "grippers.record-result/1"
 

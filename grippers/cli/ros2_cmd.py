@@ -17,9 +17,9 @@ from .common import positive_float
 
 HELP = "run ROS 2 nodes (control_msgs gripper actions, joint_states, /diagnostics, Trigger services)"
 EXAMPLE = (
-    "grippers ros2 FAMILY+tcp://192.168.1.20 --name left_gripper --namespace /cell1\n"
-    "         grippers ros2 sim://PROFILE --joint-name finger_joint --rate 100\n"
-    "         grippers ros2 left=FAMILY+tcp://192.168.1.20 right=sim://PROFILE --namespace /cell1\n"
+    "grippers ros2 sim:// --joint-name finger_joint --rate 100\n"
+    "         grippers ros2 FAMILY+tcp://192.168.1.20 --name left_gripper --namespace /cell1\n"
+    "         grippers ros2 left=FAMILY+tcp://192.168.1.20 right=sim:// --namespace /cell1\n"
     "         grippers ros2 zenoh://left --lifecycle --ros-args --params-file gripper.yaml"
 )
 

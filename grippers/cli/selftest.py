@@ -32,7 +32,8 @@ if TYPE_CHECKING:
 
 HELP = "bench acceptance run: homes, moves at three speeds, closes without a part; measured vs the profile"
 EXAMPLE = (
-    "grippers selftest FAMILY+tcp://192.168.1.20\n"
+    "grippers selftest 'sim://?time_scale=20' --yes\n"
+    "         grippers selftest FAMILY+tcp://192.168.1.20   (your gripper's URL)\n"
     "         grippers selftest 'FAMILY+can://socketcan/can0?node=0' --profile PROFILE --yes --json\n"
     "         grippers selftest 'FAMILY+can://socketcan/can0?node=0' --write-profile my-gripper.toml"
 )

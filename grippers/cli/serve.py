@@ -17,7 +17,8 @@ from .common import positive_float
 
 HELP = "serve grippers over Eclipse Zenoh (zenoh://NAME URLs for other processes and machines)"
 EXAMPLE = (
-    "grippers serve left=FAMILY+tcp://192.168.1.20 right=sim://PROFILE\n"
+    "grippers serve left=sim:// right='sim://?time_scale=10'\n"
+    "         grippers serve left=FAMILY+tcp://192.168.1.20 right=sim://   (your gripper's URL)\n"
     "         grippers serve PROFILE --listen tcp/0.0.0.0:7447        (every interface: other machines)\n"
     "         grippers serve left=PROFILE --zenoh-config cell.json5   (TLS, access control, routers)"
 )

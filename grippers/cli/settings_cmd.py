@@ -25,7 +25,8 @@ from .output import EXIT_OK, SETTINGS_SCHEMA_ID, UsageError, key_values, write_j
 
 HELP = "show or change device settings: soft limits, tag, acceleration, force limit, bus node id, ..."
 EXAMPLE = (
-    "grippers settings URL\n"
+    "grippers settings sim://\n"
+    "         grippers settings URL\n"
     "         grippers settings URL --soft-limits 10 90 --tag bench-2 --json\n"
     "         grippers settings URL --acceleration 500 --force-limit 40\n"
     "         grippers settings 'FAMILY+can://socketcan/can0?node=0' --node-id 3   (asks, then saves)\n"

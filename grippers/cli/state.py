@@ -17,7 +17,10 @@ if TYPE_CHECKING:
     from grippers.gripper import GripperState
 
 HELP = "show the gripper's state (width, force, grasp state, faults), once or live with --watch"
-EXAMPLE = "grippers state FAMILY+tcp://192.168.1.20 --watch --rate 5"
+EXAMPLE = (
+    "grippers state sim:// --json\n"
+    "         grippers state FAMILY+tcp://192.168.1.20 --watch --rate 5   (your gripper's URL)"
+)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -62,6 +62,8 @@ def suggest(
             )  # wsg+tcp:/host
         if text.lower().endswith(PROFILE_FILES):
             return None  # a profile file's name (nope.toml): its own error says "not found", not a host
+        if text.startswith("/dev/"):  # a bare serial port (issue 39 §2): each family's serial URL
+            return " or ".join(form.format(rest=text) for form in bare.get("serial", ())) or None
         if _looks_like_host(text) and bare.get("tcp"):
             return bare["tcp"][0].format(rest=text)  # a bare address: the first family on Ethernet
         if text in profiles:

@@ -21,6 +21,10 @@ PROFILES = ["wsg25", "wsg32", "wsg50", "wsg70", "msg-100", "msg-150", "msg-200"]
             "wsg+serial:///dev/ttyUSB0 or stepfoc+serial:///dev/ttyUSB0 or robotiq+serial:///dev/ttyUSB0 "
             "or schunk+serial:///dev/ttyUSB0",
         ),
+        (
+            "/dev/ttyUSB0",  # issue 39 §2: a bare serial port, not "profile file not found"
+            "wsg+serial:///dev/ttyUSB0 or stepfoc+serial:///dev/ttyUSB0 or robotiq+serial:///dev/ttyUSB0",
+        ),
         ("can://socketcan/can0", "stepfoc+can://socketcan/can0?node=0 or wsg+can://socketcan/can0"),
         ("wsg+tcp:/192.168.1.20", "wsg+tcp://192.168.1.20"),
         ("wsg+tcp:192.168.1.20", "wsg+tcp://192.168.1.20"),
@@ -50,6 +54,11 @@ def test_nothing_to_suggest(typed: str) -> None:
         (["info", "wsg5"], "did you mean wsg50?"),
         (["state", "sim://wsg5"], "did you mean sim://wsg50?"),
         (["probe", "wsg+tcp:/127.0.0.1"], "did you mean wsg+tcp://127.0.0.1?"),
+        (["state", "/dev/ttyUSB0"], "grippers probe serial:///dev/ttyUSB0"),
+        (
+            ["state", "/dev/ttyUSB0"],
+            "did you mean wsg+serial:///dev/ttyUSB0 or stepfoc+serial:///dev/ttyUSB0",
+        ),
     ],
 )
 def test_the_error_line_carries_the_suggestion(cli, argv: list[str], hint: str) -> None:
