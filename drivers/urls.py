@@ -217,6 +217,20 @@ def parse_query(url: str, query: str) -> dict[str, str]:
 BUS_OPTIONS = ("bitrate", "port")
 
 
+def web_origin(text: str) -> tuple[str, str] | None:
+    """An HTTP ``Origin`` (``http://h:p``) as ``(scheme, netloc)``; None unless it is http(s) with a host.
+
+    The panel compares it with the request's ``Host`` (grippers/panel/security.py); it lives here so that the
+    standard library's URL parsers are called by this module alone (tests/api/test_one_url_grammar.py)."""
+    try:
+        parts = urlsplit(text)
+    except ValueError:  # an unbalanced [ in the host
+        return None
+    if parts.scheme not in ("http", "https") or not parts.netloc:
+        return None
+    return parts.scheme, parts.netloc
+
+
 def bus_options(url: ConnectionURL) -> dict[str, int]:
     """The python-can bus options a CAN URL's query carries, for a command that opens the bus itself
     (``grippers probe``, ``grippers monitor``), read the way the backends read them.

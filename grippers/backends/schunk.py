@@ -308,8 +308,8 @@ class SchunkDevice(Device):
         else:
             grasp = GraspState.IDLE
         faults: tuple[str, ...] = ()
-        if s & Status.ERROR:
-            faults = (error_name(reading.error),)
+        if s & Status.ERROR:  # 0xD9 under the library's name, so state().fast_stopped says it on every family
+            faults = ("fast_stop",) if reading.error == ERR_FAST_STOP else (error_name(reading.error),)
         elif not s & Status.READY:
             faults = ("not_ready",)
         return GripperState(
@@ -319,7 +319,9 @@ class SchunkDevice(Device):
             current=None,
             grasp=grasp,
             moving=moving,
-            referenced=bool(s & Status.READY),
+            # The units have no reference run (no control bit for one: SCHUNK's driver.py) and report their
+            # position from power-up; readiness is a fault (0xD9, not_ready), which home() acknowledges.
+            referenced=True,
             faults=faults,
             timestamp=time.time(),
         )
@@ -411,6 +413,9 @@ class SchunkReconnection:
 
     def reconnect(self) -> None:
         assert self.device.connect is not None
+        # The old link goes first: a serial port is opened exclusively (drivers/serial_ports.py), so the
+        # fresh link could not have it while the dead one holds it. Closing twice is harmless.
+        self.device.client.close()
         fresh = self.device.connect()
         try:
             fresh.connect("reconnect")

@@ -6,18 +6,26 @@ refuses a target outside them ("command not feasible"); cleared, they span 0 .. 
 from __future__ import annotations
 
 import argparse
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
+from grippers.drivers.schunk.client import SchunkClient
 from grippers.drivers.schunk.protocol import BY_NAME, encode
 
-if TYPE_CHECKING:
-    from .schunk import SchunkDevice
+from .schunk_profile import SchunkProfile
+
+
+class Holder(Protocol):
+    """What the soft limits ask of the :class:`~grippers.backends.schunk.SchunkDevice` (declared here, so this
+    module does not import the device's, which imports this one)."""
+
+    client: SchunkClient
+    profile: SchunkProfile
 
 
 class SchunkSoftLimits:
     """The ``soft_limits`` feature: writes min_pos/max_pos, and keeps the client's copy of them current."""
 
-    def __init__(self, device: SchunkDevice) -> None:
+    def __init__(self, device: Holder) -> None:
         self.device = device
 
     def set(self, min_width: float | None, max_width: float | None) -> None:

@@ -24,7 +24,8 @@ import secrets
 from collections.abc import Awaitable, Callable, MutableMapping
 from http.cookies import SimpleCookie
 from typing import Any
-from urllib.parse import parse_qs, urlsplit
+
+from grippers.drivers.urls import URLError, parse_query, web_origin
 
 Scope = MutableMapping[str, Any]
 Message = MutableMapping[str, Any]
@@ -126,9 +127,12 @@ class Guard:
         return 0, "", from_url
 
     def _given(self, scope: Scope, headers: dict[str, str]) -> tuple[str | None, bool]:
-        query = parse_qs(scope.get("query_string", b"").decode("latin-1"))
+        try:  # the project's one query parser; a malformed query carries no token
+            query = parse_query("panel request", scope.get("query_string", b"").decode("latin-1"))
+        except URLError:
+            query = {}
         if query.get("token"):
-            return query["token"][0], True
+            return query["token"], True
         auth = headers.get("authorization", "")
         if auth.lower().startswith("bearer "):
             return auth[7:].strip(), False
@@ -143,12 +147,13 @@ class Guard:
 
 def _same_origin(origin: str, host: str) -> bool:
     """An ``Origin`` (``http://h:p``) naming the host and port the request was sent to (its ``Host``)."""
-    parts = urlsplit(origin)
-    if parts.scheme not in ("http", "https") or not parts.netloc:
+    parts = web_origin(origin)
+    if parts is None:
         return False
-    default = "443" if parts.scheme == "https" else "80"
+    scheme, netloc = parts
+    default = "443" if scheme == "https" else "80"
     ours = host if ":" in host.rsplit("]", 1)[-1] else f"{host}:{default}"
-    theirs = parts.netloc if ":" in parts.netloc.rsplit("]", 1)[-1] else f"{parts.netloc}:{default}"
+    theirs = netloc if ":" in netloc.rsplit("]", 1)[-1] else f"{netloc}:{default}"
     return ours.lower() == theirs.lower()
 
 
