@@ -13,6 +13,7 @@ import sys
 import threading
 from typing import Any
 
+from . import signals
 from .common import positive_float
 
 HELP = "serve grippers over Eclipse Zenoh (zenoh://NAME URLs for other processes and machines)"
@@ -143,7 +144,13 @@ def run(args: argparse.Namespace) -> int:
             raise UsageError(f"nothing to serve as {name!r}")
     opened: dict[str, Any] = {}
     stop = threading.Event()
-    signal.signal(signal.SIGTERM, lambda *_: stop.set())
+    ended_by: list[str] = []
+
+    def end(signum: int, frame: object) -> None:
+        ended_by.append(signal.Signals(signum).name)
+        stop.set()
+
+    previous = signals.ends_service(end)  # SIGTERM and SIGHUP: the same stops as Ctrl-C, then exit 0
     server = None
     handler = start_logging(args.log_file)
     log = logging.getLogger("grippers.remote")
@@ -187,7 +194,7 @@ def run(args: argparse.Namespace) -> int:
         print("press Ctrl-C to stop", file=sys.stderr, flush=True)
         while not stop.wait(0.5):
             pass
-        log.info("SIGTERM: withdrawing and closing")
+        log.info("%s: withdrawing and closing", ended_by[0] if ended_by else "SIGTERM")
     finally:
         # Ctrl-C leaves through here too: the CLI's own handler then says "interrupted" and exits 130.
         if server is not None:
@@ -197,4 +204,5 @@ def run(args: argparse.Namespace) -> int:
                 gripper.close()
         logging.getLogger("grippers").removeHandler(handler)
         handler.close()
+        signals.restore(previous)
     return 0

@@ -108,12 +108,16 @@ class ServedGripper:
         self._withdraw()
         if self._thread.is_alive():
             self._thread.join(CLOSE_JOIN_S)
-        for entity in self._declared:
-            try:
-                entity.undeclare()
-            except Exception:  # already undeclared with a closed session
-                pass
-        self._declared.clear()
+        # Under the publishing lock: a motion thread that ends now (the stop below aborts it) publishes its
+        # last state before this or not at all, never on an undeclared publisher (issue 43 §1: a thread
+        # traceback "zenoh.ZError: Undeclared publisher" at SIGTERM).
+        with self._pub_lock:
+            for entity in self._declared:
+                try:
+                    entity.undeclare()
+                except Exception:  # already undeclared with a closed session
+                    pass
+            self._declared.clear()
         with self._motions_lock:
             running = list(self._motions)
         if self._lost is None and self._moves(bool(running) or self._servo_owner is not None):
@@ -153,6 +157,8 @@ class ServedGripper:
             self._seq += 1
             data = protocol.dumps(payloads.state_doc(state, self._seq))
             self._latest = data
+            if self._stop.is_set():  # closing: the publisher is undeclared (under this lock) or about to be
+                return
             self._publisher.put(data)
 
     def _lose(self, exc: GripperError) -> None:
