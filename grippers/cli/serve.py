@@ -108,14 +108,20 @@ def start_logging(path: str | None) -> logging.Handler:
 
 
 def parse_targets(items: list[str]) -> list[tuple[str | None, str]]:
-    """``NAME=TARGET`` or a bare ``TARGET``; a URL's own ``=`` (in its query) is not a name."""
+    """``NAME=TARGET`` or a bare ``TARGET``; a URL's own ``=`` (in its query) is not a name, nor is one in
+    the path of a file that exists. Anything else before the first ``=`` is a name, checked as one: ``a/b=``,
+    ``x?y=sim://wsg50`` and a name ending in a newline are refused with a message about the served name
+    (issue 43 §3: they got one about a scheme, or were served under a key ending in a newline)."""
+    from pathlib import Path
+
     out: list[tuple[str | None, str]] = []
     for item in items:
         head, eq, tail = item.partition("=")
-        if eq and "://" not in head and "?" not in head and "/" not in head:
-            out.append((head, tail))
-        else:
+        setting = "?" in head and "://" not in tail and not Path(tail).suffix  # PROFILE?setting=value
+        if not eq or "://" in head or setting or Path(item).exists():
             out.append((None, item))
+        else:
+            out.append((head, tail))
     return out
 
 
