@@ -14,7 +14,7 @@ import threading
 import time
 from typing import Any
 
-from ..errors import AccessDenied, GripperError
+from ..errors import AccessDenied, GripperError, ServerBusy
 from . import protocol
 from .lease import Lease
 from .protocol import Request
@@ -25,10 +25,6 @@ MAX_QUEUED = 64  # requests of non-holders queued at once per gripper; more are 
 LOG_BURST = 10  # refusals logged one by one per LOG_WINDOW_S; the rest are summed up in one line
 LOG_WINDOW_S = 10.0
 TOKEN_LOOKUP_S = 0.5  # how long a free lease's taker's token is looked for when not seen yet
-
-
-class ServerBusy(GripperError):
-    """Too many requests of clients that do not hold the lease are queued: this one is refused unqueued."""
 
 
 class Gate:
