@@ -20,7 +20,7 @@ from ..errors import AccessDenied, ConnectionLost, GripperError, ProtocolError
 from ..gripper import Gripper
 from . import payloads, protocol
 from .discovery import refuse_duplicate
-from .gate import Gate
+from .gate import Gate, Slot
 from .session import DEFAULT_LISTEN, import_zenoh, make_config, open_session, own_locators
 
 log = logging.getLogger("grippers.remote")  # serve's own lines: lost, back, lease changes (docs/remote.md)
@@ -246,17 +246,16 @@ class ServedGripper:
             spec = protocol.COMMANDS[command]
             acquire = command == "control" and request.args["action"] == "acquire"
             needs, take = spec.lease != "free" or acquire, spec.lease == "take" or acquire
-            trusted = self.gate.admit(request, needs, take)
+            slot = self.gate.admit(request, needs, take, urgent=command in _URGENT)
         except GripperError as exc:
             self._refuse(query, request, command, exc)
             return
         # Stop, fast stop and acknowledge never queue behind reads or settings (``urgent``: commands.py).
         pool = self.server.urgent if command in _URGENT else self.server.pool
         try:
-            pool.submit(self._answer, query, request, trusted)
+            pool.submit(self._answer, query, request, slot)
         except RuntimeError:  # shutting down
-            if not trusted:
-                self.gate.release()
+            self.gate.release(slot)
             with query:
                 query.reply_err(protocol.encode_error(ConnectionLost("the server is closing"), command))
 
@@ -266,7 +265,7 @@ class ServedGripper:
         self._reply_error(query, exc, command)
         query.drop()
 
-    def _answer(self, query: Any, request: protocol.Request, trusted: bool) -> None:
+    def _answer(self, query: Any, request: protocol.Request, slot: Slot) -> None:
         command = request.command
         try:
             if self._lost is not None:
@@ -296,8 +295,7 @@ class ServedGripper:
             query.drop()
             return
         finally:
-            if not trusted:
-                self.gate.release()
+            self.gate.release(slot)
         try:
             reply = protocol.encode_reply(protocol.DONE, payloads.result_doc(result), secret)
             query.reply(query.key_expr, reply)
