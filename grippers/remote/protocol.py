@@ -278,7 +278,7 @@ def encode_error(exc: BaseException, command: str) -> bytes:
     """An error as its class name, message and command; the client raises the same class again."""
     if isinstance(exc, GripperError):
         doc: dict[str, Any] = {
-            "error": type(exc).__name__,
+            "error": _wire_name(type(exc)),
             "message": exc.message,
             "command": exc.command or command,
             "device": exc.device,
@@ -294,6 +294,17 @@ def encode_error(exc: BaseException, command: str) -> bytes:
         }
     doc["v"] = PROTOCOL_VERSION
     return dumps(doc)
+
+
+def _wire_name(cls: type[GripperError]) -> str:
+    """The name an error crosses the wire by: its own when clients know it, else its nearest ancestor's that
+    they do (issue 43 §5: a served Robotiq's ``RobotiqFault``, a family's own CommandFailed, arrived as a
+    plain GripperError "RobotiqFault: ..." without its status)."""
+    known = error_classes()
+    for ancestor in cls.__mro__:
+        if known.get(ancestor.__name__) is ancestor:
+            return ancestor.__name__
+    return cls.__name__
 
 
 def error_classes() -> dict[str, type[GripperError]]:

@@ -79,3 +79,13 @@ def test_a_wildcard_client_id_gets_no_free_lease(serve, client: str) -> None:
     finally:
         session.close()
         honest.close()
+
+
+def test_a_familys_own_error_crosses_the_wire_as_its_nearest_known_class() -> None:
+    """Issue 43 §5: a served Robotiq's fault reached a client as GripperError("RobotiqFault: ...")."""
+    from grippers.backends.robotiq import RobotiqFault
+
+    fault = RobotiqFault("gripper fault 0x7: overcurrent", status=7, status_name="OVERCURRENT", device="r")
+    error = protocol.decode_error(protocol.encode_error(fault, "move"), "move", "r@zenoh://r")
+    assert type(error) is grippers.CommandFailed
+    assert (error.status, error.status_name) == (7, "OVERCURRENT") and "overcurrent" in error.message
