@@ -269,12 +269,21 @@ class Recording:
         return out
 
 
+MAX_MAGNITUDE = 1e9  # no time (31 years in s), width, speed, force or current of a recording comes near it
+
+
 def _number(value: Any, where: str, key: str) -> float | None:
+    """A number of a row: finite and within +-MAX_MAGNITUDE (issue 43 §6: a time of 1e308 reached the plot
+    as "Singular matrix"); a cell of a CSV is text."""
     if value is None or value == "":
         return None
     if isinstance(value, str):
         value = value.strip()
-    return finite(value, f"{where}: {key}", error=RecordingError, text=True)  # a cell of a CSV is text
+    if isinstance(value, str) and len(value) > 64:  # no number of ours is written longer (5001 digits: no)
+        raise RecordingError(f"{where}: {key} is not a number of a recording ({len(value)} characters)")
+    return finite(
+        value, f"{where}: {key}", low=-MAX_MAGNITUDE, high=MAX_MAGNITUDE, error=RecordingError, text=True
+    )
 
 
 def _flag(value: Any) -> bool | None:
@@ -366,8 +375,9 @@ def load(path: str | Path) -> Recording:
             header, raw, cut = read_mcap(path)
         except McapMissing as exc:
             raise RecordingError(str(exc)) from None
-        except ValueError as exc:
-            raise RecordingError(str(exc)) from None
+        except ValueError as exc:  # read_mcap's own (naming the file), a message no JSON, a number too long
+            text = str(exc)
+            raise RecordingError(text if text.startswith(f"{path}:") else f"{path}: {text}"[:300]) from None
         rows = [_row(obj, f"{path}: message {n}") for n, obj in enumerate(raw, start=1)]
     elif fmt == "jsonl":
         header = {}
@@ -377,8 +387,14 @@ def load(path: str | Path) -> Recording:
                 continue
             try:
                 obj = json.loads(line)
-            except (json.JSONDecodeError, RecursionError) as exc:
-                reason = exc.msg if isinstance(exc, json.JSONDecodeError) else "nested too deeply"
+            except (ValueError, RecursionError) as exc:
+                reason = (
+                    exc.msg
+                    if isinstance(exc, json.JSONDecodeError)
+                    else "nested too deeply"
+                    if isinstance(exc, RecursionError)
+                    else "a number too long"  # Python's int limit (4300 digits): a ValueError of its own
+                )
                 raise RecordingError(f"{path}: line {number}: not JSON: {reason}") from None
             if not header:
                 if not (isinstance(obj, dict) and obj.get("schema") in READABLE_SCHEMAS):
