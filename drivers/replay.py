@@ -78,11 +78,23 @@ class Script:
         return self.next >= len(self.steps)
 
 
+MAX_ANSWER_DELAY_S = 3600.0  # no device answers an hour after a request: a capture saying so is damaged
+
+
 def relative(steps: list[Step]) -> list[Step]:
-    """Answer times as seconds after their request (the first entry of each step holds the request's time)."""
+    """Answer times as seconds after their request (the first entry of each step holds the request's time).
+
+    A gap beyond :data:`MAX_ANSWER_DELAY_S` is a ValueError (the CLI's one line, exit 2), not a timer of
+    1e300 s that died with a traceback in its thread while the replay served on (issue 43 §6)."""
     for step in steps:
         t0 = step.answers[0][0]
         step.answers = [(max(0.0, t - t0), a) for t, a in step.answers[1:]]
+        late = next((d for d, _ in step.answers if not d <= MAX_ANSWER_DELAY_S), None)
+        if late is not None:
+            raise ValueError(
+                f"an answer {late:.6g} s after its request ({step.shown}): a capture's answers come within "
+                f"{MAX_ANSWER_DELAY_S:g} s"
+            )
     return steps
 
 

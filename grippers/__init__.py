@@ -29,6 +29,7 @@ from .errors import (
     ProfileAssumed,
     ProfileError,
     ProtocolError,
+    ServerBusy,
     URLError,
 )
 
@@ -85,6 +86,7 @@ __all__ = [
     "ProfileAssumed",
     "ProfileError",
     "ProtocolError",
+    "ServerBusy",
     "URLError",
     "open",
     "Capability",

@@ -32,6 +32,7 @@ __all__ = [
     "NotSupported",
     "ProfileError",
     "ProtocolError",
+    "ServerBusy",
     "URLError",
 ]
 
@@ -143,6 +144,12 @@ class AccessDenied(GripperError):
     ) -> None:
         self.holder = holder
         super().__init__(message, device=device, command=command)
+
+
+class ServerBusy(GripperError):
+    """A served gripper (``zenoh://``) refused the request unqueued: too many requests of clients that do not
+    hold the lease are queued already. Nothing was done; try again (issue 43 §4: it arrived as a plain
+    GripperError, so a program could not tell it from a device's refusal)."""
 
 
 class GripperWarning(UserWarning):

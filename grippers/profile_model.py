@@ -13,6 +13,7 @@ from typing import Annotated
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
+from .settings import RANGES
 from .timeouts import MAX_TIMEOUT_S
 from .units import to_m
 
@@ -39,6 +40,9 @@ Timeout = Annotated[float, Field(gt=0, le=MAX_TIMEOUT_S, allow_inf_nan=False)]
 TimeScale = Annotated[float, Field(gt=0, le=MAX_TIME_SCALE, allow_inf_nan=False)]
 Port = Annotated[int, Field(ge=1, le=65535)]
 CanId = Annotated[int, Field(ge=0, le=0x7FF)]  # standard 11-bit identifiers
+# A serial link's baud rate, bounded as the URL's ?baudrate= is (grippers/settings.py RANGES: one rule):
+# ``baudrate = 1e20`` passed ``profiles validate`` and open() then raised OverflowError (issue 43 §5).
+Baudrate = Annotated[int, Field(ge=int(RANGES["baudrate"][0]), le=int(RANGES["baudrate"][1]))]
 
 
 class _Model(BaseModel):

@@ -38,6 +38,7 @@ from .profile_model import (  # noqa: F401  (re-exported)
     MAX_TIME_SCALE,
     MAX_TIMEOUT_S,
     Accel,
+    Baudrate,
     CanId,
     Connection,
     Force,

@@ -112,6 +112,7 @@ class Recorder:
         self._count = threading.Lock()
         self._closed = False
         self._finished = threading.Event()  # set by the writer when the file is closed
+        self._begun = threading.Event()  # set by the writer once the header is written and the file placed
         self.start = time.time()
         head = {
             "grippers": [{"name": n, "target": str(g.url)} for n, g in self.grippers.items()],
@@ -123,6 +124,9 @@ class Recorder:
         self._writer.start()  # not a daemon: the interpreter waits for it to finish the file
         self._streams: list[StateStream] = []
         try:
+            # The file has its name once this returns (the sink writes under a temporary one until then):
+            # a reader that opens it at once finds the header (bounded: a disk that hangs).
+            self._begun.wait(CLOSE_BOUND_S)
             for name, g in self.grippers.items():
                 self._streams.append(g.stream(rate_hz, callback=self._sampler(name)))
         except BaseException:
@@ -188,7 +192,10 @@ class Recorder:
         flushed, dirty = time.monotonic(), False
         main = threading.main_thread()
         try:
-            sink.begin(head)
+            try:
+                sink.begin(head)
+            finally:
+                self._begun.set()
             while True:
                 try:
                     item = self._queue.get(timeout=0.2)
@@ -243,7 +250,23 @@ class Recorder:
         if not self._finished.is_set():
             raise RecordingError(f"{self.path}: the file was not finished within {CLOSE_BOUND_S:g} s")
         if self.error is not None:
+            self._count_the_file()
             raise self.error
+
+    def _count_the_file(self) -> None:
+        """After a write error, :attr:`states` and :attr:`events` say what the file holds, not what was
+        sampled (issue 43 §9: "recorded 450 states" with 231 in the file after a full disk): the rows read
+        back, else those known to have reached it at the last flush."""
+        from .recording import load
+
+        try:
+            rows = load(self.path).rows
+        except (RecordingError, OSError):
+            counts = self._sink.flushed
+            self.states, self.events = counts.get("state", 0), counts.get("command", 0)
+            return
+        self.states = sum(1 for r in rows if r["kind"] == "state")
+        self.events = sum(1 for r in rows if r["kind"] == "command")
 
     def __enter__(self) -> Recorder:
         return self

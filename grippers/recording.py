@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import csv
 import json
+import os
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -76,13 +77,27 @@ def sidecar_of(path: str | Path) -> Path:
     return Path(str(path) + SIDECAR_SUFFIX)
 
 
+def temporary_of(path: str | Path) -> Path:
+    """Where a recording is written until it starts: ``.run.csv.<pid>.part`` beside ``run.csv`` (the same
+    file system, so moving it into place is one rename)."""
+    path = Path(path)
+    return path.with_name(f".{path.name}.{os.getpid()}.part")
+
+
 def _cannot_write(path: str | Path, exc: OSError) -> RecordingError:
-    """``run.mcap: cannot write: File too large``: the file named, whatever the OS error left out."""
-    return RecordingError(f"{exc.filename or path}: cannot write: {exc.strerror or exc}")
+    """``run.mcap: cannot write: File too large``: the user's file named, whatever the OS error left out."""
+    return RecordingError(f"{path}: cannot write: {exc.strerror or exc}")
 
 
 class Sink:
     """A recording's files, opened now (a bad path fails before anything moves), then written row by row.
+
+    Written under a temporary name beside the final one (:func:`temporary_of`) until :meth:`begin`, which
+    moves the files into place: a run that never starts (the gripper does not open, an unknown profile,
+    Ctrl-C first) leaves what the user had under that name untouched (issue 43 §2: an existing ``run.csv``
+    and its ``run.csv.json`` were deleted). From :meth:`begin` on the rows go to the final name as they
+    come, so a reader finds them while the recording runs (the open file keeps its descriptor across the
+    rename).
 
     Not thread-safe: one thread writes (grippers/recorder.py's writer thread). After a write error every
     call is a no-op but :meth:`close`, which closes what is there; the error is kept in :attr:`error`.
@@ -94,25 +109,49 @@ class Sink:
         self.files = [str(self.path)]
         self.error: RecordingError | None = None
         self.rows = 0
+        self.added: dict[str, int] = {}  # rows handed to the file, by kind ("state", "command")
+        self.flushed: dict[str, int] = {}  # of those, the ones known to have reached it
+        self._temporary = temporary_of(self.path)
+        self._placed = False  # moved into place by begin()
         self._mcap: Any = None
         self._fh: IO[str] | None = None
         self._csv: Any = None
+        if self.path.is_dir():
+            raise RecordingError(f"{path}: cannot write: is a directory")
         try:
             if self.format == "mcap":
                 from .recording_mcap import McapMissing, McapSink
 
                 try:
-                    self._mcap = McapSink(self.path)
+                    self._mcap = McapSink(self._temporary)
                 except McapMissing as exc:
                     raise RecordingError(str(exc)) from None
             else:
-                self._fh = open(self.path, "w", newline="", encoding="utf-8")  # noqa: SIM115 (close())
+                self._fh = open(self._temporary, "w", newline="", encoding="utf-8")  # noqa: SIM115 (close())
                 if self.format == "csv":
-                    sidecar_of(self.path).touch()
+                    sidecar_of(self._temporary).touch()
                     self.files.append(str(sidecar_of(self.path)))
         except OSError as exc:
             self.abandon()
             raise _cannot_write(path, exc) from None
+
+    def _pairs(self) -> list[tuple[Path, Path]]:
+        """(temporary, final) for each file of the recording."""
+        pairs = [(self._temporary, self.path)]
+        if self.format == "csv":
+            pairs.append((sidecar_of(self._temporary), sidecar_of(self.path)))
+        return pairs
+
+    def _cannot_write(self, exc: OSError) -> RecordingError:
+        """The error naming the user's file, never the temporary one."""
+        names = {str(t): f for t, f in self._pairs()}
+        return _cannot_write(names.get(str(exc.filename), self.path), exc)
+
+    def _place(self) -> None:
+        """Move the files into place (the sidecar last: a CSV is read without it)."""
+        for temporary, final in self._pairs():
+            os.replace(temporary, final)
+        self._placed = True
 
     def _guard(self, what: Any, *args: Any) -> None:
         if self.error is not None:
@@ -120,7 +159,7 @@ class Sink:
         try:
             what(*args)
         except OSError as exc:
-            self.error = _cannot_write(self.path, exc)
+            self.error = self._cannot_write(exc)
             self._close_quietly()
 
     def begin(self, header: Mapping[str, Any]) -> None:
@@ -130,16 +169,18 @@ class Sink:
     def _begin(self, head: dict[str, Any]) -> None:
         if self._mcap is not None:
             self._mcap.begin(head)
+            self._place()
             return
         assert self._fh is not None
         if self.format == "jsonl":
             self._fh.write(json.dumps(head) + "\n")
         else:
             side = json.dumps({**head, "columns": list(COLUMNS)}, indent=2) + "\n"
-            sidecar_of(self.path).write_text(side, encoding="utf-8")
+            sidecar_of(self._temporary).write_text(side, encoding="utf-8")
             self._csv = csv.DictWriter(self._fh, fieldnames=COLUMNS, extrasaction="ignore")
             self._csv.writeheader()
         self._fh.flush()
+        self._place()
 
     def add(self, row: Mapping[str, Any]) -> None:
         """One row, buffered; :meth:`flush` hands what is buffered to the OS."""
@@ -147,6 +188,8 @@ class Sink:
 
     def _add(self, row: Mapping[str, Any]) -> None:
         self.rows += 1
+        kind = str(row.get("kind"))
+        self.added[kind] = self.added.get(kind, 0) + 1
         if self._mcap is not None:
             self._mcap.add(row)
         elif self.format == "jsonl":
@@ -161,6 +204,8 @@ class Sink:
     def flush(self) -> None:
         """Everything added so far reaches the file (MCAP: the chunk in progress is finished)."""
         self._guard(self._mcap.flush if self._mcap is not None else self._flush_text)
+        if self.error is None:
+            self.flushed = dict(self.added)
 
     def _flush_text(self) -> None:
         assert self._fh is not None
@@ -170,6 +215,8 @@ class Sink:
         """Finish the file (MCAP: the summary and footer) and close it; after an error, close what is
         there."""
         self._guard(self._mcap.finish if self._mcap is not None else self._flush_text)
+        if self.error is None:
+            self.flushed = dict(self.added)
         self._close_quietly()
 
     def _close_quietly(self) -> None:
@@ -183,14 +230,15 @@ class Sink:
                 close()
             except OSError as exc:  # the buffer could not be written either: the first error stands
                 if self.error is None:
-                    self.error = _cannot_write(self.path, exc)
+                    self.error = self._cannot_write(exc)
 
     def abandon(self) -> None:
         """Close and remove the files opened for this recording: nothing was recorded (the gripper did not
-        open, or Ctrl-C came first), and an empty file would later read as a broken recording."""
+        open, or Ctrl-C came first). Before :meth:`begin` only the temporary files go: what the user had
+        under the final names stays."""
         self._close_quietly()
-        for name in self.files:
-            Path(name).unlink(missing_ok=True)
+        for temporary, final in self._pairs():
+            (final if self._placed else temporary).unlink(missing_ok=True)
 
 
 def open_sink(path: str | Path) -> Sink:
@@ -221,12 +269,21 @@ class Recording:
         return out
 
 
+MAX_MAGNITUDE = 1e9  # no time (31 years in s), width, speed, force or current of a recording comes near it
+
+
 def _number(value: Any, where: str, key: str) -> float | None:
+    """A number of a row: finite and within +-MAX_MAGNITUDE (issue 43 §6: a time of 1e308 reached the plot
+    as "Singular matrix"); a cell of a CSV is text."""
     if value is None or value == "":
         return None
     if isinstance(value, str):
         value = value.strip()
-    return finite(value, f"{where}: {key}", error=RecordingError, text=True)  # a cell of a CSV is text
+    if isinstance(value, str) and len(value) > 64:  # no number of ours is written longer (5001 digits: no)
+        raise RecordingError(f"{where}: {key} is not a number of a recording ({len(value)} characters)")
+    return finite(
+        value, f"{where}: {key}", low=-MAX_MAGNITUDE, high=MAX_MAGNITUDE, error=RecordingError, text=True
+    )
 
 
 def _flag(value: Any) -> bool | None:
@@ -318,8 +375,9 @@ def load(path: str | Path) -> Recording:
             header, raw, cut = read_mcap(path)
         except McapMissing as exc:
             raise RecordingError(str(exc)) from None
-        except ValueError as exc:
-            raise RecordingError(str(exc)) from None
+        except ValueError as exc:  # read_mcap's own (naming the file), a message no JSON, a number too long
+            text = str(exc)
+            raise RecordingError(text if text.startswith(f"{path}:") else f"{path}: {text}"[:300]) from None
         rows = [_row(obj, f"{path}: message {n}") for n, obj in enumerate(raw, start=1)]
     elif fmt == "jsonl":
         header = {}
@@ -329,8 +387,14 @@ def load(path: str | Path) -> Recording:
                 continue
             try:
                 obj = json.loads(line)
-            except (json.JSONDecodeError, RecursionError) as exc:
-                reason = exc.msg if isinstance(exc, json.JSONDecodeError) else "nested too deeply"
+            except (ValueError, RecursionError) as exc:
+                reason = (
+                    exc.msg
+                    if isinstance(exc, json.JSONDecodeError)
+                    else "nested too deeply"
+                    if isinstance(exc, RecursionError)
+                    else "a number too long"  # Python's int limit (4300 digits): a ValueError of its own
+                )
                 raise RecordingError(f"{path}: line {number}: not JSON: {reason}") from None
             if not header:
                 if not (isinstance(obj, dict) and obj.get("schema") in READABLE_SCHEMAS):

@@ -111,7 +111,7 @@ class _RecordingLink(ServedLink):
     """A served link with no Zenoh session: its one sending call records the verb and arguments."""
 
     def __init__(self) -> None:  # noqa: D107 - no session
-        self.url = self.served_name = "zenoh://recorded"
+        self.url, self.served_name = "zenoh://recorded", "recorded"  # a served name is one key chunk
         self.timeout = 1.0
         self.context = DeviceContext(name=self.url)
         self.lost = None

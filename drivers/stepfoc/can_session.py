@@ -129,6 +129,7 @@ class CanSession:
         self.echoes = echoes  # the bus hands this client's own frames back (module docstring)
         self._own: deque[tuple[int, bytes, bool, float]] = deque()  # sent, their echo not yet back
         self._expected: dict[Key, int] = {}  # requests seen minus replies seen, per key
+        self._before_outage: dict[Key, int] = {}  # of those, the ones counted before the bus was reopened
         self._answered: dict[Key, float] = {}  # time of the last reply to one of this client's requests
         self._waiting: set[Key] = set()  # keys whose request waits for its reply
         self._nodes: dict[int, NodeFacts] = {}
@@ -168,7 +169,13 @@ class CanSession:
         self._waiting.discard(key)
 
     def reset(self) -> None:
-        """The bus was reopened: requests counted before the outage will never be answered."""
+        """The bus was reopened: requests counted before the outage are waited for by nobody, but may still
+        be answered (a reply delayed across the failure and the reopen): such a reply is a late one, never
+        a twin's (issue 43 §9: 40 ms late, it was taken for the answer to the first new request and the
+        real answer for a second device's, for good). Kept apart from the new requests' counts."""
+        for key, left in self._expected.items():
+            if left > 0:
+                self._before_outage[key] = self._before_outage.get(key, 0) + left
         self._expected.clear()
         self._answered.clear()
         self._own.clear()
@@ -213,6 +220,8 @@ class CanSession:
             self._expected[key] = left - 1
             if waiting:
                 self._answered[key] = now  # the reply to OUR request: a second one would be a twin
+        elif self._before_outage.get(key, 0) > 0:
+            self._before_outage[key] -= 1  # a late reply to a request sent before the bus was reopened
         elif facts.duplicate is None and now - self._answered.get(key, -1e9) < DUPLICATE_WINDOW_S:
             facts.duplicate = (
                 f"two devices answer as node {node}: a second {spec.name} reply arrived for one "

@@ -13,7 +13,7 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from grippers.drivers.robotiq.registers import BAUDRATE, DEFAULT_SLAVE, FORWARDER_PORT
 
-from ..profiles import Length, ProfileBase, Timeout, TimeScale
+from ..profiles import Baudrate, Length, ProfileBase, Timeout, TimeScale
 
 
 class _Section(BaseModel):
@@ -26,7 +26,7 @@ Byte = Annotated[int, Field(ge=0, le=255)]
 class RobotiqTransport(_Section):
     timeout_s: Timeout = 1.0
     slave: Annotated[int, Field(ge=1, le=247)] = DEFAULT_SLAVE
-    baudrate: Annotated[int, Field(gt=0)] = BAUDRATE
+    baudrate: Baudrate = BAUDRATE
     tcp_port: Annotated[int, Field(ge=1, le=65535)] = FORWARDER_PORT
     read_function: Literal[3, 4] = 3  # READ_HOLDING, as the manuals and the SDK read the status
 

@@ -7,14 +7,14 @@ from typing import Annotated, Any, Literal
 
 from pydantic import Field, model_validator
 
-from ..profiles import MAX_FORCE_N, Length, ProfileBase, Timeout, TimeScale, _Model
+from ..profiles import MAX_FORCE_N, Baudrate, Length, ProfileBase, Timeout, TimeScale, _Model
 
 MAX_NODE = 15  # 4-bit node id (MSG manual, "Bits 10 - 7 of CAN ID"; docs/protocols.md §2)
 
 
 class StepfocTransport(_Model):
     timeout_s: Timeout = 0.5
-    baudrate: Annotated[int, Field(gt=0)] = 256_000  # docs/protocols.md §2 UART
+    baudrate: Baudrate = 256_000  # docs/protocols.md §2 UART
     can_interface: str = "socketcan"
     can_channel: str = "can0"
     can_bitrate: Annotated[int, Field(gt=0)] = 1_000_000  # docs/protocols.md §2 CAN

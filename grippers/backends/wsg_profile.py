@@ -7,7 +7,18 @@ from typing import Annotated, Literal
 
 from pydantic import Field
 
-from ..profiles import CanId, Length, Port, ProfileBase, Timeout, TimeScale, _key, _Model, list_profiles
+from ..profiles import (
+    Baudrate,
+    CanId,
+    Length,
+    Port,
+    ProfileBase,
+    Timeout,
+    TimeScale,
+    _key,
+    _Model,
+    list_profiles,
+)
 
 
 class WsgTransport(_Model):
@@ -16,7 +27,7 @@ class WsgTransport(_Model):
     tcp_port: Port = 1000
     udp_port: Port = 1500
     udp_local_port: Annotated[int, Field(ge=0, le=65535)] = 1501
-    baudrate: Annotated[int, Field(gt=0)] = 115200
+    baudrate: Baudrate = 115200
     bytesize: Literal[5, 6, 7, 8] = 8
     parity: Literal["N", "E", "O", "M", "S"] = "N"
     # 1, 1.5 or 2 (one public driver uses 2); 1.5 spelled as a range, since a typing Literal takes no floats.

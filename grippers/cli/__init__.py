@@ -4,7 +4,8 @@ Each subcommand is a module (or an object in a module, ``".motion:home"``) expos
 ``EXAMPLE``, ``add_arguments(parser)`` and ``run(args) -> int``. Modules import heavy things (python-can,
 pydantic, drivers) inside ``run`` only, so ``grippers --help`` stays fast.
 
-Exit codes (docs/cli.md): 0 success, 1 the device failed / nothing answered, 2 usage error, 130 interrupted.
+Exit codes (docs/cli.md): 0 success, 1 the device failed / nothing answered, 2 usage error, 130 interrupted
+(143 SIGTERM, 129 SIGHUP: grippers/cli/signals.py).
 Errors end in one line on stderr; ``--debug`` shows the traceback instead.
 """
 
@@ -17,7 +18,7 @@ import sys
 from collections.abc import Sequence
 from typing import Any
 
-from . import logs
+from . import logs, signals
 
 # name -> module (relative to this package) or "module:attribute"; order is the order shown in --help.
 SUBCOMMANDS: dict[str, str] = {
@@ -67,7 +68,10 @@ class _VersionAction(argparse.Action):
         parser.exit(0)
 
 
-EXIT_CODES = "Exit codes: 0 ok, 1 failed or nothing found, 2 usage error, 130 interrupted (Ctrl-C)."
+EXIT_CODES = (
+    "Exit codes: 0 ok, 1 failed or nothing found, 2 usage error, 130 interrupted (Ctrl-C), "
+    "143 SIGTERM, 129 SIGHUP."
+)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -106,18 +110,29 @@ def main(argv: Sequence[str] | None = None) -> int:
     the import of ``grippers`` and ``grippers.cli`` (module-level imports kept small for that reason too).
     The library stops a moving gripper before KeyboardInterrupt leaves a blocking call, and commands that
     start motions without waiting stop them themselves (:func:`grippers.cli.common.stops_motions_on_error`).
+
+    SIGTERM and SIGHUP take the same path (grippers/cli/signals.py: one rule for every command, issue 43 §1)
+    and exit 143 and 129. Called as the program (``argv`` None), a signal after the command has returned
+    ends the process with the command's own status; called with ``argv`` (tests, scripts), the signal
+    handlers are put back instead.
     """
+    previous = signals.like_ctrl_c()
     command: list[str] = []  # the subcommand, once parsed, for the one line
     try:
-        return _main(argv, command)
-    except KeyboardInterrupt:
+        status = _main(argv, command)
+    except KeyboardInterrupt as exc:
+        signals.ending()  # a second Ctrl-C neither cuts the line short nor changes the status
+        status = signals.exit_status(exc)
+        how = "" if not isinstance(exc, signals.Terminated) else f" by {signals.signal_name(exc)}"
         try:
-            print(f"grippers{''.join(' ' + c for c in command)}: interrupted", file=sys.stderr)
-        except KeyboardInterrupt:  # a second Ctrl-C while saying so: the exit code still says it
+            print(f"grippers{''.join(' ' + c for c in command)}: interrupted{how}", file=sys.stderr)
+        except KeyboardInterrupt:  # a signal the process ignored before ours: the exit code still says it
             pass
-        from .output import EXIT_INTERRUPTED  # loaded by then, with the subcommands, but for the first ms
-
-        return EXIT_INTERRUPTED
+    if argv is None:
+        signals.finished(status)
+    else:
+        signals.restore(previous)
+    return status
 
 
 def _main(argv: Sequence[str] | None, command: list[str]) -> int:

@@ -133,19 +133,50 @@ def stop_running_motions(gripper: Gripper, by: str) -> list[BaseException]:
 
 @contextmanager
 def stops_motions_on_error(gripper: Gripper) -> Iterator[Gripper]:
-    """``with stops_motions_on_error(gripper):``: whatever leaves the block early (Ctrl-C first of all, or an
-    error of the command's own) stops the motions still running before it propagates; a block that ends
-    normally leaves them alone (a command may mean to leave a motion running).
+    """``with stops_motions_on_error(gripper):``: whatever leaves the block early (Ctrl-C, SIGTERM, SIGHUP
+    first of all, or an error of the command's own) stops the motions still running before it propagates; a
+    block that ends normally leaves them alone (a command may mean to leave a motion running).
 
     For commands that start motions without waiting (``selftest``; ``record --do``, ``serve`` and the ROS node
     may use it too). A failed stop is added to the exception as a note; a second Ctrl-C during the stop ends
     the wait for it (grippers/motions.py), never the exit."""
+    from .signals import signal_name
+
     try:
         yield gripper
     except BaseException as exc:
-        by = "Ctrl-C" if isinstance(exc, KeyboardInterrupt) else type(exc).__name__
+        by = signal_name(exc) if isinstance(exc, KeyboardInterrupt) else type(exc).__name__
         for failure in stop_running_motions(gripper, by):
             exc.add_note(f"{gripper.name}: stopping the gripper after {by} failed: {failure}")
+        raise
+
+
+def still_after_failure(gripper: Gripper, exc: BaseException) -> None:
+    """A motion the command line asked for failed (its ``--motion-timeout`` ran out, the device refused, the
+    link broke): stop the device, so the jaws are still when the command says "failed" (issue 39 §2).
+
+    Why not only the library's own stop: a motion's own timeout ends the call but not the device's motion
+    on every family (an MSG or a Robotiq went on to its target after exit 1), and the next command line is
+    a new process that cannot know. Not after a usage error (nothing was sent: an MSG over UART would let a
+    held part go on a needless stop) nor after Ctrl-C and the signals, which the library stopped already. A
+    failed stop is added to ``exc`` as a note."""
+    from . import _is_usage_error
+
+    if not isinstance(exc, Exception) or _is_usage_error(exc):
+        return
+    try:
+        gripper.stop()
+    except Exception as failure:
+        exc.add_note(f"{gripper.name}: stopping the gripper after the failure failed too: {failure}")
+
+
+@contextmanager
+def stills_on_failure(gripper: Gripper) -> Iterator[Gripper]:
+    """``with stills_on_failure(gripper): gripper.move(...)``: :func:`still_after_failure` on an error."""
+    try:
+        yield gripper
+    except BaseException as exc:
+        still_after_failure(gripper, exc)
         raise
 
 

@@ -310,9 +310,20 @@ def check_extras() -> list[Check]:
     return out
 
 
+def check_profiles() -> list[Check]:
+    """Built-in profiles replaced by a file, missing plugin profile folders (cli/profile_notes.py)."""
+    from .profile_notes import profile_notes
+
+    notes = profile_notes()
+    if not notes:
+        return [Check("profiles", "ok", "no built-in profile replaced, every plugin folder found")]
+    return [Check("profiles", "warn", note, "grippers profiles path") for note in notes]
+
+
 def collect() -> list[Check]:
     return [
         *check_dependencies(),
+        *check_profiles(),
         *check_can_interfaces(),
         *check_socketcan(),
         *check_vcan(),

@@ -12,7 +12,14 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
-from .common import add_common, add_target, non_negative_float, open_gripper, positive_float
+from .common import (
+    add_common,
+    add_target,
+    non_negative_float,
+    opened_gripper,
+    positive_float,
+    stills_on_failure,
+)
 from .logs import issued_warnings
 from .output import (
     EXIT_FAILED,
@@ -65,17 +72,17 @@ class MotionCommand:
         from grippers.errors import GripperError
         from grippers.gripper import GraspResult
 
-        gripper = open_gripper(args)
-        try:
+        with opened_gripper(args) as gripper:  # a signal or an error stops what still moves, then closes
             if self.name in MOTIONS:
                 _preflight(gripper, self.name, args)
-            result = self.call(gripper, args)
+                with stills_on_failure(gripper):  # a failed motion leaves the jaws still (issue 39 §2)
+                    result = self.call(gripper, args)
+            else:
+                result = self.call(gripper, args)
             try:
                 state: GripperState | None = gripper.state()
             except GripperError:  # the command's outcome matters more than a final read-back
                 state = None
-        finally:
-            gripper.close()
         # A grasp that found no part did what it was told but did not grip: scripts need a non-zero code.
         ok = not (isinstance(result, GraspResult) and not result.grasped)
         document = {
@@ -138,7 +145,8 @@ def _preflight(gripper: Gripper, command: str, args: argparse.Namespace) -> None
                 device=gripper.name,
                 command=command,
             )
-        gripper.home(timeout=args.motion_timeout)
+        with stills_on_failure(gripper):
+            gripper.home(timeout=args.motion_timeout)
 
 
 def result_dict(result: MotionResult | GraspResult | None) -> dict[str, Any] | None:

@@ -72,6 +72,10 @@ def run(args: argparse.Namespace) -> int:
         rows = [summary(p) for p in sorted(scan.profiles, key=lambda p: (p.family, p.name))]
         for _file, problem in scan.problems:
             print(f"grippers: skipped: {problem}", file=sys.stderr)
+        from .profile_notes import profile_notes
+
+        for note in profile_notes():
+            print(f"grippers profiles: note: {note}", file=sys.stderr)
         if args.json:
             document: dict[str, Any] = {"schema": PROFILES_SCHEMA_ID, "profiles": rows}
             if scan.problems:

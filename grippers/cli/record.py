@@ -16,14 +16,14 @@ import argparse
 import logging
 import re
 import shlex
-import signal
 import sys
 import threading
 import time
 from dataclasses import dataclass
 from typing import Any
 
-from .common import add_common, open_gripper, positive_float
+from . import signals
+from .common import add_common, open_gripper, positive_float, still_after_failure
 from .output import EXIT_FAILED, EXIT_OK, UsageError, error_line, write_json
 
 log = logging.getLogger("grippers.cli.record")
@@ -195,11 +195,12 @@ def _sleep(seconds: float, rec: Any) -> None:
 
 
 def _ending(exc: BaseException) -> None:
-    """After the first Ctrl-C the command is ending: further ones are ignored, so they cut neither the stops,
-    the file nor the closes short (each is bounded), nor turn exit 130 into a death by SIGINT. (A join
-    interrupted by Ctrl-C can also take a running thread for ended: CPython's bpo-45274 handling.)"""
+    """After the first Ctrl-C (SIGTERM, SIGHUP) the command is ending: further signals are ignored, so they
+    cut neither the stops, the file nor the closes short (each is bounded), nor turn the exit status into a
+    death by signal (grippers/cli/signals.py). (A join interrupted by Ctrl-C can also take a running thread
+    for ended: CPython's bpo-45274 handling.)"""
     if isinstance(exc, KeyboardInterrupt) and threading.current_thread() is threading.main_thread():
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        signals.ending()
 
 
 def _stop_all(grippers: dict[str, Any], names: list[str]) -> None:
@@ -214,7 +215,7 @@ def _stop_all(grippers: dict[str, Any], names: list[str]) -> None:
     threads = [threading.Thread(target=stop, args=(n,), name=f"grippers-record-stop-{n}") for n in names]
     for t in threads:
         t.start()
-    deadline = time.monotonic() + STOP_BOUND  # SIGINT is ignored by now (_ending): join is not interrupted
+    deadline = time.monotonic() + STOP_BOUND  # signals are ignored by now (_ending): join is not interrupted
     for t in threads:
         t.join(max(0.0, deadline - time.monotonic()))
 
@@ -238,6 +239,7 @@ def run_step(step: Step, grippers: dict[str, Any], rec: Any) -> BaseException | 
         try:
             result = getattr(motion, step.name).call(grippers[name], step.args)
         except Exception as exc:  # the recording goes on, with the error in it
+            still_after_failure(grippers[name], exc)  # a failed motion leaves the jaws still (issue 39 §2)
             rec.event(step.text, "failed", str(exc), gripper=name)
             errors[name] = exc
             return

@@ -13,6 +13,7 @@ import sys
 import threading
 from typing import Any
 
+from . import signals
 from .common import positive_float
 
 HELP = "run ROS 2 nodes (control_msgs gripper actions, joint_states, /diagnostics, Trigger services)"
@@ -145,7 +146,9 @@ def run(args: argparse.Namespace) -> int:
     ros_args: list[str] = ["--ros-args", *args.ros_args] if args.ros_args else []
     load_ros()  # before opening a device: a missing ROS installation is said first, nothing opened
     stop = threading.Event()
-    previous = {s: signal.signal(s, lambda *_: stop.set()) for s in (signal.SIGINT, signal.SIGTERM)}
+    # Ctrl-C, SIGTERM and SIGHUP all end the node the same way (grippers/cli/signals.py's rule, exit 0).
+    previous = signals.ends_service(lambda *_: stop.set())
+    previous[signal.SIGINT] = signal.signal(signal.SIGINT, lambda *_: stop.set())
     try:
 
         def ready(gnodes: list[Any]) -> None:
@@ -164,6 +167,5 @@ def run(args: argparse.Namespace) -> int:
 
         spin(specs, stop, args=["grippers-ros2", *ros_args], lifecycle=args.lifecycle, ready=ready)
     finally:
-        for s, handler in previous.items():
-            signal.signal(s, handler)
+        signals.restore(previous)
     return 0

@@ -13,6 +13,7 @@ import sys
 import threading
 from typing import Any
 
+from . import signals
 from .common import positive_float
 
 HELP = "serve grippers over Eclipse Zenoh (zenoh://NAME URLs for other processes and machines)"
@@ -111,14 +112,20 @@ def start_logging(path: str | None) -> logging.Handler:
 
 
 def parse_targets(items: list[str]) -> list[tuple[str | None, str]]:
-    """``NAME=TARGET`` or a bare ``TARGET``; a URL's own ``=`` (in its query) is not a name."""
+    """``NAME=TARGET`` or a bare ``TARGET``; a URL's own ``=`` (in its query) is not a name, nor is one in
+    the path of a file that exists. Anything else before the first ``=`` is a name, checked as one: ``a/b=``,
+    ``x?y=sim://wsg50`` and a name ending in a newline are refused with a message about the served name
+    (issue 43 §3: they got one about a scheme, or were served under a key ending in a newline)."""
+    from pathlib import Path
+
     out: list[tuple[str | None, str]] = []
     for item in items:
         head, eq, tail = item.partition("=")
-        if eq and "://" not in head and "?" not in head and "/" not in head:
-            out.append((head, tail))
-        else:
+        setting = "?" in head and "://" not in tail and not Path(tail).suffix  # PROFILE?setting=value
+        if not eq or "://" in head or setting or Path(item).exists():
             out.append((None, item))
+        else:
+            out.append((head, tail))
     return out
 
 
@@ -147,7 +154,13 @@ def run(args: argparse.Namespace) -> int:
             raise UsageError(f"nothing to serve as {name!r}")
     opened: dict[str, Any] = {}
     stop = threading.Event()
-    signal.signal(signal.SIGTERM, lambda *_: stop.set())
+    ended_by: list[str] = []
+
+    def end(signum: int, frame: object) -> None:
+        ended_by.append(signal.Signals(signum).name)
+        stop.set()
+
+    previous = signals.ends_service(end)  # SIGTERM and SIGHUP: the same stops as Ctrl-C, then exit 0
     server = panel = None
     handler = start_logging(args.log_file)
     log = logging.getLogger("grippers.remote")
@@ -198,7 +211,7 @@ def run(args: argparse.Namespace) -> int:
         print("press Ctrl-C to stop", file=sys.stderr, flush=True)
         while not stop.wait(0.5):
             pass
-        log.info("SIGTERM: withdrawing and closing")
+        log.info("%s: withdrawing and closing", ended_by[0] if ended_by else "SIGTERM")
     finally:
         # Ctrl-C leaves through here too: the CLI's own handler then says "interrupted" and exits 130.
         if panel is not None:
@@ -210,4 +223,5 @@ def run(args: argparse.Namespace) -> int:
                 gripper.close()
         logging.getLogger("grippers").removeHandler(handler)
         handler.close()
+        signals.restore(previous)
     return 0

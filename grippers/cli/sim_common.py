@@ -10,6 +10,7 @@ import sys
 from collections.abc import Callable
 from typing import Any
 
+from . import signals
 from .common import non_negative_float, positive_float
 
 
@@ -174,7 +175,7 @@ def serve_forever(server: Any, what: str, urls: list[str] | None = None, *, as_j
     def _terminate(*_: object) -> None:
         raise _Terminated
 
-    previous = signal.signal(signal.SIGTERM, _terminate)
+    previous = signals.ends_service(_terminate)  # SIGTERM and SIGHUP: exit 0 (grippers/cli/signals.py)
     held = _hold_on_signals(server)
     urls = urls or [server.url]
     try:
@@ -190,7 +191,7 @@ def serve_forever(server: Any, what: str, urls: list[str] | None = None, *, as_j
     except _Terminated:
         return 0
     finally:
-        signal.signal(signal.SIGTERM, previous)
+        signals.restore(previous)
         for sig, handler in held:
             signal.signal(sig, handler)
         server.close()

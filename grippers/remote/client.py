@@ -26,7 +26,7 @@ from .session import check_endpoints, make_config
 
 DEFAULT_TIMEOUT = 2.0
 DEFAULT_LINK_LEASE = 1.0  # s; matches the server's default --lease-timeout
-MAX_LABEL = 256  # protocol.parse_request's bound on a request's label
+MAX_LABEL = protocol.MAX_LABEL  # protocol.parse_request's bound on a request's label
 
 
 class ZenohBackend:
@@ -66,6 +66,10 @@ class ZenohBackend:
         label = settings.str("label", f"{socket.gethostname()} pid {os.getpid()}")
         if len(label) > MAX_LABEL:  # the server refuses such a request: said at open, not at every command
             raise URLError(f"{url.url}: label is {len(label)} characters long; at most {MAX_LABEL}")
+        try:
+            protocol.check_label(label)
+        except ValueError as exc:
+            raise URLError(f"{url.url}: {exc}") from None
         settings.check()  # a misspelt setting is refused before the session opens
         device = RemoteDevice(ServedLink(url.url, name, config, timeout=timeout, label=label), profile)
         try:

@@ -14,7 +14,7 @@ import threading
 import time
 from typing import Any
 
-from ..errors import AccessDenied, GripperError
+from ..errors import AccessDenied, GripperError, ServerBusy
 from . import protocol
 from .lease import Lease
 from .protocol import Request
@@ -22,13 +22,28 @@ from .protocol import Request
 log = logging.getLogger("grippers.remote")
 
 MAX_QUEUED = 64  # requests of non-holders queued at once per gripper; more are refused at once ("busy")
+# Of those, requests from clients whose liveliness token the server has not seen (a raw query, a flood with
+# fresh ids): each may wait TOKEN_LOOKUP_S on a pool thread for a token that never comes, and can then only
+# be refused. They get a lane of their own this narrow, so they never fill the queue nor the pool a client
+# the server can watch needs (issue 43 §4: a flood of tokenless acquisitions failed a legitimate control()
+# 17-19 times in 20).
+MAX_UNSEEN = 2
 LOG_BURST = 10  # refusals logged one by one per LOG_WINDOW_S; the rest are summed up in one line
 LOG_WINDOW_S = 10.0
 TOKEN_LOOKUP_S = 0.5  # how long a free lease's taker's token is looked for when not seen yet
 
 
-class ServerBusy(GripperError):
-    """Too many requests of clients that do not hold the lease are queued: this one is refused unqueued."""
+class Slot:
+    """Where an admitted request was counted (:meth:`Gate.admit`); :meth:`Gate.release` gives it back."""
+
+    def __init__(self, name: str) -> None:
+        self.name = name
+
+    def __repr__(self) -> str:
+        return f"<slot {self.name}>"
+
+
+HOLDER, SEEN, UNSEEN = Slot("holder"), Slot("seen"), Slot("unseen")
 
 
 class Gate:
@@ -38,18 +53,20 @@ class Gate:
         self.lock = threading.Lock()
         self.refused = 0  # requests refused for want of the lease secret (served in the info)
         self._queued = 0
+        self._unseen = 0  # of _queued, the requests of clients whose token was not seen
         self._window_at = -LOG_WINDOW_S
         self._window_logged = 0
         self._window_quiet = 0
 
     # -- admission, on Zenoh's thread ---------------------------------------------------------------------
 
-    def admit(self, request: Request, needs_lease: bool, take: bool) -> bool:
-        """Refuse at once what the lease refuses anyway; True when the request is the holder's (never
-        bounded), False when it is queued within the bound (``release()`` it when answered)."""
+    def admit(self, request: Request, needs_lease: bool, take: bool, urgent: bool = False) -> Slot:
+        """Refuse at once what the lease refuses anyway; :data:`HOLDER` when the request is the holder's
+        (never bounded), else the lane it was queued in within its bound (``release()`` it when answered).
+        ``urgent`` (stop, fast stop): never put in the narrow lane of the unseen."""
         with self.lock:
             if self.lease.proves(request.client, request.lease):
-                return True
+                return HOLDER
             if needs_lease and (request.lease is not None or self.lease.holder is not None):
                 # Not the holder's: the authoritative check (run again when executed) says why.
                 self.lease.check(
@@ -59,12 +76,25 @@ class Gate:
                 raise ServerBusy(
                     f"{MAX_QUEUED} requests of other clients are queued; try again", device=self.name
                 )
+            if urgent or request.client in self.lease.alive:
+                self._queued += 1
+                return SEEN
+            if self._unseen >= MAX_UNSEEN:
+                raise ServerBusy(
+                    f"{MAX_UNSEEN} requests of clients without a liveliness token are queued; try again "
+                    "(a zenoh:// client declares one)",
+                    device=self.name,
+                )
             self._queued += 1
-            return False
+            self._unseen += 1
+            return UNSEEN
 
-    def release(self) -> None:
+    def release(self, slot: Slot) -> None:
         with self.lock:
-            self._queued -= 1
+            if slot is not HOLDER:
+                self._queued -= 1
+            if slot is UNSEEN:
+                self._unseen -= 1
 
     # -- the lease, when a request is executed --------------------------------------------------------------
 

@@ -17,7 +17,7 @@ from collections.abc import Callable
 from typing import Any
 
 from ..device import DeviceContext
-from ..errors import AccessDenied, ConnectionLost, GripperError, GripperTimeout, ProtocolError
+from ..errors import AccessDenied, CommandFailed, ConnectionLost, GripperError, GripperTimeout, ProtocolError
 from ..states import GripperState
 from . import payloads, protocol
 from .holder import LeaseHolder, LossListeners
@@ -48,6 +48,9 @@ class ServedLink:
         self._streams: list[SubscribedStream] = []
         self._beating = threading.Event()
         self._heartbeat: threading.Thread | None = None
+        self._lease_s = 1.0  # the server's lease timeout (its info), once known
+        self._alive_at = time.monotonic()  # the heartbeat thread's last turn
+        self._silent_at = -1.0  # when it last found this process had stood still longer than the lease
         self._last_publication = time.monotonic()  # when a stream last heard the server publish
         self._probing = False
         try:
@@ -90,10 +93,17 @@ class ServedLink:
         queryable only; a publication would show the secret to every subscriber). A frozen process (SIGSTOP,
         a debugger) stops beating with everything else, which is the point."""
         lease = lease_timeout if isinstance(lease_timeout, int | float) and lease_timeout > 0 else 1.0
+        self._lease_s = float(lease)
         period = float(lease) / HEARTBEATS_PER_LEASE
+
+        self._alive_at = time.monotonic()
 
         def beat() -> None:
             while not self._beating.wait(period):
+                now = time.monotonic()
+                if now - self._alive_at > lease:  # this process stood still longer than the server's lease
+                    self._silent_at = now
+                self._alive_at = now
                 try:
                     if self.lost is None:
                         self.holder.beat(self.session, period)
@@ -204,6 +214,18 @@ class ServedLink:
                     raise ConnectionLost(self.lost.message, device=dev, command=command)
                 elapsed = time.monotonic() - started
                 if pending and elapsed < timeout - 0.05:
+                    if device is None and self._silent_since(started):
+                        # This process did not run for longer than the server's lease (frozen, SIGSTOP, a
+                        # debugger): the server freed the lease, stopped the motion and dropped the query.
+                        # Said so, not "went away" (issue 43 §6). The next command takes a new lease.
+                        self.holder.secret = None
+                        raise CommandFailed(
+                            "the motion ended without its result while the server still serves: this client "
+                            "was not heard from within the server's lease (frozen or cut off), so the server "
+                            "stopped what it had set moving and freed the lease",
+                            device=dev,
+                            command=command,
+                        )
                     self._no_answer("the server went away mid-motion", device is None)
                     raise ConnectionLost("the server went away mid-motion", device=dev, command=command)
                 if pending:
@@ -247,6 +269,11 @@ class ServedLink:
         except GripperError:
             return False
         return True
+
+    def _silent_since(self, started: float) -> bool:
+        """Whether this process stood still longer than the server's lease since ``started`` (seen by the
+        heartbeat thread's turns, whichever thread wakes first after a SIGCONT)."""
+        return self._silent_at >= started or time.monotonic() - self._alive_at > self._lease_s
 
     def control_query(self, key: str, payload: bytes, command: str, timeout: float) -> Any:
         """A lease query (holder.py): its silence is not a lost link (``device`` given)."""

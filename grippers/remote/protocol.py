@@ -20,45 +20,76 @@ from ..errors import CommandFailed, GripperError, ProtocolError
 PROTOCOL_VERSION = 1
 PREFIX = "grippers"
 MAX_PAYLOAD = 64 * 1024  # bytes; a request is a few hundred, anything larger is refused unread
-NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9._-]{0,63}$")  # one key chunk, no wildcards or separators
+# Every Zenoh key expression below is built from chunks checked here, never from user text as given: a chunk
+# is letters, digits, '.', '_' and '-' (not first), so no '/', '*', '$', '?' or '#' can change what the key
+# means (extra chunks, wildcards, selectors) and no control character reaches a key or a log line (issue 43
+# §3: a client id "cell/arm-1" declared a token the server never watched; "*" matched anyone's token).
+_CHUNK = r"[A-Za-z0-9][A-Za-z0-9._-]"
+NAME_RE = re.compile(_CHUNK + r"{0,63}")  # a served name (fullmatch: "$" would let a final newline in)
+CLIENT_RE = re.compile(_CHUNK + r"{0,127}")  # a client id (ours: 32 hex digits)
+MAX_LABEL = 256
 
 
 def check_name(name: str) -> str:
     """A served name is one Zenoh key chunk: ``*``, ``$``, ``#``, ``?`` and ``/`` would change the key's
     meaning (wildcards, selectors, extra chunks)."""
-    if not NAME_RE.match(name or ""):
+    if not isinstance(name, str) or not NAME_RE.fullmatch(name):
         raise ValueError(
             f"served name {name!r}: letters, digits, '.', '_' and '-' only (1-64, not starting with . _ -)"
         )
     return name
 
 
+def check_client(client: str) -> str:
+    """A client id is one key chunk too (its liveliness token is ``grippers/NAME/client/ID``)."""
+    if not isinstance(client, str) or not CLIENT_RE.fullmatch(client):
+        raise ValueError(
+            f"client id {client[:140]!r}: letters, digits, '.', '_' and '-' only (1-128, not starting "
+            "with . _ -), one key chunk"
+            if isinstance(client, str)
+            else "client id must be a string"
+        )
+    return client
+
+
+def check_label(label: str) -> str:
+    """A label is shown to people (the server's log, another client's AccessDenied): printable text only,
+    so it can forge no log line and put no terminal escape on anyone's screen."""
+    if not isinstance(label, str) or len(label) > MAX_LABEL:
+        raise ValueError(f"a label is a string of at most {MAX_LABEL} characters")
+    if not label.isprintable():
+        raise ValueError("a label is printable text: no control characters, no line breaks")
+    return label
+
+
 def token_key(name: str) -> str:
     """Liveliness token of a served gripper: present while it is served (presence and discovery)."""
-    return f"{PREFIX}/{name}"
+    return f"{PREFIX}/{check_name(name)}"
 
 
 def state_key(name: str) -> str:
     """States published at the server's rate and on every change; also a queryable (latest reading)."""
-    return f"{PREFIX}/{name}/state"
+    return f"{token_key(name)}/state"
 
 
 def info_key(name: str) -> str:
-    return f"{PREFIX}/{name}/info"
+    return f"{token_key(name)}/info"
 
 
 def command_key(name: str, command: str) -> str:
-    return f"{PREFIX}/{name}/cmd/{command}"
+    if command not in COMMANDS:
+        raise ValueError(f"unknown command {command!r}")
+    return f"{token_key(name)}/cmd/{command}"
 
 
 def client_key(name: str, client: str) -> str:
     """Liveliness token of a connected client: its deletion ends the lease it holds (the deadman's fast
     path); it never proves who sends a request (that is the lease secret: lease.py)."""
-    return f"{PREFIX}/{name}/client/{client}"
+    return f"{token_key(name)}/client/{check_client(client)}"
 
 
 def all_clients_key(name: str) -> str:
-    return f"{PREFIX}/{name}/client/*"
+    return f"{token_key(name)}/client/*"
 
 
 DISCOVERY_KEY = f"{PREFIX}/*"
@@ -160,8 +191,12 @@ def parse_request(command: str, data: bytes) -> Request:
             f"protocol version {version!r}; this server speaks {PROTOCOL_VERSION}", command=command
         )
     client, label = doc.get("client", ""), doc.get("label", "")
-    if not isinstance(client, str) or len(client) > 128 or not isinstance(label, str) or len(label) > 256:
-        raise ProtocolError("client and label must be short strings", command=command)
+    try:
+        if client != "":  # free commands (stop, reads) may come from anyone, unnamed
+            check_client(client)
+        check_label(label)
+    except ValueError as exc:
+        raise ProtocolError(str(exc), command=command) from None
     lease = doc.get("lease")
     if lease is not None and not (isinstance(lease, str) and SECRET_RE.match(lease)):
         raise ProtocolError("lease must be the hexadecimal secret the server answered", command=command)
@@ -243,7 +278,7 @@ def encode_error(exc: BaseException, command: str) -> bytes:
     """An error as its class name, message and command; the client raises the same class again."""
     if isinstance(exc, GripperError):
         doc: dict[str, Any] = {
-            "error": type(exc).__name__,
+            "error": _wire_name(type(exc)),
             "message": exc.message,
             "command": exc.command or command,
             "device": exc.device,
@@ -259,6 +294,17 @@ def encode_error(exc: BaseException, command: str) -> bytes:
         }
     doc["v"] = PROTOCOL_VERSION
     return dumps(doc)
+
+
+def _wire_name(cls: type[GripperError]) -> str:
+    """The name an error crosses the wire by: its own when clients know it, else its nearest ancestor's that
+    they do (issue 43 §5: a served Robotiq's ``RobotiqFault``, a family's own CommandFailed, arrived as a
+    plain GripperError "RobotiqFault: ..." without its status)."""
+    known = error_classes()
+    for ancestor in cls.__mro__:
+        if known.get(ancestor.__name__) is ancestor:
+            return ancestor.__name__
+    return cls.__name__
 
 
 def error_classes() -> dict[str, type[GripperError]]:

@@ -16,11 +16,11 @@ from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
 from .. import commands
-from ..errors import AccessDenied, ConnectionLost, GripperError, ProtocolError
+from ..errors import AccessDenied, CommandFailed, ConnectionLost, GripperError, ProtocolError
 from ..gripper import Gripper
 from . import payloads, protocol
 from .discovery import refuse_duplicate
-from .gate import Gate
+from .gate import Gate, Slot
 from .session import DEFAULT_LISTEN, import_zenoh, make_config, open_session, own_locators
 
 log = logging.getLogger("grippers.remote")  # serve's own lines: lost, back, lease changes (docs/remote.md)
@@ -31,6 +31,7 @@ RETRY_LOST_S = 1.0  # how often a lost gripper is tried again (a reconnect=true 
 # against the same table (grippers/commands.py): the dispatch is a look-up, not a copy of the table.
 _VERBS = commands.served()
 _URGENT = frozenset(verb for verb, c in _VERBS.items() if c.urgent)
+_STOPS = frozenset(("stop", "fast_stop"))
 
 
 class ServedGripper:
@@ -52,6 +53,15 @@ class ServedGripper:
         self._motions: dict[threading.Thread, str] = {}  # running motion -> the client that started it
         self._motions_lock = threading.Lock()
         self._servo_owner: str | None = None  # the client whose targets the gripper is servoing to
+        # Stops received so far (counted on Zenoh's thread, as each arrives) and the order of the calls that
+        # set the jaws moving against them: a stop wins over every request received before it.
+        self._stops = 0
+        self._stops_lock = threading.Lock()
+        self._order = threading.Lock()
+        # Clients whose servoing another client's stop ended: their targets are refused until they say they
+        # know (a stop of their own, which a zenoh:// client's stop() sends, ``control acquire`` or a motion
+        # command), so targets sent before the stop and received after it do not move the jaws either.
+        self._servo_stopped: set[str] = set()
         self._declared: list[Any] = []
         self._token: Any = None
         self._info_base: dict[str, Any] = {}
@@ -108,12 +118,16 @@ class ServedGripper:
         self._withdraw()
         if self._thread.is_alive():
             self._thread.join(CLOSE_JOIN_S)
-        for entity in self._declared:
-            try:
-                entity.undeclare()
-            except Exception:  # already undeclared with a closed session
-                pass
-        self._declared.clear()
+        # Under the publishing lock: a motion thread that ends now (the stop below aborts it) publishes its
+        # last state before this or not at all, never on an undeclared publisher (issue 43 §1: a thread
+        # traceback "zenoh.ZError: Undeclared publisher" at SIGTERM).
+        with self._pub_lock:
+            for entity in self._declared:
+                try:
+                    entity.undeclare()
+                except Exception:  # already undeclared with a closed session
+                    pass
+            self._declared.clear()
         with self._motions_lock:
             running = list(self._motions)
         if self._lost is None and self._moves(bool(running) or self._servo_owner is not None):
@@ -153,6 +167,8 @@ class ServedGripper:
             self._seq += 1
             data = protocol.dumps(payloads.state_doc(state, self._seq))
             self._latest = data
+            if self._stop.is_set():  # closing: the publisher is undeclared (under this lock) or about to be
+                return
             self._publisher.put(data)
 
     def _lose(self, exc: GripperError) -> None:
@@ -240,17 +256,17 @@ class ServedGripper:
             spec = protocol.COMMANDS[command]
             acquire = command == "control" and request.args["action"] == "acquire"
             needs, take = spec.lease != "free" or acquire, spec.lease == "take" or acquire
-            trusted = self.gate.admit(request, needs, take)
+            slot = self.gate.admit(request, needs, take, urgent=command in _URGENT)
         except GripperError as exc:
             self._refuse(query, request, command, exc)
             return
+        received = self._received(command)
         # Stop, fast stop and acknowledge never queue behind reads or settings (``urgent``: commands.py).
         pool = self.server.urgent if command in _URGENT else self.server.pool
         try:
-            pool.submit(self._answer, query, request, trusted)
+            pool.submit(self._answer, query, request, slot, received)
         except RuntimeError:  # shutting down
-            if not trusted:
-                self.gate.release()
+            self.gate.release(slot)
             with query:
                 query.reply_err(protocol.encode_error(ConnectionLost("the server is closing"), command))
 
@@ -260,7 +276,25 @@ class ServedGripper:
         self._reply_error(query, exc, command)
         query.drop()
 
-    def _answer(self, query: Any, request: protocol.Request, trusted: bool) -> None:
+    def _received(self, command: str) -> int:
+        """On Zenoh's thread, as a request arrives: the stops received so far, this one counted if a stop."""
+        with self._stops_lock:
+            if command in _STOPS:
+                self._stops += 1
+            return self._stops
+
+    def _not_overtaken(self, received: int, command: str) -> None:
+        """Refuse what sets the jaws moving when a stop arrived after it (issue 43 §9: 3,000 servo targets
+        of the holder waited on the ordinary pool while another client's stop ran at once on the urgent one,
+        and the jaws stopped, then went on to the last target). Called under ``_order``."""
+        if received < self._stops:
+            raise CommandFailed(
+                f"{command} not done: a stop arrived after it and before it ran",
+                device=self.name,
+                command=command,
+            )
+
+    def _answer(self, query: Any, request: protocol.Request, slot: Slot, received: int) -> None:
         command = request.command
         try:
             if self._lost is not None:
@@ -273,15 +307,18 @@ class ServedGripper:
                     self.gate.look_for_token(self.server.session, request.client)
                 secret = self.gate.check(request, take)
             if spec.motion:
-                self._start_motion(query, request, secret)
+                self._start_motion(query, request, secret, received)
                 return  # the motion thread answers and finishes the query
             if command == "control":
                 if request.args["action"] == "acquire" and self.lease.holder is None:
                     self.gate.look_for_token(self.server.session, request.client)
                 secret = self.gate.control(request, request.args["action"])
+                if request.args["action"] == "acquire":
+                    with self._order:
+                        self._servo_stopped.discard(request.client)  # begins anew
                 result = None
             else:
-                result = self._execute_taking(request, secret)
+                result = self._execute_taking(request, secret, received)
         except GripperError as exc:
             self._refuse(query, request, command, exc)
             return
@@ -290,19 +327,18 @@ class ServedGripper:
             query.drop()
             return
         finally:
-            if not trusted:
-                self.gate.release()
+            self.gate.release(slot)
         try:
             reply = protocol.encode_reply(protocol.DONE, payloads.result_doc(result), secret)
             query.reply(query.key_expr, reply)
         finally:
             query.drop()
 
-    def _execute_taking(self, request: protocol.Request, secret: str | None) -> Any:
+    def _execute_taking(self, request: protocol.Request, secret: str | None, received: int) -> Any:
         """Execute; a command that took the lease and failed (a servo target out of limits) gives it back:
         its error reply cannot carry the secret, and nothing was set moving for the deadman to watch."""
         try:
-            return self._execute(request)
+            return self._execute(request, received)
         except BaseException:
             if secret is not None:
                 with self._lease_lock:
@@ -317,17 +353,31 @@ class ServedGripper:
         except Exception:  # the client is gone: nothing to tell
             pass
 
-    def _execute(self, request: Any) -> Any:
+    def _execute(self, request: Any, received: int) -> Any:
         """Call the Gripper method the verb names (grippers/commands.py), with the arguments it took."""
         g, command = self.gripper, request.command
         method = getattr(g, _VERBS[command].name)
         try:
             if command == "servo":
-                method(**request.args)
-                self._servo_owner = request.client
+                with self._order:
+                    self._not_overtaken(received, command)
+                    if request.client in self._servo_stopped:
+                        raise CommandFailed(
+                            "servoing was ended by another client's stop: stop() ends it here too, then "
+                            "servo() begins anew",
+                            device=self.name,
+                            command=command,
+                        )
+                    method(**request.args)
+                    self._servo_owner = request.client
                 return None
-            if command in ("stop", "fast_stop"):
-                self._servo_owner = None  # both end servoing (Gripper's rule)
+            if command in _STOPS:
+                with self._order:  # after every start already under way, before any received earlier
+                    owner, self._servo_owner = self._servo_owner, None  # both end servoing (Gripper's rule)
+                    if owner is not None and owner != request.client and len(self._servo_stopped) < 1024:
+                        self._servo_stopped.add(owner)
+                    self._servo_stopped.discard(request.client)  # its own stop: it knows servoing ended
+                    return method(**request.args)
             return method(**request.args)
         finally:
             if command != "servo":  # a target is answered once queued: the publisher shows its effect
@@ -335,11 +385,11 @@ class ServedGripper:
 
     # -- motions ------------------------------------------------------------------------------------------
 
-    def _start_motion(self, query: Any, request: Any, secret: str | None) -> None:
+    def _start_motion(self, query: Any, request: Any, secret: str | None, received: int) -> None:
         self._servo_owner = None  # a motion command ends servoing (Gripper's rule)
         thread = threading.Thread(
             target=self._run_motion,
-            args=(query, request, secret),
+            args=(query, request, secret, received),
             name=f"grippers-serve-{self.name}-{request.command}",
         )
         thread.daemon = True
@@ -347,12 +397,16 @@ class ServedGripper:
             self._motions[thread] = request.client
         thread.start()
 
-    def _run_motion(self, query: Any, request: Any, secret: str | None) -> None:
+    def _run_motion(self, query: Any, request: Any, secret: str | None, received: int) -> None:
         g, a = self.gripper, request.args
         try:
             query.reply(query.key_expr, protocol.encode_reply(protocol.PENDING, None, secret))
             self._kick.set()
-            result = getattr(g, _VERBS[request.command].name)(**a)
+            with self._order:  # started, or refused if a stop came after it: never started after the stop
+                self._not_overtaken(received, request.command)
+                self._servo_stopped.discard(request.client)  # a motion command begins anew
+                handle = getattr(g, _VERBS[request.command].name)(**a, wait=False)
+            result = handle.wait()
             self._refresh()
             query.reply(query.key_expr, protocol.encode_reply(protocol.DONE, payloads.result_doc(result)))
         except Exception as exc:

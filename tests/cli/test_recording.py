@@ -242,7 +242,7 @@ def test_a_file_size_limit_names_the_file_and_keeps_what_was_written(tmp_path: P
     out = tmp_path / f"big{suffix}"
     proc = _popen("record", WSG, "-o", str(out), "--rate", "200", "--duration", "3600", preexec_fn=limited)
     try:
-        _, err = proc.communicate(timeout=300)
+        said, err = proc.communicate(timeout=300)
     finally:
         proc.kill()
         proc.communicate()
@@ -251,6 +251,10 @@ def test_a_file_size_limit_names_the_file_and_keeps_what_was_written(tmp_path: P
     assert lines == [f"grippers record: error: {out}: cannot write: File too large"]
     recording = load(out)  # what was written before the limit reads, as far as it is complete
     assert len(_states(recording.rows)) >= 20
+    # Issue 43 §9: the summary counts the rows in the file, not the samples taken ("recorded 450 states"
+    # with 231 in the file before).
+    events = sum(1 for r in recording.rows if r["kind"] == "command")
+    assert f"recorded {len(_states(recording.rows))} states and {events} command events" in said, said
 
 
 @pytest.mark.parametrize("suffix", [".csv", ".jsonl", ".mcap"])
