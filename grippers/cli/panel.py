@@ -7,12 +7,13 @@ fast.
 from __future__ import annotations
 
 import argparse
-import signal
 import sys
 import threading
 from typing import Any
 
 from grippers.panel.launch import add_http_arguments, start_panel
+
+from . import signals
 
 HELP = "serve a web page that shows and drives grippers (the panel extra; loopback unless --listen)"
 EXAMPLE = (
@@ -44,7 +45,7 @@ def run(args: argparse.Namespace) -> int:
     opened: dict[str, Any] = {}
     server = None
     stop = threading.Event()
-    signal.signal(signal.SIGTERM, lambda *_: stop.set())
+    previous = signals.ends_service(lambda *_: stop.set())  # SIGTERM, SIGHUP: stop the jaws, exit 0
     try:
         for name, target in parse_targets(args.targets):
             kwargs = {} if args.timeout is None else {"timeout": args.timeout}
@@ -72,4 +73,5 @@ def run(args: argparse.Namespace) -> int:
             server.close()
         for gripper in opened.values():
             gripper.close()
+        signals.restore(previous)
     return 0
