@@ -308,8 +308,8 @@ class SchunkDevice(Device):
         else:
             grasp = GraspState.IDLE
         faults: tuple[str, ...] = ()
-        if s & Status.ERROR:  # 0xD9 under the library's name, so state().fast_stopped says it on every family
-            faults = ("fast_stop",) if reading.error == ERR_FAST_STOP else (error_name(reading.error),)
+        if s & Status.ERROR:
+            faults = (error_name(reading.error),)
         elif not s & Status.READY:
             faults = ("not_ready",)
         return GripperState(
@@ -320,7 +320,7 @@ class SchunkDevice(Device):
             grasp=grasp,
             moving=moving,
             # The units have no reference run (no control bit for one: SCHUNK's driver.py) and report their
-            # position from power-up; readiness is a fault (0xD9, not_ready), which home() acknowledges.
+            # position from power-up; readiness is a fault (ERR_FAST_STOP, not_ready), which home() acknowledges.
             referenced=True,
             faults=faults,
             timestamp=time.time(),

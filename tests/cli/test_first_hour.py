@@ -36,10 +36,10 @@ max_force_n = 15
 
 
 @pytest.fixture
-def msg_pty_url():
-    """A simulated MSG 150 on a pseudo-terminal; the URL opens it WITHOUT naming a profile."""
-    with grippers.open("sim://msg-150?transport=serial") as g:
-        yield g.simulator.url
+def msg_pty_url(gripper_sim):
+    """A simulated MSG 150 on a pseudo-terminal; the URL opens it WITHOUT naming a profile. No client holds
+    the port meanwhile: serial ports open exclusively (drivers/serial_ports.py)."""
+    return str(gripper_sim("msg-150", transport="serial")).split("?")[0]  # without its profile=
 
 
 @pytest.fixture

@@ -45,13 +45,13 @@ def test_garbage_tcp_device(garbage_tcp, probe_nothing) -> None:
 
 
 def test_silent_serial_port_tries_every_family(silent_pty, probe_nothing) -> None:
-    doc = probe_nothing(f"serial://{silent_pty.path}", 3)
+    doc = probe_nothing(f"serial://{silent_pty.path}", 4)
     found = sorted(m["url"].split("+")[0] for m in doc["silent"] + doc["others"])
-    assert found == ["robotiq", "stepfoc", "wsg"]
+    assert found == ["robotiq", "schunk", "stepfoc", "wsg"]
 
 
 def test_garbage_serial_device(garbage_pty, probe_nothing) -> None:
-    probe_nothing(garbage_pty.path, 3)  # a bare device path is a serial port
+    probe_nothing(garbage_pty.path, 4)  # a bare device path is a serial port
 
 
 @pytest.mark.udp_multicast

@@ -21,6 +21,7 @@ def test_bare_serial_tries_every_family_one_after_another() -> None:
         "wsg+serial:///dev/ttyUSB0?baudrate=115200",
         "stepfoc+serial:///dev/ttyUSB0?baudrate=256000",
         "robotiq+serial:///dev/ttyUSB0?baudrate=115200",
+        "schunk+serial:///dev/ttyUSB0",
     ]
     assert len({c.group for c in plan.candidates}) == 1
     assert plan.candidates[0].location["serial_port"] == "/dev/ttyUSB0"

@@ -23,7 +23,8 @@ PROFILES = ["wsg25", "wsg32", "wsg50", "wsg70", "msg-100", "msg-150", "msg-200"]
         ),
         (
             "/dev/ttyUSB0",  # issue 39 §2: a bare serial port, not "profile file not found"
-            "wsg+serial:///dev/ttyUSB0 or stepfoc+serial:///dev/ttyUSB0 or robotiq+serial:///dev/ttyUSB0",
+            "wsg+serial:///dev/ttyUSB0 or stepfoc+serial:///dev/ttyUSB0 or robotiq+serial:///dev/ttyUSB0 "
+            "or schunk+serial:///dev/ttyUSB0",
         ),
         ("can://socketcan/can0", "stepfoc+can://socketcan/can0?node=0 or wsg+can://socketcan/can0"),
         ("wsg+tcp:/192.168.1.20", "wsg+tcp://192.168.1.20"),
