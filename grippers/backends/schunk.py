@@ -320,7 +320,7 @@ class SchunkDevice(Device):
             grasp=grasp,
             moving=moving,
             # The units have no reference run (no control bit for one: SCHUNK's driver.py) and report their
-            # position from power-up; readiness is a fault (ERR_FAST_STOP, not_ready), which home() acknowledges.
+            # position from power-up; readiness is a fault (ERR_FAST_STOP, not_ready) home() acknowledges.
             referenced=True,
             faults=faults,
             timestamp=time.time(),
