@@ -64,6 +64,23 @@ def _serial_group(item: pytest.Item) -> str | None:
     return _SERIAL_FILES.get(item.path.name)
 
 
+WORKERS_PER_CORE = 2
+
+
+def pytest_xdist_auto_num_workers(config: pytest.Config) -> int | None:
+    """``-n auto`` (the README's test command) starts two workers per core the process may use: the suite
+    mostly waits (simulators at real time, subprocesses starting, timeouts running out), so one worker per
+    core leaves the cores idle much of the time. ``PYTEST_XDIST_AUTO_NUM_WORKERS=N`` (pytest-xdist's own)
+    overrides it; docs/reliability.md has the measurements."""
+    if os.environ.get("PYTEST_XDIST_AUTO_NUM_WORKERS"):
+        return None  # pytest-xdist's own hook reads it
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except AttributeError:  # not Linux
+        cores = os.cpu_count() or 1
+    return WORKERS_PER_CORE * cores
+
+
 @pytest.hookimpl(tryfirst=True)  # before pytest-xdist reads the groups
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     """Long mode: no pytest-timeout (120 s in pyproject.toml); a million examples take many minutes.
