@@ -257,6 +257,7 @@ def _pair_latencies(url: str, pairs: int, batch: int) -> list[tuple[float, float
 
 
 SESSIONS = 5  # fresh simulator processes, each with its own gripper
+QUICK_SESSIONS = 2  # --quick (the CI smoke test): the same pairs in fewer sessions, fewer process starts
 
 
 def quartiles(values: list[float]) -> tuple[float, float, float]:
@@ -266,9 +267,9 @@ def quartiles(values: list[float]) -> tuple[float, float, float]:
 
 
 def _in_sessions(
-    start: Any, pairs: int, batch: int
+    start: Any, pairs: int, batch: int, count: int = SESSIONS
 ) -> tuple[list[tuple[float, float]], list[float], tuple[float, float], str]:
-    """:func:`_pair_latencies` in :data:`SESSIONS` sessions of ``pairs / SESSIONS`` pairs, each against a
+    """:func:`_pair_latencies` in ``count`` sessions of ``pairs / count`` pairs, each against a
     fresh simulator process (``start()``: a context manager giving (url, floor, placement), ``floor()``
     asyncio's own floor against that simulator, measured in the last session): (every pair's (threaded,
     awaited) medians, each session's median pair ratio, floor, placement).
@@ -283,12 +284,12 @@ def _in_sessions(
     sessions: list[float] = []
     floor = (0.0, 0.0)
     places: list[str] = []
-    per = max(2, pairs // SESSIONS)
-    for n in range(SESSIONS):
+    per = max(2, pairs // count)
+    for n in range(count):
         with start() as (url, measure_floor, where):
             places.append(where)
             got = _pair_latencies(url, per, batch)
-            if n == SESSIONS - 1:
+            if n == count - 1:
                 floor = measure_floor(per, batch)
         per_pair += got
         sessions.append(median([a / t for t, a in got]))
@@ -297,6 +298,7 @@ def _in_sessions(
 
 def run(quick: bool) -> list[Result]:
     pairs, batch = (10, 20) if quick else (200, 20)
+    count = QUICK_SESSIONS if quick else SESSIONS
 
     @contextlib.contextmanager
     def wsg() -> Iterator[tuple[str, Any, str]]:
@@ -322,7 +324,7 @@ def run(quick: bool) -> list[Result]:
 
     results = []
     for label, start in (("WSG over TCP", wsg), ("MSG over CAN", msg)):
-        per_pair, sessions, (bare, bare_async), placed = _in_sessions(start, pairs, batch)
+        per_pair, sessions, (bare, bare_async), placed = _in_sessions(start, pairs, batch, count)
         low, ratio, high = quartiles([a / t for t, a in per_pair])
         threaded = median([t for t, _ in per_pair])
         awaited = median([a for _, a in per_pair])
@@ -330,7 +332,7 @@ def run(quick: bool) -> list[Result]:
             f"{len(per_pair)} pairs of adjacent batches of {batch} calls (ABBA order), one gripper, two "
             f"faces: the ratio is the median of the pairs' ratios, quartiles {low:.2f}x-{high:.2f}x",
             placed,
-            f"{SESSIONS} sessions, each a fresh simulator process; each session's median pair ratio: "
+            f"{count} sessions, each a fresh simulator process; each session's median pair ratio: "
             + ", ".join(f"{r:.2f}x" for r in sessions),
         ]
         goal = f"<= {RATIO_LIMIT}x threaded"
