@@ -56,12 +56,29 @@ _SERIAL_FILES = {
 }
 
 
+# Module-scoped fixtures that take seconds to build (a pip install, a served Zenoh session): their tests share
+# a worker, so the fixture is built once, not once per worker that happens to run one of them (``--dist
+# loadgroup`` otherwise hands each test to any worker). Key: the module's path below tests/ and the fixture.
+_SHARED_MODULE_FIXTURES = {
+    ("cli/test_plugin_example.py", "plugin_site"),
+    ("remote/test_cli.py", "server"),
+}
+_TESTS = Path(__file__).resolve().parent
+
+
 def _serial_group(item: pytest.Item) -> str | None:
-    if item.get_closest_marker("udp_multicast") or "mcast_channel" in getattr(item, "fixturenames", ()):
+    fixtures = getattr(item, "fixturenames", ())
+    if item.get_closest_marker("udp_multicast") or "mcast_channel" in fixtures:
         return "udp_multicast"
     if "udp_multicast" in item.name:
         return "udp_multicast"
-    return _SERIAL_FILES.get(item.path.name)
+    if item.path.name in _SERIAL_FILES:
+        return _SERIAL_FILES[item.path.name]
+    module = item.path.relative_to(_TESTS).as_posix() if item.path.is_relative_to(_TESTS) else ""
+    for path, fixture in _SHARED_MODULE_FIXTURES:
+        if module == path and fixture in fixtures:
+            return f"{path}::{fixture}"
+    return None
 
 
 WORKERS_PER_CORE = 2
