@@ -76,7 +76,12 @@ def test_run_refuses_an_unknown_target() -> None:
         ),
         pytest.param(
             "13",
-            {"13 aio state() WSG over TCP", "13 aio state() MSG over CAN"},
+            {
+                "13 aio state() WSG over TCP",
+                "13 aio state() MSG over CAN",
+                "13 aio state() WSG in-process sim",
+                "13 aio state() MSG in-process sim",
+            },
             id="13",
             marks=pytest.mark.udp_multicast,  # target 13's MSG runs over python-can's udp_multicast bus
         ),
