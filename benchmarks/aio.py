@@ -174,11 +174,6 @@ def _free_udp_port() -> int:
         return port
 
 
-def _compare(url: str, pairs: int, batch: int) -> tuple[float, float]:
-    per_pair = _pair_latencies(url, pairs, batch)
-    return median([p[0] for p in per_pair]), median([p[1] for p in per_pair])
-
-
 def _loop_reads(g: Any) -> bool:
     """The event loop holds the gripper's bus (an MSG over a bus with a file descriptor)."""
     reader = getattr(getattr(getattr(g, "driver", None), "bus", None), "_reader", None)
@@ -257,6 +252,7 @@ def _pair_latencies(url: str, pairs: int, batch: int) -> list[tuple[float, float
 
 
 SESSIONS = 5  # fresh simulator processes, each with its own gripper
+QUICK_SESSIONS = 2  # --quick (the CI smoke test): the same pairs in fewer sessions, fewer process starts
 
 
 def quartiles(values: list[float]) -> tuple[float, float, float]:
@@ -266,9 +262,9 @@ def quartiles(values: list[float]) -> tuple[float, float, float]:
 
 
 def _in_sessions(
-    start: Any, pairs: int, batch: int
+    start: Any, pairs: int, batch: int, count: int = SESSIONS
 ) -> tuple[list[tuple[float, float]], list[float], tuple[float, float], str]:
-    """:func:`_pair_latencies` in :data:`SESSIONS` sessions of ``pairs / SESSIONS`` pairs, each against a
+    """:func:`_pair_latencies` in ``count`` sessions of ``pairs / count`` pairs, each against a
     fresh simulator process (``start()``: a context manager giving (url, floor, placement), ``floor()``
     asyncio's own floor against that simulator, measured in the last session): (every pair's (threaded,
     awaited) medians, each session's median pair ratio, floor, placement).
@@ -283,12 +279,12 @@ def _in_sessions(
     sessions: list[float] = []
     floor = (0.0, 0.0)
     places: list[str] = []
-    per = max(2, pairs // SESSIONS)
-    for n in range(SESSIONS):
+    per = max(2, pairs // count)
+    for n in range(count):
         with start() as (url, measure_floor, where):
             places.append(where)
             got = _pair_latencies(url, per, batch)
-            if n == SESSIONS - 1:
+            if n == count - 1:
                 floor = measure_floor(per, batch)
         per_pair += got
         sessions.append(median([a / t for t, a in got]))
@@ -297,6 +293,7 @@ def _in_sessions(
 
 def run(quick: bool) -> list[Result]:
     pairs, batch = (10, 20) if quick else (200, 20)
+    count = QUICK_SESSIONS if quick else SESSIONS
 
     @contextlib.contextmanager
     def wsg() -> Iterator[tuple[str, Any, str]]:
@@ -322,7 +319,7 @@ def run(quick: bool) -> list[Result]:
 
     results = []
     for label, start in (("WSG over TCP", wsg), ("MSG over CAN", msg)):
-        per_pair, sessions, (bare, bare_async), placed = _in_sessions(start, pairs, batch)
+        per_pair, sessions, (bare, bare_async), placed = _in_sessions(start, pairs, batch, count)
         low, ratio, high = quartiles([a / t for t, a in per_pair])
         threaded = median([t for t, _ in per_pair])
         awaited = median([a for _, a in per_pair])
@@ -330,7 +327,7 @@ def run(quick: bool) -> list[Result]:
             f"{len(per_pair)} pairs of adjacent batches of {batch} calls (ABBA order), one gripper, two "
             f"faces: the ratio is the median of the pairs' ratios, quartiles {low:.2f}x-{high:.2f}x",
             placed,
-            f"{SESSIONS} sessions, each a fresh simulator process; each session's median pair ratio: "
+            f"{count} sessions, each a fresh simulator process; each session's median pair ratio: "
             + ", ".join(f"{r:.2f}x" for r in sessions),
         ]
         goal = f"<= {RATIO_LIMIT}x threaded"
@@ -348,13 +345,10 @@ def run(quick: bool) -> list[Result]:
                 "the floor itself above the goal: issue 33 §5)",
             ]
         else:
-            v_threaded, v_awaited = _compare("sim://msg-150", max(2, pairs // SESSIONS), batch)
             details += [
                 "python-can udp_multicast bus: a file descriptor, as SocketCAN has: the event loop reads it",
-                f"a bus without one (python-can virtual, in-process simulator): {us(v_awaited)} vs "
-                f"{us(v_threaded)} = {v_awaited / v_threaded:.2f}x, the reply handed from the reader thread; "
-                f"that hand-over alone, same run: {us(bare_async)} (call_soon_threadsafe to a task) against "
-                f"{us(bare)} (a thread blocked on a lock): +{us(bare_async - bare)} per call",
+                "a bus without one (python-can virtual, the simulator in this process): the MSG in-process "
+                "row, the reply handed from the reader thread",
             ]
         results.append(
             Result(
@@ -365,6 +359,51 @@ def run(quick: bool) -> list[Result]:
                 goal,
                 ok,
                 details,
+            )
+        )
+    return results + _in_process(pairs, batch)
+
+
+IN_PROCESS_LIMITS = {"WSG": 1.25, "MSG": 1.35}  # issue 43 §8
+
+
+def _in_process(pairs: int, batch: int) -> list[Result]:
+    """``await g.state()`` against ``g.state()`` with the simulator in this process (``sim://``), as tests and
+    notebooks use it (issue 43 §8): the WSG's simulator thread on loopback TCP, the MSG's on python-can's
+    ``virtual`` bus, which has no file descriptor, so its replies are handed from the reader thread to the
+    loop. Beside each, asyncio's own floor in the same run: for the WSG the five queries over a bare
+    ``asyncio.Protocol`` against a bare blocking socket, to an in-process simulator; for the MSG the hand-over
+    alone (``call_soon_threadsafe`` to a task against a thread blocked on a lock)."""
+    from grippers.drivers.wsg.sim import WsgModel, serve
+
+    results = []
+    for label, url in (("WSG", "sim://wsg50"), ("MSG", "sim://msg-150")):
+        per_pair = _pair_latencies(url, pairs, batch)
+        low, ratio, high = quartiles([a / t for t, a in per_pair])
+        if label == "WSG":
+            server = serve(WsgModel(), "tcp://127.0.0.1:0")
+            try:
+                bare, bare_async = _asyncio_floor_wsg(server.address[1], max(2, pairs // SESSIONS), batch)
+            finally:
+                server.close()
+            floor = f"asyncio.Protocol {us(bare_async)} against a blocking socket {us(bare)}"
+        else:
+            bare, bare_async = _asyncio_floor_hop(max(2, pairs // SESSIONS), batch)
+            floor = f"call_soon_threadsafe to a task {us(bare_async)} against a lock {us(bare)}"
+        limit = IN_PROCESS_LIMITS[label]
+        results.append(
+            Result(
+                f"13 aio state() {label} in-process sim",
+                us(median([a for _, a in per_pair])),
+                us(median([t for t, _ in per_pair])) + " (threaded g.state())",
+                f"{ratio:.2f}x (IQR {low:.2f}-{high:.2f})",
+                f"<= {limit}x threaded",
+                ratio <= limit,
+                [
+                    f"{url}: the simulator in this process; {len(per_pair)} pairs of adjacent batches of "
+                    f"{batch} calls (ABBA order)",
+                    f"asyncio's own floor, same run: {floor} = {bare_async / bare:.2f}x",
+                ],
             )
         )
     return results

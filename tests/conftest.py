@@ -56,12 +56,46 @@ _SERIAL_FILES = {
 }
 
 
+# Module-scoped fixtures that take seconds to build (a pip install, a served Zenoh session): their tests share
+# a worker, so the fixture is built once, not once per worker that happens to run one of them (``--dist
+# loadgroup`` otherwise hands each test to any worker). Key: the module's path below tests/ and the fixture.
+_SHARED_MODULE_FIXTURES = {
+    ("cli/test_plugin_example.py", "plugin_site"),
+    ("remote/test_cli.py", "server"),
+}
+_TESTS = Path(__file__).resolve().parent
+
+
 def _serial_group(item: pytest.Item) -> str | None:
-    if item.get_closest_marker("udp_multicast") or "mcast_channel" in getattr(item, "fixturenames", ()):
+    fixtures = getattr(item, "fixturenames", ())
+    if item.get_closest_marker("udp_multicast") or "mcast_channel" in fixtures:
         return "udp_multicast"
     if "udp_multicast" in item.name:
         return "udp_multicast"
-    return _SERIAL_FILES.get(item.path.name)
+    if item.path.name in _SERIAL_FILES:
+        return _SERIAL_FILES[item.path.name]
+    module = item.path.relative_to(_TESTS).as_posix() if item.path.is_relative_to(_TESTS) else ""
+    for path, fixture in _SHARED_MODULE_FIXTURES:
+        if module == path and fixture in fixtures:
+            return f"{path}::{fixture}"
+    return None
+
+
+WORKERS_PER_CORE = 2
+
+
+def pytest_xdist_auto_num_workers(config: pytest.Config) -> int | None:
+    """``-n auto`` (the README's test command) starts two workers per core the process may use: the suite
+    mostly waits (simulators at real time, subprocesses starting, timeouts running out), so one worker per
+    core leaves the cores idle much of the time. ``PYTEST_XDIST_AUTO_NUM_WORKERS=N`` (pytest-xdist's own)
+    overrides it; docs/reliability.md has the measurements."""
+    if os.environ.get("PYTEST_XDIST_AUTO_NUM_WORKERS"):
+        return None  # pytest-xdist's own hook reads it
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except AttributeError:  # not Linux
+        cores = os.cpu_count() or 1
+    return WORKERS_PER_CORE * cores
 
 
 @pytest.hookimpl(tryfirst=True)  # before pytest-xdist reads the groups
