@@ -39,21 +39,5 @@ status=$?
 echo "run-browser-tests: $((SECONDS - start)) s"
 [ $status -eq 0 ] || [ $status -eq 5 ] || exit "$status"   # 5: nothing collected, said below
 
-# Count from pytest's own report, not from its console text.
-"$python" - "$report" <<'PY' || exit 1
-import sys
-import xml.etree.ElementTree as ET
-
-try:
-    root = ET.parse(sys.argv[1]).getroot()
-except (OSError, ET.ParseError) as exc:
-    sys.exit(f"run-browser-tests: no pytest report ({exc})")
-suites = [root] if root.tag == "testsuite" else list(root.iter("testsuite"))
-tests = sum(int(s.get("tests", 0)) for s in suites)
-skipped = sum(int(s.get("skipped", 0)) for s in suites)
-if tests == 0:
-    sys.exit("run-browser-tests: no browser test ran")
-if skipped:
-    sys.exit(f"run-browser-tests: {skipped} of {tests} browser tests skipped: refused (all must run)")
-print(f"run-browser-tests: {tests} browser tests passed, none skipped")
-PY
+# Count from pytest's own report, not from its console text (scripts/none-skipped.py).
+"$python" "$here/none-skipped.py" "$report" run-browser-tests || exit 1
