@@ -126,4 +126,7 @@ def test_late_replies_are_logged_not_silent(caplog: pytest.LogCaptureFixture) ->
         _settle_late(g)
         with caplog.at_level(logging.DEBUG, logger="grippers.drivers"):
             g.state()
-        assert any("late URCap reply" in r.getMessage() for r in caplog.records)
+        # Dropped as late once the next request is out, or as unasked when it came with the answer: either way
+        # the log says so (which one depends on when the reply landed, not on the client).
+        said = [r.getMessage() for r in caplog.records]
+        assert any("late URCap reply" in m or "unasked URCap replies" in m for m in said), said
