@@ -83,6 +83,7 @@ class Control(enum.IntFlag):
     MOVE_ABSOLUTE = 1 << 13
     MOVE_RELATIVE = 1 << 14
     GRIP_AT_POSITION = 1 << 16
+    BRAKE_TEST = 1 << 30
     GPE = 1 << 31
 
 

@@ -225,3 +225,66 @@ def test_the_same_sequence_over_modbus_rtu_with_pymodbus(schunk_sim) -> None:
         ).isError()  # no such inst
     finally:
         client.close()
+
+
+# The cases below were found by running SCHUNK's driver itself against the simulator, once, outside this
+# repository (docs/protocols-schunk.md, "SCHUNK's driver against our simulator"); each replays the driver's
+# requests for the call that failed, written by hand from driver.py as above.
+
+
+def test_release_after_an_outward_grip_closes_away_from_the_part(peer) -> None:
+    """grip(force=50, outward=True) on a part's bore, then release(): the jaws sit inside the part, so
+    releasing closes them by the release delta, and nothing is in the way (the driver waits for 4 and 13)."""
+    server, p = peer
+    with server.lock:
+        server.model.part_width_mm = 40.0
+    assert p.wait(p.command([2]), [{0: 1}], 1.0)
+    before = p.command([13], position=20_000, speed=100_000)  # inside the bore first
+    assert p.wait(before, [{4: 1, 13: 1}, {7: 1}], 5.0) == {4: 1, 13: 1}
+    before = p.command([12, 7], speed=0, force=50)  # grip(force=50, outward=True)
+    assert p.wait(before, [{4: 1, 12: 1}, {4: 0, 11: 1}, {4: 0, 17: 1}, {7: 1}], 5.0) == {4: 1, 12: 1}
+    assert abs(p.position() - 40_000) <= 1
+    before = p.command([11])  # release()
+    assert p.wait(before, [{4: 1, 13: 1}, {7: 1}], 5.0) == {4: 1, 13: 1}
+    assert abs(p.position() - 35_000) <= 1 and p.status_bit(12) == 0
+
+
+def test_an_inward_grip_still_holds_the_part_against_closing(peer) -> None:
+    """The other side of the same rule: after an inward grip the jaws are outside the part, so a move
+    that closes them further stops at the part (4 without 13), and release opens freely."""
+    server, p = peer
+    with server.lock:
+        server.model.part_width_mm = 40.0
+        server.model.position_mm = 60.0
+    assert p.wait(p.command([2]), [{0: 1}], 1.0)
+    before = p.command([12], speed=0, force=50)
+    assert p.wait(before, [{4: 1, 12: 1}, {7: 1}], 5.0) == {4: 1, 12: 1}
+    before = p.command([13], position=30_000, speed=100_000)
+    assert p.wait(before, [{4: 1}, {7: 1}], 5.0) == {4: 1}
+    assert p.status_bit(13) == 0 and abs(p.position() - 40_000) <= 1
+    before = p.command([11])
+    assert p.wait(before, [{4: 1, 13: 1}, {7: 1}], 5.0) == {4: 1, 13: 1}
+    assert abs(p.position() - 45_000) <= 1
+
+
+def test_grip_at_an_expected_position_without_a_part_ends_past_it_by_the_margin(peer) -> None:
+    """grip(force=50, position=30000, velocity=20000) with nothing between the jaws: the driver allows
+    |position - actual| / velocity + 0.5 s (estimate_duration), so the unit must give up near the expected
+    position (past it by grp_pos_margin, 0x0580) with "no workpiece" (11, 4 clear), not close to the end."""
+    server, p = peer
+    assert p.wait(p.command([2]), [{0: 1}], 1.0)
+    before = p.command([13], position=100_000, speed=100_000)
+    assert p.wait(before, [{4: 1, 13: 1}, {7: 1}], 5.0) == {4: 1, 13: 1}
+    margin_um = round(struct.unpack("<f", p.read("0x0580"))[0] * 1000)
+    before = p.command([16], position=30_000, speed=20_000, force=50)
+    patterns = [{4: 1, 12: 1}, {4: 0, 11: 1}, {4: 0, 17: 1}, {7: 1}]
+    assert p.wait(before, patterns, 5.0) == {4: 0, 11: 1}
+    assert abs(p.position() - (30_000 - margin_um)) <= 1
+
+
+def test_brake_test_reports_success_as_the_dummy_does(peer) -> None:
+    """brake_test(): control bit 30; the driver waits 4 s for bit 4 (the dummy sets it at once)."""
+    server, p = peer
+    assert p.wait(p.command([2]), [{0: 1}], 1.0)
+    before = p.command([30])
+    assert p.wait(before, [{4: 1}, {3: 1}, {7: 1}], 1.0) == {4: 1}

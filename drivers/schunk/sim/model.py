@@ -34,6 +34,8 @@ from ..protocol import (
     padded,
 )
 
+GRIP_POSITION_MARGIN_MM = 2.0  # grp_pos_margin (0x0580): the EGU 60 in SCHUNK's dummy configs (EGK 25: 1.0)
+
 
 @dataclass
 class ModuleSpec:
@@ -111,7 +113,8 @@ class SchunkModel:
         part = self.part_width_mm
         if part is None:
             return None
-        if self.position_mm >= part > goal:  # closing onto it from outside
+        touching_from_inside = self.position_mm == part and self._outward_grip
+        if self.position_mm >= part > goal and not touching_from_inside:  # closing onto it from outside
             return part
         if self.position_mm <= part < goal and self.motion is not None and self.motion.outward:
             return part  # an outward grip opening into a part's inner width
@@ -123,8 +126,7 @@ class SchunkModel:
             if not at_part:
                 self.status |= Status.NO_WORKPIECE
                 return
-            margin = 2.0  # grp_pos_margin's default on the units in SCHUNK's dummy configs (mm)
-            if m.target_mm >= 0 and abs(self.position_mm - m.target_mm) > margin:
+            if m.target_mm >= 0 and abs(self.position_mm - m.target_mm) > self._margin():
                 self.status |= Status.WRONG_WORKPIECE
                 return
             self.status |= Status.GRIPPED | Status.SUCCESS
@@ -189,7 +191,7 @@ class SchunkModel:
             0x0500: s.module_type,
             0x0528: 1.0,
             0x0540: s.release_delta_mm,
-            0x0580: 2.0,
+            0x0580: GRIP_POSITION_MARGIN_MM,
             0x0588: s.max_phys_stroke_mm,
             0x05A8: 5.0,
             0x0600: s.min_pos_mm,
@@ -211,6 +213,10 @@ class SchunkModel:
             0x1400: int(self.t),
         }
         return values.get(inst)
+
+    def _margin(self) -> float:
+        """grp_pos_margin (0x0580, mm): how far from a grip's expected position a part may be found."""
+        return self._float(0x0580, GRIP_POSITION_MARGIN_MM)
 
     def _float(self, inst: int, default: float) -> float:
         if inst in self.written and PARAMETERS[inst].kind is Kind.FLOAT:
@@ -242,8 +248,8 @@ class SchunkModel:
             self.motion, self.speed_mm_s = None, 0.0
             self.status |= Status.SUCCESS | Status.REACHED  # as the dummy reports a controlled stop
             return
-        if c & Control.PREPARE_SHUTDOWN:
-            self.status |= Status.SUCCESS
+        if c & (Control.PREPARE_SHUTDOWN | Control.BRAKE_TEST):
+            self.status |= Status.SUCCESS  # the brake test as the dummy answers it: done at once
             return
         lo = self._float(0x0600, self.spec.min_pos_mm)
         hi = self._float(0x0608, self.spec.max_pos_mm)
@@ -275,6 +281,8 @@ class SchunkModel:
             self._outward_grip = outward
             expected = word.position_um / 1000 if c & Control.GRIP_AT_POSITION else -1.0
             goal = hi if outward else lo
+            if expected >= 0:  # no part within the margin past the expected position: no workpiece there
+                goal = min(hi, expected + self._margin()) if outward else max(lo, expected - self._margin())
             self._start("grip", goal, min(speed, self.spec.max_grp_vel_mm_s), expected, outward, gpe)
             return
         self.status |= Status.NOT_FEASIBLE  # a command this model does not take (jogging, brake test)
