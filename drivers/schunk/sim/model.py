@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 
 from ..protocol import (
     ERR_FAST_STOP,
+    MODBUS_BAUDRATE,
     OUTCOME_BITS,
     PARAMETERS,
     PLC_INPUT,
@@ -85,6 +86,7 @@ class SchunkModel:
     motion: _Motion | None = None
     speed_mm_s: float = 0.0
     commands: int = 0  # command words taken (tests count them)
+    slave_id: int = 12  # Modbus device id (0x11A8), set by the RTU server
 
     def __post_init__(self) -> None:
         if has_gpe(self.spec.module_name):
@@ -185,6 +187,11 @@ class SchunkModel:
         values: dict[int, float | int | str] = {
             0x0118: self.error,
             0x0120: 0,
+            0x0128: 0,
+            0x0130: "",
+            0x03A8: 0.0,
+            0x03B0: "00" * 24,
+            0x03B8: "00" * 24,
             0x0230: self.position_mm,
             0x0238: self.speed_mm_s,
             0x0380: 0,
@@ -203,15 +210,37 @@ class SchunkModel:
             0x0658: s.min_grp_force_n,
             0x0660: s.max_grp_force_n,
             0x06A8: s.max_allow_force_n,
+            # supply and temperature limits and readings: those of the EGU 60 in SCHUNK's dummy configs
+            0x0800: 19.2,
+            0x0808: 30.0,
+            0x0810: 19.2,
+            0x0818: 28.8,
+            0x0820: -5.0,
+            0x0828: 85.0,
             0x0840: 35.0,
+            0x0870: 24.0,
+            0x0878: 24.0,
+            0x0880: 21.6,
+            0x0888: 26.4,
+            0x0890: 21.6,
+            0x0898: 26.4,
+            0x08A0: 5.0,
+            0x08A8: 75.0,
             0x1000: s.serial.ljust(16),
             0x1008: "SIMULATED".ljust(16),
             0x1020: s.serial_num,
+            0x1100: "Jan  1 2025 ",
+            0x1108: "00:00:00 ",
             0x1110: s.firmware_num,
             0x1118: s.firmware.ljust(22),
             0x1130: int(self.fieldbus),
+            0x1330: True,
             0x1400: int(self.t),
         }
+        if self.fieldbus is Fieldbus.MODBUS:  # a Modbus unit has a baud rate and an id, no MAC address
+            values.update({0x11A0: MODBUS_BAUDRATE, 0x11A8: self.slave_id})
+        else:
+            values[0x1138] = "0030" + f"{s.serial_num:08X}"  # an Ethernet unit's MAC, from its serial
         return values.get(inst)
 
     def _margin(self) -> float:
