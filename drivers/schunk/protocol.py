@@ -83,6 +83,7 @@ class Control(enum.IntFlag):
     MOVE_ABSOLUTE = 1 << 13
     MOVE_RELATIVE = 1 << 14
     GRIP_AT_POSITION = 1 << 16
+    BRAKE_TEST = 1 << 30
     GPE = 1 << 31
 
 
@@ -106,6 +107,7 @@ class Kind(enum.Enum):
     UINT32 = "uint32"
     TEXT = "char"
     BOOL = "bool"
+    BYTES = "bytes"  # arrays (float[6], uint8[6]): carried as they are, decoded as upper-case hex
     RAW = "raw"  # the process data: decoded by ProcessInput / ControlWord
 
 
@@ -135,9 +137,14 @@ PARAMETERS: dict[int, Parameter] = _table(
     P(PLC_OUTPUT, "plc_sync_output", 8, Kind.RAW, writable=True),
     P(0x0118, "err_code", 1, Kind.ENUM),
     P(0x0120, "wrn_code", 1, Kind.ENUM),
+    P(0x0128, "sys_msg_req", 1, Kind.UINT16, writable=True),
+    P(0x0130, "sys_msg_buffer", 107, Kind.TEXT),
     P(0x0230, "actual_pos", 2, Kind.FLOAT, unit="mm"),
     P(0x0238, "actual_vel", 2, Kind.FLOAT, unit="mm/s"),
     P(0x0380, "grp_prehold_time", 1, Kind.UINT16, writable=True, unit="ms"),
+    P(0x03A8, "dead_load_kg", 2, Kind.FLOAT, unit="kg"),
+    P(0x03B0, "tool_cent_point", 12, Kind.BYTES),
+    P(0x03B8, "cent_of_mass", 12, Kind.BYTES),
     P(0x0500, "module_type", 1, Kind.ENUM),
     P(0x0528, "wp_lost_dst", 2, Kind.FLOAT, writable=True, unit="mm"),
     P(0x0540, "wp_release_delta", 2, Kind.FLOAT, writable=True, unit="mm"),
@@ -153,13 +160,35 @@ PARAMETERS: dict[int, Parameter] = _table(
     P(0x0658, "min_grp_force", 2, Kind.FLOAT, unit="N"),
     P(0x0660, "max_grp_force", 2, Kind.FLOAT, unit="N"),
     P(0x06A8, "max_allow_force", 2, Kind.FLOAT, unit="N"),
+    P(0x0800, "min_err_mot_volt", 2, Kind.FLOAT, unit="V"),
+    P(0x0808, "max_err_mot_volt", 2, Kind.FLOAT, unit="V"),
+    P(0x0810, "min_err_lgc_volt", 2, Kind.FLOAT, unit="V"),
+    P(0x0818, "max_err_lgc_volt", 2, Kind.FLOAT, unit="V"),
+    P(0x0820, "min_err_lgc_temp", 2, Kind.FLOAT, unit="°C"),
+    P(0x0828, "max_err_lgc_temp", 2, Kind.FLOAT, unit="°C"),
     P(0x0840, "meas_lgc_temp", 2, Kind.FLOAT, unit="°C"),
+    P(0x0870, "meas_lgc_volt", 2, Kind.FLOAT, unit="V"),
+    P(0x0878, "meas_mot_volt", 2, Kind.FLOAT, unit="V"),
+    P(0x0880, "min_wrn_mot_volt", 2, Kind.FLOAT, writable=True, unit="V"),
+    P(0x0888, "max_wrn_mot_volt", 2, Kind.FLOAT, writable=True, unit="V"),
+    P(0x0890, "min_wrn_lgc_volt", 2, Kind.FLOAT, writable=True, unit="V"),
+    P(0x0898, "max_wrn_lgc_volt", 2, Kind.FLOAT, writable=True, unit="V"),
+    P(0x08A0, "min_wrn_lgc_temp", 2, Kind.FLOAT, unit="°C"),
+    P(0x08A8, "max_wrn_lgc_temp", 2, Kind.FLOAT, unit="°C"),
     P(0x1000, "serial_no_txt", 8, Kind.TEXT),
     P(0x1008, "order_no_txt", 8, Kind.TEXT),
     P(0x1020, "serial_no_num", 2, Kind.UINT32),
+    P(0x1100, "sw_build_date", 6, Kind.TEXT),
+    P(0x1108, "sw_build_time", 5, Kind.TEXT),
     P(0x1110, "sw_version_num", 1, Kind.UINT16),
     P(0x1118, "sw_version_txt", 11, Kind.TEXT),
     P(0x1130, "fieldbus_type", 1, Kind.ENUM),
+    P(0x1138, "mac_addr", 3, Kind.BYTES),  # Ethernet units only
+    P(0x11A0, "baudrate", 2, Kind.UINT32, writable=True),  # Modbus units only
+    P(
+        0x11A8, "slave_id", 1, Kind.ENUM, writable=True
+    ),  # Modbus units only; a uint8, in the first byte as an enum's
+    P(0x1330, "enable_softreset", 1, Kind.BOOL, writable=True),
     P(0x1400, "system_uptime", 2, Kind.UINT32, unit="s"),
 )
 BY_NAME: dict[str, Parameter] = {p.name: p for p in PARAMETERS.values()}
@@ -260,6 +289,8 @@ def decode(inst: int, data: bytes, fieldbus: Fieldbus) -> float | int | str | bo
             return data.decode("ascii").strip(" \x00")
         except UnicodeDecodeError:
             raise CodecError(f"0x{inst:04X}: a text that is not ASCII") from None
+    if p.kind is Kind.BYTES:
+        return data.hex().upper()
     raise CodecError(f"0x{inst:04X} is process data: use ProcessInput/ControlWord")
 
 
@@ -278,6 +309,8 @@ def encode(inst: int, value: float | int | str | bool, fieldbus: Fieldbus) -> by
             data = struct.pack(o + "I", int(value))
         elif p.kind is Kind.TEXT:
             data = str(value).encode("ascii")
+        elif p.kind is Kind.BYTES:
+            data = bytes.fromhex(str(value))
         else:
             raise CodecError(f"0x{inst:04X} is process data")
     except (struct.error, UnicodeEncodeError, ValueError, OverflowError) as exc:

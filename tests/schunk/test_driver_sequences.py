@@ -225,3 +225,112 @@ def test_the_same_sequence_over_modbus_rtu_with_pymodbus(schunk_sim) -> None:
         ).isError()  # no such inst
     finally:
         client.close()
+
+
+# The cases below were found by running SCHUNK's driver itself against the simulator, once, outside this
+# repository (docs/protocols-schunk.md, "SCHUNK's driver against our simulator"); each replays the driver's
+# requests for the call that failed, written by hand from driver.py as above.
+
+
+def test_release_after_an_outward_grip_closes_away_from_the_part(peer) -> None:
+    """grip(force=50, outward=True) on a part's bore, then release(): the jaws sit inside the part, so
+    releasing closes them by the release delta, and nothing is in the way (the driver waits for 4 and 13)."""
+    server, p = peer
+    with server.lock:
+        server.model.part_width_mm = 40.0
+    assert p.wait(p.command([2]), [{0: 1}], 1.0)
+    before = p.command([13], position=20_000, speed=100_000)  # inside the bore first
+    assert p.wait(before, [{4: 1, 13: 1}, {7: 1}], 5.0) == {4: 1, 13: 1}
+    before = p.command([12, 7], speed=0, force=50)  # grip(force=50, outward=True)
+    assert p.wait(before, [{4: 1, 12: 1}, {4: 0, 11: 1}, {4: 0, 17: 1}, {7: 1}], 5.0) == {4: 1, 12: 1}
+    assert abs(p.position() - 40_000) <= 1
+    before = p.command([11])  # release()
+    assert p.wait(before, [{4: 1, 13: 1}, {7: 1}], 5.0) == {4: 1, 13: 1}
+    assert abs(p.position() - 35_000) <= 1 and p.status_bit(12) == 0
+
+
+def test_an_inward_grip_still_holds_the_part_against_closing(peer) -> None:
+    """The other side of the same rule: after an inward grip the jaws are outside the part, so a move
+    that closes them further stops at the part (4 without 13), and release opens freely."""
+    server, p = peer
+    with server.lock:
+        server.model.part_width_mm = 40.0
+        server.model.position_mm = 60.0
+    assert p.wait(p.command([2]), [{0: 1}], 1.0)
+    before = p.command([12], speed=0, force=50)
+    assert p.wait(before, [{4: 1, 12: 1}, {7: 1}], 5.0) == {4: 1, 12: 1}
+    before = p.command([13], position=30_000, speed=100_000)
+    assert p.wait(before, [{4: 1}, {7: 1}], 5.0) == {4: 1}
+    assert p.status_bit(13) == 0 and abs(p.position() - 40_000) <= 1
+    before = p.command([11])
+    assert p.wait(before, [{4: 1, 13: 1}, {7: 1}], 5.0) == {4: 1, 13: 1}
+    assert abs(p.position() - 45_000) <= 1
+
+
+def test_grip_at_an_expected_position_without_a_part_ends_past_it_by_the_margin(peer) -> None:
+    """grip(force=50, position=30000, velocity=20000) with nothing between the jaws: the driver allows
+    |position - actual| / velocity + 0.5 s (estimate_duration), so the unit must give up near the expected
+    position (past it by grp_pos_margin, 0x0580) with "no workpiece" (11, 4 clear), not close to the end."""
+    server, p = peer
+    assert p.wait(p.command([2]), [{0: 1}], 1.0)
+    before = p.command([13], position=100_000, speed=100_000)
+    assert p.wait(before, [{4: 1, 13: 1}, {7: 1}], 5.0) == {4: 1, 13: 1}
+    margin_um = round(struct.unpack("<f", p.read("0x0580"))[0] * 1000)
+    before = p.command([16], position=30_000, speed=20_000, force=50)
+    patterns = [{4: 1, 12: 1}, {4: 0, 11: 1}, {4: 0, 17: 1}, {7: 1}]
+    assert p.wait(before, patterns, 5.0) == {4: 0, 11: 1}
+    assert abs(p.position() - (30_000 - margin_um)) <= 1
+
+
+def test_brake_test_reports_success_as_the_dummy_does(peer) -> None:
+    """brake_test(): control bit 30; the driver waits 4 s for bit 4 (the dummy sets it at once)."""
+    server, p = peer
+    assert p.wait(p.command([2]), [{0: 1}], 1.0)
+    before = p.command([30])
+    assert p.wait(before, [{4: 1}, {3: 1}, {7: 1}], 1.0) == {4: 1}
+
+
+@pytest.mark.parametrize("transport", ["http", "pty"])
+def test_every_parameter_in_the_drivers_list_reads_at_its_size(schunk_sim, transport) -> None:
+    """SCHUNK's own tests (test_module_parameters.py) read every instance of its readable_parameters.json
+    and expect the register count's bytes, except 0x11A0/0x11A8 (baud rate, id) on Ethernet units and
+    0x1138 (MAC) on Modbus ones: the unit files in its dummy have them all."""
+    from grippers.drivers.schunk.protocol import PARAMETERS
+
+    # instance: registers, from the driver's config/readable_parameters.json
+    listed = {0x0040: 8, 0x0048: 8, 0x0118: 1, 0x0120: 1, 0x0128: 1, 0x0130: 107, 0x0230: 2, 0x0238: 2}
+    listed |= {0x0380: 1, 0x03A8: 2, 0x03B0: 12, 0x03B8: 12, 0x0500: 1, 0x0528: 2, 0x0540: 2, 0x0580: 2}
+    listed |= {inst: 2 for inst in (0x0588, 0x05A8, 0x0600, 0x0608, 0x0610, 0x0628, 0x0630, 0x0650)}
+    listed |= {inst: 2 for inst in (0x0658, 0x0660, 0x06A8, 0x0800, 0x0808, 0x0810, 0x0818, 0x0820)}
+    listed |= {inst: 2 for inst in (0x0828, 0x0840, 0x0870, 0x0878, 0x0880, 0x0888, 0x0890, 0x0898)}
+    listed |= {0x08A0: 2, 0x08A8: 2, 0x1000: 8, 0x1008: 8, 0x1020: 2, 0x1100: 6, 0x1108: 5, 0x1110: 1}
+    listed |= {0x1118: 11, 0x1130: 1, 0x1138: 3, 0x11A0: 2, 0x11A8: 1, 0x1330: 1, 0x1400: 2}
+    assert all(PARAMETERS[inst].registers == n for inst, n in listed.items())
+    if transport == "http":
+        server = schunk_sim("schunk-egu-60")
+        p = HttpPeer(server.port)
+        absent = {0x11A0, 0x11A8}
+        for inst, registers in listed.items():
+            values = p.get(f"/adi/data.json?inst=0x{inst:04X}&count=1")
+            if inst in absent:
+                assert values == [], hex(inst)
+                continue
+            assert values, hex(inst)
+            data = bytes.fromhex(values[0])
+            assert 0 < len(data) <= 2 * registers, hex(inst)  # the driver zero-pads a short answer
+        return
+    pymodbus_client = pytest.importorskip("pymodbus.client")
+    server = schunk_sim("schunk-egu-60", "pty")
+    client = pymodbus_client.ModbusSerialClient(port=server.path, baudrate=115200, parity="N", timeout=1.0)
+    assert client.connect()
+    try:
+        for inst, registers in listed.items():
+            pdu = client.read_holding_registers(address=inst - 1, count=registers, device_id=12)
+            if inst == 0x1138:
+                assert pdu.isError(), hex(inst)
+                continue
+            assert not pdu.isError() and len(pdu.registers) == registers, hex(inst)
+        slave = client.read_holding_registers(address=0x11A8 - 1, count=1, device_id=12).registers
+        assert slave[0] >> 8 == 12  # the id in the first byte, as the unit's enum-like uint8
+    finally:
+        client.close()

@@ -43,6 +43,7 @@ def serve(model: SchunkModel, listen: str, *, time_scale: float = 1.0, slave: in
     if listen in ("pty", "serial"):
         from .rtu import RtuSession
 
+        model.slave_id = slave
         server = SchunkServer(
             "pty",
             lambda: RtuSession(model, slave),

@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 
 from ..protocol import (
     ERR_FAST_STOP,
+    MODBUS_BAUDRATE,
     OUTCOME_BITS,
     PARAMETERS,
     PLC_INPUT,
@@ -33,6 +34,8 @@ from ..protocol import (
     has_gpe,
     padded,
 )
+
+GRIP_POSITION_MARGIN_MM = 2.0  # grp_pos_margin (0x0580): the EGU 60 in SCHUNK's dummy configs (EGK 25: 1.0)
 
 
 @dataclass
@@ -83,6 +86,7 @@ class SchunkModel:
     motion: _Motion | None = None
     speed_mm_s: float = 0.0
     commands: int = 0  # command words taken (tests count them)
+    slave_id: int = 12  # Modbus device id (0x11A8), set by the RTU server
 
     def __post_init__(self) -> None:
         if has_gpe(self.spec.module_name):
@@ -111,7 +115,8 @@ class SchunkModel:
         part = self.part_width_mm
         if part is None:
             return None
-        if self.position_mm >= part > goal:  # closing onto it from outside
+        touching_from_inside = self.position_mm == part and self._outward_grip
+        if self.position_mm >= part > goal and not touching_from_inside:  # closing onto it from outside
             return part
         if self.position_mm <= part < goal and self.motion is not None and self.motion.outward:
             return part  # an outward grip opening into a part's inner width
@@ -123,8 +128,7 @@ class SchunkModel:
             if not at_part:
                 self.status |= Status.NO_WORKPIECE
                 return
-            margin = 2.0  # grp_pos_margin's default on the units in SCHUNK's dummy configs (mm)
-            if m.target_mm >= 0 and abs(self.position_mm - m.target_mm) > margin:
+            if m.target_mm >= 0 and abs(self.position_mm - m.target_mm) > self._margin():
                 self.status |= Status.WRONG_WORKPIECE
                 return
             self.status |= Status.GRIPPED | Status.SUCCESS
@@ -183,13 +187,18 @@ class SchunkModel:
         values: dict[int, float | int | str] = {
             0x0118: self.error,
             0x0120: 0,
+            0x0128: 0,
+            0x0130: "",
+            0x03A8: 0.0,
+            0x03B0: "00" * 24,
+            0x03B8: "00" * 24,
             0x0230: self.position_mm,
             0x0238: self.speed_mm_s,
             0x0380: 0,
             0x0500: s.module_type,
             0x0528: 1.0,
             0x0540: s.release_delta_mm,
-            0x0580: 2.0,
+            0x0580: GRIP_POSITION_MARGIN_MM,
             0x0588: s.max_phys_stroke_mm,
             0x05A8: 5.0,
             0x0600: s.min_pos_mm,
@@ -201,16 +210,42 @@ class SchunkModel:
             0x0658: s.min_grp_force_n,
             0x0660: s.max_grp_force_n,
             0x06A8: s.max_allow_force_n,
+            # supply and temperature limits and readings: those of the EGU 60 in SCHUNK's dummy configs
+            0x0800: 19.2,
+            0x0808: 30.0,
+            0x0810: 19.2,
+            0x0818: 28.8,
+            0x0820: -5.0,
+            0x0828: 85.0,
             0x0840: 35.0,
+            0x0870: 24.0,
+            0x0878: 24.0,
+            0x0880: 21.6,
+            0x0888: 26.4,
+            0x0890: 21.6,
+            0x0898: 26.4,
+            0x08A0: 5.0,
+            0x08A8: 75.0,
             0x1000: s.serial.ljust(16),
             0x1008: "SIMULATED".ljust(16),
             0x1020: s.serial_num,
+            0x1100: "Jan  1 2025 ",
+            0x1108: "00:00:00 ",
             0x1110: s.firmware_num,
             0x1118: s.firmware.ljust(22),
             0x1130: int(self.fieldbus),
+            0x1330: True,
             0x1400: int(self.t),
         }
+        if self.fieldbus is Fieldbus.MODBUS:  # a Modbus unit has a baud rate and an id, no MAC address
+            values.update({0x11A0: MODBUS_BAUDRATE, 0x11A8: self.slave_id})
+        else:
+            values[0x1138] = "0030" + f"{s.serial_num:08X}"  # an Ethernet unit's MAC, from its serial
         return values.get(inst)
+
+    def _margin(self) -> float:
+        """grp_pos_margin (0x0580, mm): how far from a grip's expected position a part may be found."""
+        return self._float(0x0580, GRIP_POSITION_MARGIN_MM)
 
     def _float(self, inst: int, default: float) -> float:
         if inst in self.written and PARAMETERS[inst].kind is Kind.FLOAT:
@@ -242,8 +277,8 @@ class SchunkModel:
             self.motion, self.speed_mm_s = None, 0.0
             self.status |= Status.SUCCESS | Status.REACHED  # as the dummy reports a controlled stop
             return
-        if c & Control.PREPARE_SHUTDOWN:
-            self.status |= Status.SUCCESS
+        if c & (Control.PREPARE_SHUTDOWN | Control.BRAKE_TEST):
+            self.status |= Status.SUCCESS  # the brake test as the dummy answers it: done at once
             return
         lo = self._float(0x0600, self.spec.min_pos_mm)
         hi = self._float(0x0608, self.spec.max_pos_mm)
@@ -275,6 +310,8 @@ class SchunkModel:
             self._outward_grip = outward
             expected = word.position_um / 1000 if c & Control.GRIP_AT_POSITION else -1.0
             goal = hi if outward else lo
+            if expected >= 0:  # no part within the margin past the expected position: no workpiece there
+                goal = min(hi, expected + self._margin()) if outward else max(lo, expected - self._margin())
             self._start("grip", goal, min(speed, self.spec.max_grp_vel_mm_s), expected, outward, gpe)
             return
         self.status |= Status.NOT_FEASIBLE  # a command this model does not take (jogging, brake test)
