@@ -13,7 +13,7 @@ import pytest
 from grippers.cli.probe import DEADLINE_FACTOR, DEADLINE_SLACK
 
 TIMEOUT = 0.5
-STARTUP = 5.0  # interpreter start-up and imports: the least allowed
+STARTUP = 10.0  # interpreter start-up and imports (python-can's for a CAN probe): the least allowed
 
 
 def bound(candidates: int, startup: float) -> float:
