@@ -12,6 +12,7 @@ import pytest
 
 import grippers
 from grippers import URLError
+from grippers.urls import with_params
 
 from .conftest import ROOT, ServeProcess
 
@@ -40,7 +41,8 @@ def test_ctrl_c_stops_the_jaws_before_serve_exits(
     Undeclared publisher``: a motion thread published its last state after the publisher was gone). Both
     are a server's ordinary end now: the same stops as Ctrl-C, exit 0."""
     device = gripper_sim(device[0], time_scale=1, **device[1])
-    server: ServeProcess = serve(f"g={device}")
+    # The served device's own timeout leaves room for a CPU-starved simulator (the MSG's calibration reads).
+    server: ServeProcess = serve(f"g={with_params(str(device), timeout=2)}")
     g = grippers.open(server.urls["g"])
     try:
         g.home()
