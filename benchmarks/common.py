@@ -13,6 +13,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 REPO = Path(__file__).resolve().parent.parent
 if str(REPO) not in sys.path:  # run as a script: make `drivers`, `grippers` and `benchmarks` importable
@@ -97,6 +98,15 @@ def rate(per_s: float, unit: str) -> str:
     if per_s >= 1e3:
         return f"{per_s / 1e3:.1f} k {unit}/s"
     return f"{per_s:.0f} {unit}/s"
+
+
+def serve_as_child(server: Any, where: str) -> None:
+    """The child's side of :class:`SimChild`: print where ``server`` serves, serve until the parent closes our
+    stdin, close it, and leave without the interpreter's shutdown (the simulator's threads)."""
+    print(where, flush=True)
+    sys.stdin.read()
+    server.close()
+    os._exit(0)
 
 
 class SimChild:

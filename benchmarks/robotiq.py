@@ -15,7 +15,6 @@
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 import time
 from pathlib import Path
@@ -23,7 +22,7 @@ from pathlib import Path
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from benchmarks.common import Result, SimChild
+from benchmarks.common import Result, SimChild, serve_as_child
 from grippers.drivers.links import ByteLink
 from grippers.drivers.robotiq import modbus
 from grippers.drivers.robotiq.client import RobotiqClient
@@ -167,10 +166,7 @@ def _serve_pty() -> None:
     model = RobotiqModel()
     model.act, model.sta = True, ActivationState.COMPLETE
     server = serve(model, "pty")
-    print(server.path, flush=True)
-    sys.stdin.read()  # until the parent closes our stdin
-    server.close()
-    os._exit(0)
+    serve_as_child(server, server.path)
 
 
 if __name__ == "__main__":

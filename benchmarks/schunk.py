@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import argparse
 import http.client
-import os
 import sys
 import time
 from pathlib import Path
@@ -24,7 +23,7 @@ from typing import Any
 if __package__ in (None, ""):
     sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from benchmarks.common import Result, SimChild
+from benchmarks.common import Result, SimChild, serve_as_child
 from grippers.drivers import modbus
 from grippers.drivers.links import ByteLink
 from grippers.drivers.schunk.protocol import PLC_INPUT, ProcessInput, Status
@@ -207,10 +206,7 @@ def _serve_http() -> None:
     from grippers.settings import Settings
 
     server = get_backend("schunk").simulator(load_profile("schunk-egu-60"), Settings("sim://bench", {}, {}))
-    print(server.url, flush=True)
-    sys.stdin.read()  # until the parent closes our stdin
-    server.close()
-    os._exit(0)
+    serve_as_child(server, server.url)
 
 
 if __name__ == "__main__":
