@@ -75,6 +75,16 @@ def _thread_of_its_own(body: Callable[[], None], name: str) -> None:
     threading.Thread(target=body, name=name, daemon=True).start()
 
 
+
+def stopped_by(exc: BaseException) -> str:
+    """What ended a motion, for its "aborted by ..." message: ``Ctrl-C``, the signal's name for a
+    KeyboardInterrupt that carries one (the CLI raises SIGTERM and SIGHUP as ``KeyboardInterrupt("SIGTERM")``,
+    grippers/cli/signals.py), else the exception's type."""
+    if isinstance(exc, KeyboardInterrupt):
+        named = exc.args[0] if exc.args and isinstance(exc.args[0], str) else ""
+        return named if named.startswith("SIG") and named.isalnum() else "Ctrl-C"
+    return type(exc).__name__
+
 class MotionHandle(Generic[T]):
     """A motion started with ``wait=False``: poll ``done()``, ``wait()`` for the result, or ``cancel()``.
 
@@ -359,7 +369,7 @@ class MotionSupervisor:
                 raise  # the motion's own outcome
             # Ctrl-C, a signal handler's exception, or the bound running out: stop the gripper first, so a
             # script that is interrupted does not leave the jaws closing on whatever is between them.
-            by = "Ctrl-C" if isinstance(exc, KeyboardInterrupt) else type(exc).__name__
+            by = stopped_by(exc)
             failure = self.abort(by, handle, bounded=True)
             if failure is not None:
                 exc.add_note(f"{self._device()}: stopping the gripper after {by} failed: {failure}")

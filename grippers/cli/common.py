@@ -145,7 +145,7 @@ def stops_motions_on_error(gripper: Gripper) -> Iterator[Gripper]:
     try:
         yield gripper
     except BaseException as exc:
-        by = signal_name(exc) if isinstance(exc, KeyboardInterrupt) else type(exc).__name__
+        by = signal_name(exc)
         for failure in stop_running_motions(gripper, by):
             exc.add_note(f"{gripper.name}: stopping the gripper after {by} failed: {failure}")
         raise

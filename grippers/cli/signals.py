@@ -11,6 +11,12 @@ A command interrupted this way exits ``128 + n`` (130, 143, 129), the shells' co
 process inherited as ignored (``nohup grippers ...``) stays ignored. Servers (``sim``, ``serve``) take SIGTERM
 and SIGHUP as their ordinary end and exit 0 after the same stops.
 
+CPython swallows an exception raised in a weakref callback, a ``__del__`` or a garbage-collector callback (it
+reports it to :data:`sys.unraisablehook` and goes on). A signal whose handler ran there, such as the import
+system's module-lock callback in the first milliseconds of a command, was lost: the command ran on (issue 43).
+While the rule is in place, :func:`_resend_swallowed` sends such a signal again, so it lands in the command's
+own code and ends it like any other.
+
 Once the command has returned, a late signal (Ctrl-C 50 ms after the summary) must not turn a finished
 command into an interrupted one or print a traceback from the interpreter's shutdown: :func:`finished`
 makes it end the process at once with the command's own status.
@@ -23,6 +29,7 @@ import signal
 import sys
 from collections.abc import Callable
 from types import FrameType
+from typing import Any
 
 CAUGHT = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 _Handler = Callable[[int, FrameType | None], object] | int | signal.Handlers | None
@@ -42,16 +49,45 @@ def _raise(signum: int, frame: FrameType | None) -> None:
     raise Terminated(signum)
 
 
+_previous_hook: Callable[[Any], object] | None = None  # sys.unraisablehook before like_ctrl_c()
+
+
+def _resend_swallowed(unraisable: Any) -> None:
+    """``sys.unraisablehook`` while the rule holds: a KeyboardInterrupt of ours that CPython swallowed
+    (raised in a weakref callback or a ``__del__``) is sent again from another thread, so that the main
+    thread takes it at its next step in ordinary code; anything else goes to the hook that was there
+    before."""
+    exc = unraisable.exc_value
+    if not isinstance(exc, KeyboardInterrupt) or signal.getsignal(_signum(exc)) is not _raise:
+        (_previous_hook or sys.__unraisablehook__)(unraisable)
+        return
+    import threading
+
+    # Sent 10 ms later, so that it lands after this hook has returned (a signal that came in here, while the
+    # timer's thread starts, would be lost for good): the same signal comes again.
+    again = threading.Timer(0.01, os.kill, (os.getpid(), _signum(exc)))
+    again.daemon = True
+    try:
+        again.start()
+    except KeyboardInterrupt as late:  # a second signal, during the start
+        _resend_swallowed(type("Unraisable", (), {"exc_value": late})())
+
+
+def _signum(exc: KeyboardInterrupt) -> int:
+    return exc.signum if isinstance(exc, Terminated) else signal.SIGINT
+
+
 def signal_name(exc: BaseException) -> str:
-    """``Ctrl-C``, ``SIGTERM`` or ``SIGHUP``: what ended a command, for its messages."""
-    if isinstance(exc, Terminated):
-        return signal.Signals(exc.signum).name
-    return "Ctrl-C"
+    """``Ctrl-C``, ``SIGTERM`` or ``SIGHUP`` for a KeyboardInterrupt, else the exception's type: what ended a
+    command or a motion, for its messages (one rule: :func:`grippers.motions.stopped_by`)."""
+    from grippers.motions import stopped_by
+
+    return stopped_by(exc)
 
 
 def exit_status(exc: KeyboardInterrupt) -> int:
     """128 + the signal's number: 130 for Ctrl-C, 143 for SIGTERM, 129 for SIGHUP."""
-    return 128 + (exc.signum if isinstance(exc, Terminated) else signal.SIGINT)
+    return 128 + _signum(exc)
 
 
 def _install(handler: _Handler) -> dict[int, _Handler]:
@@ -72,14 +108,22 @@ def _install(handler: _Handler) -> dict[int, _Handler]:
 
 def like_ctrl_c() -> dict[int, _Handler]:
     """From now on SIGINT, SIGTERM and SIGHUP raise KeyboardInterrupt (:class:`Terminated`); returns the
-    handlers to put back with :func:`restore`."""
-    return _install(_raise)
+    handlers to put back with :func:`restore`. A signal CPython swallows is sent again
+    (:func:`_resend_swallowed`)."""
+    global _previous_hook
+    previous = _install(_raise)
+    if previous and sys.unraisablehook is not _resend_swallowed:
+        _previous_hook, sys.unraisablehook = sys.unraisablehook, _resend_swallowed
+    return previous
 
 
 def restore(previous: dict[int, _Handler]) -> None:
     """Put back the handlers :func:`like_ctrl_c` replaced (a command run in-process, as the tests do)."""
+    global _previous_hook
     for sig, handler in previous.items():
         signal.signal(sig, handler)
+    if sys.unraisablehook is _resend_swallowed and _previous_hook is not None:
+        sys.unraisablehook, _previous_hook = _previous_hook, None
 
 
 def ends_service(handler: Callable[[int, FrameType | None], object]) -> dict[int, _Handler]:
