@@ -35,6 +35,7 @@ from typing import Any, Protocol, TypeVar
 
 from .closing import Closing
 from .errors import URLError
+from .inet import tcp_listener
 
 R = TypeVar("R")
 
@@ -382,7 +383,7 @@ class SimServer(Closing):
         if url.transport != "tcp":
             raise URLError(f"{listen}: a simulator listens on pty or tcp://HOST:PORT")
         host = url.host or "127.0.0.1"
-        self._listener = socket.create_server((host, url.port or 0))
+        self._listener = tcp_listener(host, url.port or 0)
         self._listener.setblocking(False)
         self.port = self._listener.getsockname()[1]
         self.url = f"{family}+tcp://{format_host(host, self.port)}"

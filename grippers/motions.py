@@ -75,7 +75,6 @@ def _thread_of_its_own(body: Callable[[], None], name: str) -> None:
     threading.Thread(target=body, name=name, daemon=True).start()
 
 
-
 def stopped_by(exc: BaseException) -> str:
     """What ended a motion, for its "aborted by ..." message: ``Ctrl-C``, the signal's name for a
     KeyboardInterrupt that carries one (the CLI raises SIGTERM and SIGHUP as ``KeyboardInterrupt("SIGTERM")``,
@@ -84,6 +83,7 @@ def stopped_by(exc: BaseException) -> str:
         named = exc.args[0] if exc.args and isinstance(exc.args[0], str) else ""
         return named if named.startswith("SIG") and named.isalnum() else "Ctrl-C"
     return type(exc).__name__
+
 
 class MotionHandle(Generic[T]):
     """A motion started with ``wait=False``: poll ``done()``, ``wait()`` for the result, or ``cancel()``.

@@ -294,12 +294,13 @@ def _proxy_records(args: argparse.Namespace, writer: Writer | None) -> Iterator[
 
     from grippers.drivers.captures import format_hex_line
     from grippers.drivers.dissect import FROM_GRIPPER, TO_GRIPPER
+    from grippers.drivers.inet import tcp_listener
 
     byte_stream(args)  # a protocol without a byte reader is refused before anything listens
 
     if args.to is None:
         raise UsageError("--proxy needs --to HOST:PORT (the gripper)")
-    listener = socket.create_server(args.proxy)
+    listener = tcp_listener(*args.proxy)
     host, port = listener.getsockname()[:2]
     print(
         f"grippers monitor: proxy listening on {host}:{port}, forwarding to {args.to[0]}:{args.to[1]}",

@@ -178,9 +178,10 @@ def garbage_check(url: str, timeout: float) -> str | None:
         if transport in ("tcp", "udp"):
             import socket
 
+            from grippers.drivers.inet import family_of
+
             kind = socket.SOCK_STREAM if transport == "tcp" else socket.SOCK_DGRAM
-            family_ = socket.AF_INET6 if ":" in (u.host or "") else socket.AF_INET
-            with socket.socket(family_, kind) as s:
+            with socket.socket(family_of(u.host), kind) as s:
                 s.settimeout(timeout)
                 s.connect((u.host, u.port or raw.port))
                 s.sendall(request)

@@ -22,6 +22,8 @@ from typing import Any
 
 import uvicorn
 
+from grippers.drivers.inet import family_of
+
 from ..errors import URLError
 from ..gripper import Gripper
 from .app import MAX_MESSAGE, Panel, make_app
@@ -61,8 +63,7 @@ class PanelServer:
             raise URLError("--token: an empty token")
         self.token = token if token is not None or is_loopback(self.host) else new_token()
         self.tls = certfile is not None
-        family = socket.AF_INET6 if ":" in self.host else socket.AF_INET
-        self._sock = socket.socket(family, socket.SOCK_STREAM)
+        self._sock = socket.socket(family_of(self.host), socket.SOCK_STREAM)
         try:
             self._sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
             self._sock.bind((self.host, port))

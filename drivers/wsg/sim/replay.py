@@ -7,6 +7,7 @@ import socket
 import threading
 
 from ...captures import FROM_DEVICE, TO_DEVICE, parse_hex_dump
+from ...inet import tcp_listener
 from ...replay import Mismatch, Script, Step, relative, report
 from ...simkit import Sender
 from .. import commands
@@ -39,7 +40,7 @@ class WsgReplayServer:
     def __init__(self, script: Script, host: str, port: int, time_scale: float = 1.0) -> None:
         self.script = script
         self._sender = Sender(time_scale)
-        self._listener = socket.create_server((host, port))
+        self._listener = tcp_listener(host, port)
         self._listener.settimeout(0.05)  # close() alone does not wake a blocked accept() on Linux
         self._closed = threading.Event()
         self._lock = threading.Lock()

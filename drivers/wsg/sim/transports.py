@@ -17,6 +17,7 @@ from typing import Any
 import can
 
 from ...canlink import is_link_failure
+from ...inet import family_of, tcp_listener
 from ...urls import format_host
 from ..protocol import PacketParser, can_frames
 from .engine import Link, SimServer
@@ -60,7 +61,7 @@ class TcpSimServer(_SelectorServer):
 
     def __init__(self, model: WsgModel, host: str, port: int, *, time_scale: float) -> None:
         super().__init__(model, time_scale=time_scale)
-        self._listener = socket.create_server((host, port))
+        self._listener = tcp_listener(host, port)
         self._listener.setblocking(False)
         self._clients: dict[int, tuple[socket.socket, Link]] = {}
         self._selector.register(self._listener, selectors.EVENT_READ, self._accept)
@@ -129,8 +130,7 @@ class UdpSimServer(_SelectorServer):
         self, model: WsgModel, host: str, port: int, *, time_scale: float, max_peers: int = 64
     ) -> None:
         super().__init__(model, time_scale=time_scale)
-        family = socket.AF_INET6 if ":" in host else socket.AF_INET
-        self._sock = socket.socket(family, socket.SOCK_DGRAM)
+        self._sock = socket.socket(family_of(host), socket.SOCK_DGRAM)
         self._sock.bind((host, port))
         self._sock.setblocking(False)
         self.max_peers = max_peers
