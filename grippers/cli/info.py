@@ -8,6 +8,7 @@ from typing import Any
 from .common import add_common, add_target, open_gripper
 from .logs import issued_warnings
 from .output import EXIT_OK, INFO_SCHEMA_ID, fmt_num, info_dict, key_values, write_json
+from .profile_notes import replaced_note
 
 HELP = "show vendor, model, firmware, serial number and limits of a gripper"
 EXAMPLE = (
@@ -49,10 +50,13 @@ def run(args: argparse.Namespace) -> int:
         info = info_dict(gripper.info())
     finally:
         gripper.close()
+    # A plugin's wsg50.toml with 800 N where the built-in says 80 N: the limits shown are that file's.
+    replaced = replaced_note(info["profile"])
     if args.json:
-        write_json(
-            {"schema": INFO_SCHEMA_ID, "target": args.target, "info": info, "warnings": issued_warnings()}
-        )
+        warnings = [*issued_warnings(), *([replaced] if replaced else [])]
+        write_json({"schema": INFO_SCHEMA_ID, "target": args.target, "info": info, "warnings": warnings})
     else:
         print(render(info))
+        if replaced:
+            print(f"warning: {replaced}")
     return EXIT_OK
