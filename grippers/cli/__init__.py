@@ -128,10 +128,11 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(f"grippers{''.join(' ' + c for c in command)}: interrupted{how}", file=sys.stderr)
         except KeyboardInterrupt:  # a signal the process ignored before ours: the exit code still says it
             pass
+    finally:
+        if argv is not None:  # also after argparse's SystemExit: a caller's handlers are its own again
+            signals.restore(previous)
     if argv is None:
         signals.finished(status)
-    else:
-        signals.restore(previous)
     return status
 
 

@@ -113,3 +113,16 @@ def test_a_motion_stopped_by_sigterm_says_sigterm(gripper_sim: Any) -> None:
                 handles[0].wait(0)
     finally:
         signals.restore(previous)
+
+
+def test_main_puts_the_handlers_and_the_hook_back_after_a_usage_error() -> None:
+    # main(argv) called in-process (tests, scripts): argparse's SystemExit left the rule in place before.
+    from grippers.cli import main
+
+    if threading.current_thread() is not threading.main_thread():
+        pytest.skip("signal handlers are set from the main thread only")
+    hook, handlers = sys.unraisablehook, {s: signal.getsignal(s) for s in signals.CAUGHT}
+    with pytest.raises(SystemExit):
+        main(["move", "--no-such-option"])
+    assert sys.unraisablehook is hook
+    assert {s: signal.getsignal(s) for s in signals.CAUGHT} == handlers
