@@ -15,12 +15,10 @@ from dataclasses import replace
 
 from .modbus import ModbusFrameError, RequestParser, exception_pdu, rtu_frame
 from .modbus_model import RegisterModel
-from .modbus_tcp import MbapRequestParser, mbap_frame
+from .modbus_tcp import ANY_UNIT, MbapRequestParser, mbap_frame
 from .simkit import FaultHooks, SimClock, SimServer
 
 __all__ = ["ModbusFaults", "ModbusSession", "ModbusSimServer"]
-
-ANY_UNIT = 0xFF  # Modbus TCP: the unit id for a device that is no gateway (Implementation Guide §4.4.1.2)
 
 
 class ModbusFaults(FaultHooks):

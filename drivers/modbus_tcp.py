@@ -26,11 +26,12 @@ from .modbus import (
     response_pdu_length,
 )
 
-__all__ = ["MBAP_PORT", "MbapRequestParser", "MbapResponseParser", "mbap_frame"]
+__all__ = ["ANY_UNIT", "MBAP_PORT", "MbapRequestParser", "MbapResponseParser", "mbap_frame"]
 
 MBAP_PORT = 502  # the Modbus TCP port (Implementation Guide V1.0b §4.1.1)
 HEADER = struct.Struct(">HHHB")  # transaction, protocol, length, unit
 MAX_LENGTH = 254  # unit id + a PDU of at most 253 bytes
+ANY_UNIT = 0xFF  # a device that is no gateway: unit id "not significant" (Implementation Guide §4.4.1.2)
 
 
 def mbap_frame(transaction: int, unit: int, pdu: bytes) -> bytes:
