@@ -29,7 +29,7 @@ from typing import Any, Self
 
 from . import modbus
 from .dissect import FROM_GRIPPER, TO_GRIPPER
-from .errors import ConnectionLost, GripperTimeout
+from .errors import ConnectionLost, GripperTimeout, LimitError
 from .links import ByteLink, SerialLink, TcpLink, TraceFn
 from .modbus import READ_HOLDING, READ_INPUT, ModbusFrameError, Response
 from .modbus_tcp import MbapResponseParser, mbap_frame
@@ -205,11 +205,20 @@ class ModbusClient:
 
     # -- the function codes ---------------------------------------------------------------------------------
 
+    def _pdu(self, build: Callable[..., bytes], *args: Any, command: str) -> bytes:
+        """A request built from the caller's numbers; a number no frame holds is a
+        :class:`~grippers.LimitError` naming the device and the command, and nothing is sent."""
+        try:
+            return build(*args)
+        except ValueError as exc:
+            raise LimitError(str(exc), device=self.device, command=command) from None
+
     def read_registers(
         self, address: int, count: int, *, function: int = READ_HOLDING, command: str = "read"
     ) -> tuple[int, ...]:
         """FC 03 (holding registers, the default) or 04 (input registers)."""
-        return self.exchange(modbus.read_pdu(address, count, function), count, command=command).values
+        pdu = self._pdu(modbus.read_pdu, address, count, function, command=command)
+        return self.exchange(pdu, count, command=command).values
 
     def read_holding_registers(self, address: int, count: int, *, command: str = "read") -> tuple[int, ...]:
         return self.read_registers(address, count, function=READ_HOLDING, command=command)
@@ -220,7 +229,8 @@ class ModbusClient:
     def write_registers(self, address: int, values: Sequence[int], *, command: str = "write") -> None:
         """FC 16; the echo must name the registers written (:class:`~.modbus.ModbusFrameError` otherwise)."""
         values = list(values)
-        reply = self.exchange(modbus.write_pdu(address, values), len(values), command=command)
+        pdu = self._pdu(modbus.write_pdu, address, values, command=command)
+        reply = self.exchange(pdu, len(values), command=command)
         if (reply.address, reply.count) != (address, len(values)):
             raise _named(
                 modbus.ModbusLengthError(
@@ -242,7 +252,9 @@ class ModbusClient:
     ) -> tuple[int, ...]:
         """FC 23: ``values`` written at ``write_address``, then ``read_count`` registers read, in one
         exchange (the device writes first)."""
-        pdu = modbus.read_write_pdu(read_address, read_count, write_address, list(values))
+        pdu = self._pdu(
+            modbus.read_write_pdu, read_address, read_count, write_address, list(values), command=command
+        )
         return self.exchange(pdu, read_count, command=command).values
 
     def close(self) -> None:
