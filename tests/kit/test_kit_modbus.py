@@ -34,6 +34,7 @@ from grippers.kit import (
     ServerDeviceBusy,
     SimClock,
 )
+from tests.scripted_peer import scripted_peer
 
 # pymodbus names the slave id ``device_id`` since 3.10 and ``slave`` before.
 _ID = (
@@ -313,25 +314,10 @@ def test_modbus_tcp_frames_that_lie_are_typed_errors_and_the_line_recovers() -> 
             return b"\x00\x01\x00\x07\x00\x05\x01garbage"
         return mbap_frame(tid, 5, bytes([3, 2, 0, 42]))
 
-    srv = socket.create_server(("127.0.0.1", 0))
-
-    def run() -> None:
-        with contextlib.suppress(OSError):
-            conn, _ = srv.accept()
-            with conn:
-                while data := conn.recv(1024):
-                    conn.sendall(answer(data))
-
-    thread = threading.Thread(target=run, daemon=True)
-    thread.start()
-    try:
-        with ModbusClient.tcp("127.0.0.1", srv.getsockname()[1], slave=5, timeout=1) as client:
-            with pytest.raises(ModbusUnitError, match="unit 9") as caught:
-                client.read_holding_registers(0, 1, command="state")
-            assert caught.value.unit == 9 and caught.value.command == "state" and caught.value.device
-            with pytest.raises(ModbusLengthError, match="not a Modbus TCP header"):
-                client.read_holding_registers(0, 1)
-            assert client.read_holding_registers(0, 1) == (42,)
-    finally:
-        srv.close()
-        thread.join(5)
+    with scripted_peer(answer) as port, ModbusClient.tcp("127.0.0.1", port, slave=5, timeout=1) as client:
+        with pytest.raises(ModbusUnitError, match="unit 9") as caught:
+            client.read_holding_registers(0, 1, command="state")
+        assert caught.value.unit == 9 and caught.value.command == "state" and caught.value.device
+        with pytest.raises(ModbusLengthError, match="not a Modbus TCP header"):
+            client.read_holding_registers(0, 1)
+        assert client.read_holding_registers(0, 1) == (42,)
