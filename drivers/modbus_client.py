@@ -25,16 +25,18 @@ from __future__ import annotations
 import threading
 import time
 from collections.abc import Callable, Sequence
-from typing import Any, Self
+from typing import Any, Self, TypeVar
 
 from . import modbus
 from .dissect import FROM_GRIPPER, TO_GRIPPER
 from .errors import ConnectionLost, GripperTimeout, LimitError
 from .links import ByteLink, SerialLink, TcpLink, TraceFn
 from .modbus import READ_HOLDING, READ_INPUT, ModbusFrameError, Response
-from .modbus_tcp import MbapResponseParser, mbap_frame
+from .modbus_tcp import ANY_UNIT, MbapResponseParser, mbap_frame
 
 __all__ = ["FrameLog", "ModbusClient"]
+
+C = TypeVar("C", bound="ModbusClient")
 
 FrameLog = Callable[[str, bytes], None]  # (TO_GRIPPER | FROM_GRIPPER, one whole frame): a wire log
 
@@ -45,7 +47,8 @@ LATE_WINDOW_S = 2.0
 
 
 class ModbusClient:
-    """Register exchanges with one device (``slave``: its slave or unit id) over ``link``.
+    """Register exchanges with one device (``slave``: its slave or unit id, 1..247; on Modbus TCP 0xFF too,
+    the id of a device that is no gateway) over ``link``.
 
     ``framing``: ``"rtu"`` (a serial line, or RTU bytes over TCP) or ``"tcp"`` (Modbus TCP, MBAP).
     ``inter_frame_s``: the silence kept before a request after the last byte received (t3.5 on a serial
@@ -69,7 +72,8 @@ class ModbusClient:
             raise ValueError(f"framing must be 'rtu' or 'tcp', not {framing!r}")
         if not timeout > 0:
             raise ValueError(f"timeout must be positive, not {timeout!r}")
-        modbus.check_slave(slave)
+        if not (framing == "tcp" and slave == ANY_UNIT):  # 0xFF: a Modbus TCP device that is no gateway
+            modbus.check_slave(slave)
         self.link = link
         self.device = device or link.device
         self.slave = slave
@@ -101,7 +105,7 @@ class ModbusClient:
         name = device or port
         kw.setdefault("inter_frame_s", modbus.silent_interval(baudrate))
         link = SerialLink(port, baudrate, device=name, timeout=timeout, **(serial_options or {}))
-        return cls(link, device=name, timeout=timeout, **kw)
+        return _owning(link, lambda: cls(link, device=name, timeout=timeout, **kw))
 
     @classmethod
     def tcp(
@@ -117,7 +121,7 @@ class ModbusClient:
         """Modbus TCP (``framing="tcp"``; port 502 on most devices) or RTU bytes over TCP (``"rtu"``)."""
         name = device or f"{host}:{port}"
         link = TcpLink(host, port, device=name, timeout=timeout)
-        return cls(link, device=name, framing=framing, timeout=timeout, **kw)
+        return _owning(link, lambda: cls(link, device=name, framing=framing, timeout=timeout, **kw))
 
     @property
     def alive(self) -> bool:
@@ -139,6 +143,8 @@ class ModbusClient:
 
         Raises :class:`~grippers.GripperTimeout`, :class:`~grippers.ConnectionLost`, a typed
         :class:`~.modbus.ModbusException` for an exception reply, or a :class:`~.modbus.ModbusFrameError`."""
+        if not pdu:
+            raise LimitError("an empty request", device=self.device, command=command)
         function = pdu[0]
         with self._lock:
             if not self.link.alive:
@@ -265,6 +271,15 @@ class ModbusClient:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def _owning(link: ByteLink, make: Callable[[], C]) -> C:
+    """A client made over a link just opened for it; the link is closed if the client refuses its settings."""
+    try:
+        return make()
+    except BaseException:
+        link.close()
+        raise
 
 
 def _named(exc: ModbusFrameError, device: str, command: str) -> ModbusFrameError:

@@ -321,3 +321,14 @@ def test_modbus_tcp_frames_that_lie_are_typed_errors_and_the_line_recovers() -> 
         with pytest.raises(ModbusLengthError, match="not a Modbus TCP header"):
             client.read_holding_registers(0, 1)
         assert client.read_holding_registers(0, 1) == (42,)
+
+
+def test_unit_id_0xff_is_the_device_itself_on_modbus_tcp() -> None:
+    server = _serve("modbus-tcp", _map(slave=7))
+    try:
+        with ModbusClient.tcp("127.0.0.1", int(server.port or 0), slave=0xFF, timeout=2) as client:
+            assert client.read_holding_registers(100, 1) == (1000,)  # answered, the unit id echoed
+        with pytest.raises(ValueError, match="slave id"):
+            ModbusClient.tcp("127.0.0.1", int(server.port or 0), framing="rtu", slave=0xFF)
+    finally:
+        server.close()
