@@ -34,14 +34,9 @@ from grippers.kit import (
     ServerDeviceBusy,
     SimClock,
 )
+from tests.pymodbus_peer import unit
 from tests.scripted_peer import scripted_peer
 
-# pymodbus names the slave id ``device_id`` since 3.10 and ``slave`` before.
-_ID = (
-    "device_id"
-    if "device_id" in inspect.signature(ModbusTcpClient.read_holding_registers).parameters
-    else "slave"
-)
 LISTEN = {"pty": "pty", "rtu-over-tcp": "tcp://127.0.0.1:0", "modbus-tcp": "tcp://127.0.0.1:0"}
 
 
@@ -83,23 +78,23 @@ def test_pymodbus_reads_writes_and_is_refused_by_the_register_map(kind: str) -> 
     client = _pymodbus_client(kind, server)
     try:
         assert client.connect()
-        rr = client.read_holding_registers(100, count=3, **{_ID: 7})
+        rr = client.read_holding_registers(100, count=3, **unit(7))
         assert not rr.isError() and rr.registers == [1000, 1010, 1020]
-        assert client.read_input_registers(0, count=2, **{_ID: 7}).registers == [0xBEEF, 1]
-        assert not client.write_registers(101, [1, 2], **{_ID: 7}).isError()
+        assert client.read_input_registers(0, count=2, **unit(7)).registers == [0xBEEF, 1]
+        assert not client.write_registers(101, [1, 2], **unit(7)).isError()
         assert model.holding[101] == 1 and model.holding[102] == 2
         rw = client.readwrite_registers(
-            read_address=100, read_count=3, write_address=100, values=[5], **{_ID: 7}
+            read_address=100, read_count=3, write_address=100, values=[5], **unit(7)
         )
         assert rw.registers == [5, 1, 2]  # written first (application protocol V1.1b3 §6.17)
-        assert client.read_holding_registers(200, count=1, **{_ID: 7}).exception_code == 2
-        assert client.write_registers(109, [1], **{_ID: 7}).exception_code == 2  # read-only
+        assert client.read_holding_registers(200, count=1, **unit(7)).exception_code == 2
+        assert client.write_registers(109, [1], **unit(7)).exception_code == 2  # read-only
         assert isinstance(server.faults, ModbusFaults)
         server.faults.exception_replies(6)
-        assert client.read_holding_registers(100, count=1, **{_ID: 7}).exception_code == 6
+        assert client.read_holding_registers(100, count=1, **unit(7)).exception_code == 6
         if kind != "modbus-tcp":  # RTU: another id on the line is never answered
             with pytest.raises(ModbusIOException):
-                client.read_holding_registers(100, count=1, **{_ID: 8})
+                client.read_holding_registers(100, count=1, **unit(8))
     finally:
         client.close()
         server.close()

@@ -4,8 +4,6 @@ behind a Modbus TCP gateway), with pymodbus as the independent peer."""
 
 from __future__ import annotations
 
-import inspect
-
 import pytest
 from pymodbus import FramerType
 from pymodbus.client import ModbusTcpClient
@@ -22,12 +20,7 @@ from grippers.drivers.robotiq.registers import (
 )
 from grippers.drivers.robotiq.sim import RobotiqModel
 from grippers.kit import ModbusFaults, ModbusSimServer, ServerDeviceBusy
-
-_ID = (
-    "device_id"
-    if "device_id" in inspect.signature(ModbusTcpClient.read_holding_registers).parameters
-    else "slave"
-)
+from tests.pymodbus_peer import unit
 
 
 @pytest.mark.parametrize("transport", ["tcp", "pty"])
@@ -53,10 +46,10 @@ def test_the_robotiq_model_behind_a_modbus_tcp_gateway() -> None:
         assert client.read_status().sta == ActivationState.IN_PROGRESS
         server.step(1.5)
         assert peer.connect()
-        rr = peer.read_holding_registers(STATUS_ADDRESS, count=3, **{_ID: 9})
+        rr = peer.read_holding_registers(STATUS_ADDRESS, count=3, **unit(9))
         assert not rr.isError() and Status.from_registers(rr.registers).activated
         close = Command(act=True, gto=True, position=255, speed=255, force=255)
-        assert not peer.write_registers(COMMAND_ADDRESS, list(close.registers()), **{_ID: 9}).isError()
+        assert not peer.write_registers(COMMAND_ADDRESS, list(close.registers()), **unit(9)).isError()
         assert client.write_and_read(close).position_echo == 255
     finally:
         peer.close()
