@@ -48,7 +48,7 @@ class SimClock:
     :meth:`resume`, instead of racing the scaled clock against the scheduler on a busy machine (issue 33 §5).
     """
 
-    def __init__(self, time_scale: float = 1.0, *, start: float = 0.0) -> None:
+    def __init__(self, time_scale: float = 1.0, *, start: float = 0.0, paused: bool = False) -> None:
         if not time_scale > 0:
             raise ValueError(f"time_scale must be positive, not {time_scale!r}")
         self.time_scale = float(time_scale)
@@ -57,6 +57,8 @@ class SimClock:
         self._state: tuple[float, float | None] = (time.monotonic(), None)
         self._lock = threading.Lock()
         self._creep = 0.0
+        if paused:  # held from the start: a test steps it (a device given to a server already still)
+            self._state = (self._state[0], self.start)
 
     def now(self) -> float:
         t0, held = self._state
@@ -282,7 +284,10 @@ class SimServer(Closing):
     ``listen``: ``pty`` (or ``serial``) for a pseudo-terminal in raw mode, its URL ``FAMILY+serial://PATH``;
     ``tcp://HOST:PORT`` (or ``FAMILY+tcp://``; port 0: a free one), its URL ``FAMILY+tcp://HOST:PORT``.
     ``session()`` makes the :class:`DeviceSession` of each connection; ``advance(now)``, if given, moves the
-    model on to simulated time ``now`` between requests too (a motion runs while nobody asks). The model is
+    model on to simulated time ``now`` between requests too (a motion runs while nobody asks). ``clock`` and
+    ``faults`` may be given (a clock made paused, faults queued before the first request): the server uses
+    them from its first moment; otherwise it makes a :class:`SimClock` of ``time_scale`` and empty
+    :class:`FaultHooks`. The model is
     only called under ``.lock`` (an RLock): a test that changes it (a part in the way) holds the lock too.
     An exception in the model ends the server's thread and is kept in ``.error`` (the ``gripper_sim``
     fixture reports it).
@@ -298,9 +303,11 @@ class SimServer(Closing):
         family: str,
         time_scale: float = 1.0,
         advance: Callable[[float], None] | None = None,
+        clock: SimClock | None = None,
+        faults: FaultHooks | None = None,
     ) -> None:
-        self.clock = SimClock(time_scale)
-        self.faults = FaultHooks()
+        self.clock = clock if clock is not None else SimClock(time_scale)
+        self.faults = faults if faults is not None else FaultHooks()
         self.lock = threading.RLock()
         self.error: BaseException | None = None
         self.path: str | None = None

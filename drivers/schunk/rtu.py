@@ -7,17 +7,17 @@ The line is 115200 baud, 8 data bits, even parity, 1 stop bit; the unit's device
 that refuses parity (a pseudo-terminal) is opened without it, as SCHUNK's driver does (``supports_parity`` in
 schunk_gripper_library/utility.py).
 
-The frames and the CRC are the generic Modbus RTU codec of :mod:`grippers.drivers.modbus` (function
-codes 03 and 16 are all a SCHUNK unit needs), over the backend kit's serial link.
+The exchange is the backend kit's Modbus client (:mod:`grippers.drivers.modbus_client`: function codes 03
+and 16 are all a SCHUNK unit needs) over its serial link.
 """
 
 from __future__ import annotations
 
 import os
+from typing import Any, Self
 
-from .. import modbus
-from ..errors import CommandFailed, GripperTimeout
-from ..links import ByteLink, SerialLink
+from ..errors import CommandFailed
+from ..modbus_client import ModbusClient
 from .protocol import DEFAULT_DEVICE_ID, MODBUS_BAUDRATE, inst_text, parameter
 
 
@@ -53,68 +53,28 @@ def bytes_of(registers: tuple[int, ...] | list[int]) -> bytes:
     return b"".join(r.to_bytes(2, "big") for r in registers)
 
 
-class RtuLink:
-    """Reads and writes of parameters over Modbus RTU; one exchange at a time (the link's lock)."""
-
-    def __init__(self, link: ByteLink, *, slave: int = DEFAULT_DEVICE_ID) -> None:
-        self.link, self.slave = link, slave
-        self.device = link.device
-        self.parser = modbus.ResponseParser(slave)
+class RtuLink(ModbusClient):
+    """Reads and writes of parameters over Modbus RTU: the kit's :class:`ModbusClient` (one exchange at a
+    time, a late reply dropped, exception replies as typed errors) with SCHUNK's instance-to-register map."""
 
     @classmethod
-    def serial(
+    def serial(  # SCHUNK's line: even parity where the port takes it
         cls,
         port: str,
         *,
-        slave: int = DEFAULT_DEVICE_ID,
         baudrate: int = MODBUS_BAUDRATE,
-        device: str,
-        timeout: float,
-    ) -> RtuLink:
-        parity = "E" if supports_parity(port) else "N"
-        return cls(
-            SerialLink(port, baudrate, device=device, timeout=timeout, parity=parity, stopbits=1), slave=slave
-        )
-
-    @property
-    def alive(self) -> bool:
-        return self.link.alive
-
-    def _exchange(self, request: bytes, function: int, count: int, command: str) -> modbus.Response:
-        with self.link.lock:
-            self.parser.reset()
-            self.parser.expect(function, count)
-            try:
-                reply = self.link.exchange(request, self.parser.feed, command=command)[0]
-            except GripperTimeout:
-                self.link.discard_input()  # a late answer must not answer the next request
-                raise
-        if reply.exception is not None:
-            raise CommandFailed(
-                f"Modbus exception {reply.exception} to function {function}",
-                status=reply.exception,
-                status_name=_EXCEPTIONS.get(reply.exception, "exception"),
-                device=self.device,
-                command=command,
-            )
-        return reply
+        slave: int = DEFAULT_DEVICE_ID,
+        serial_options: dict[str, Any] | None = None,
+        **kw: Any,
+    ) -> Self:
+        options = {"parity": "E" if supports_parity(port) else "N", "stopbits": 1, **(serial_options or {})}
+        return super().serial(port, baudrate=baudrate, slave=slave, serial_options=options, **kw)
 
     def read(self, inst: int, command: str) -> bytes:
-        count = parameter(inst).registers
-        request = modbus.read_request(self.slave, inst - 1, count)
-        reply = self._exchange(request, modbus.READ_HOLDING, count, command)
-        return bytes_of(reply.values)
+        return bytes_of(self.read_holding_registers(inst - 1, parameter(inst).registers, command=command))
 
     def write(self, inst: int, data: bytes, command: str) -> None:
         values = registers_of(data)
         if len(values) != parameter(inst).registers:
             raise CommandFailed(f"{inst_text(inst)}: {len(data)} bytes", device=self.device, command=command)
-        self._exchange(
-            modbus.write_request(self.slave, inst - 1, values), modbus.WRITE_MULTIPLE, len(values), command
-        )
-
-    def close(self) -> None:
-        self.link.close()
-
-
-_EXCEPTIONS = {1: "ILLEGAL_FUNCTION", 2: "ILLEGAL_DATA_ADDRESS", 3: "ILLEGAL_DATA_VALUE", 4: "DEVICE_FAILURE"}
+        self.write_registers(inst - 1, values, command=command)

@@ -1,6 +1,6 @@
 """The backend kit: what every gripper family needs and a plugin should not rewrite (docs/backend-kit.md).
 
-Three parts, each usable alone:
+Four parts, each usable alone:
 
 - **Byte links** (from :mod:`grippers.drivers.links`): :class:`ByteLink` over a serial line
   (:class:`SerialLink`, pyserial) or TCP (:class:`TcpLink`), opened from an address by :func:`open_link`.
@@ -12,6 +12,12 @@ Three parts, each usable alone:
   on a pty or TCP, one :class:`DeviceSession` per connection; :class:`SimClock` is its scaled clock (pause,
   step, resume); :class:`FaultHooks` makes it misbehave on request (drop, delay, corrupt, truncate or
   duplicate a reply, garbage, silence, stall, close the connection).
+- **The Modbus part** (from :mod:`grippers.drivers.modbus` and its siblings): :class:`ModbusClient`
+  (registers read and written over any link, RTU or Modbus TCP, one exchange at a time with a deadline,
+  exception replies as typed errors: :class:`IllegalDataAddress` ..., all :class:`ModbusException`, a
+  :class:`~grippers.CommandFailed`; frames that lie as :class:`ModbusFrameError`), and the register-model
+  simulator: :class:`RegisterModel` (what the registers hold and what a write does), :class:`RegisterMap`,
+  :class:`ModbusSimServer` on a pty or TCP with the kit's clock and :class:`ModbusFaults`.
 - **The polled-motion helper** (from :mod:`grippers.kit.motion`): :func:`poll_until` waits for a motion's
   end by polling the device, ends the wait when a stop or a newer motion comes (:class:`MotionEpochs`), at
   close or at the timeout, and maps the device's faults.
@@ -40,6 +46,23 @@ from grippers.drivers.links import (
     TraceFn,
     open_link,
 )
+from grippers.drivers.modbus import (
+    ExceptionCode,
+    IllegalDataAddress,
+    IllegalDataValue,
+    IllegalFunction,
+    ModbusCRCError,
+    ModbusException,
+    ModbusFrameError,
+    ModbusLengthError,
+    ModbusUnitError,
+    ServerDeviceBusy,
+    ServerDeviceFailure,
+    modbus_exception,
+)
+from grippers.drivers.modbus_client import ModbusClient
+from grippers.drivers.modbus_model import RegisterMap, RegisterModel
+from grippers.drivers.modbus_sim import ModbusFaults, ModbusSimServer
 from grippers.drivers.simkit import (
     DeviceSession,
     Fault,
@@ -61,16 +84,32 @@ __all__ = [
     "CanDissector",
     "DeviceSession",
     "Dissector",
+    "ExceptionCode",
     "Fault",
     "FaultHooks",
     "FaultKind",
     "Identity",
+    "IllegalDataAddress",
+    "IllegalDataValue",
+    "IllegalFunction",
     "LinkHolder",
+    "ModbusCRCError",
+    "ModbusClient",
+    "ModbusException",
+    "ModbusFaults",
+    "ModbusFrameError",
+    "ModbusLengthError",
+    "ModbusSimServer",
+    "ModbusUnitError",
     "MotionEpochs",
     "ProbeCandidate",
     "RawProbe",
     "Reconnectable",
+    "RegisterMap",
+    "RegisterModel",
     "SerialLink",
+    "ServerDeviceBusy",
+    "ServerDeviceFailure",
     "ServoTarget",
     "SimClock",
     "SimServer",
@@ -80,6 +119,7 @@ __all__ = [
     "bus_query",
     "first_half",
     "flip_last_byte",
+    "modbus_exception",
     "monitor_record",
     "open_link",
     "poll_until",

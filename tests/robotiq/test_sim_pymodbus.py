@@ -3,7 +3,6 @@ carrying raw RTU frames (a UR forwarder), through the manual's sequence: activat
 
 from __future__ import annotations
 
-import inspect
 from collections.abc import Iterator
 from typing import Any
 
@@ -20,17 +19,11 @@ from grippers.drivers.robotiq.registers import (
     Status,
 )
 from grippers.drivers.robotiq.sim import RobotiqModel, RobotiqSimServer, serve
-
-# pymodbus names the slave id ``device_id`` since 3.10 and ``slave`` before.
-_ID = (
-    "device_id"
-    if "device_id" in inspect.signature(ModbusTcpClient.read_holding_registers).parameters
-    else "slave"
-)
+from tests.pymodbus_peer import unit
 
 
 def _kw(slave: int = 9) -> dict[str, Any]:
-    return {_ID: slave}
+    return unit(slave)
 
 
 @pytest.fixture(params=["pty", "tcp"])

@@ -3,12 +3,8 @@ Modbus RTU and over the URCap socket (whose replies carry no request id), with o
 
 from __future__ import annotations
 
-import contextlib
 import logging
-import socket
-import threading
 import time
-from collections.abc import Callable, Iterator
 
 import pytest
 
@@ -17,6 +13,7 @@ from grippers.drivers.robotiq import modbus
 from grippers.drivers.robotiq.client import RobotiqClient
 from grippers.drivers.robotiq.urcap import UrcapClient
 from grippers.errors import GripperError, GripperTimeout, ProtocolError
+from tests.scripted_peer import scripted_peer
 
 TRANSPORTS = ["tcp", "pty", "urcap"]
 
@@ -65,28 +62,6 @@ def test_a_garbage_burst_on_the_urcap_socket_costs_one_exchange_at_most(reconnec
         assert g.driver.alive
 
 
-@contextlib.contextmanager
-def _scripted_peer(answer: Callable[[bytes], bytes]) -> Iterator[int]:
-    """A device on a loopback TCP port answering each request (what one read gave) with ``answer(request)``:
-    for replies our simulator never sends (a value out of range, another slave id)."""
-    srv = socket.create_server(("127.0.0.1", 0))
-
-    def run() -> None:
-        with contextlib.suppress(OSError):
-            conn, _ = srv.accept()
-            with conn:
-                while data := conn.recv(1024):
-                    conn.sendall(answer(data))
-
-    thread = threading.Thread(target=run, daemon=True)
-    thread.start()
-    try:
-        yield srv.getsockname()[1]
-    finally:
-        srv.close()
-        thread.join(5)
-
-
 @pytest.mark.parametrize("line", ["POS 99999", "FLT 300", "PRE 4096", "OBJ 4"])
 def test_an_out_of_range_urcap_value_is_a_protocol_error(line: str) -> None:
     name = line.split()[0]
@@ -95,7 +70,7 @@ def test_an_out_of_range_urcap_value_is_a_protocol_error(line: str) -> None:
         asked = request.split()[1].decode()
         return (line if asked == name else f"{asked} 1").encode() + b"\n"
 
-    with _scripted_peer(answer) as port:
+    with scripted_peer(answer) as port:
         client = UrcapClient("127.0.0.1", port, device="urcap-test", timeout=1.0)
         try:
             with pytest.raises(ProtocolError, match=f"{line} is out of range"):
@@ -109,7 +84,7 @@ def test_a_reply_from_another_slave_id_says_so() -> None:
     def answer(request: bytes) -> bytes:  # a device given slave id 5 answers a read addressed to 9
         return modbus.read_response(5, modbus.READ_HOLDING, (0, 0, 0))
 
-    with _scripted_peer(answer) as port:
+    with scripted_peer(answer) as port:
         client = RobotiqClient.tcp("127.0.0.1", port, device="rtu-test", timeout=0.3)
         try:
             with pytest.raises(GripperTimeout, match=r"no answer from slave 9.*slave 5 answered.*\?slave=5"):

@@ -112,6 +112,18 @@ def test_rtu_url_with_a_slave_id(schunk_sim) -> None:
         grippers.open(server.url.replace("slave=5", "slave=6") + "&timeout=0.2")  # nobody answers id 6
 
 
+def test_a_modbus_exception_reply_is_the_kit_s_typed_error(schunk_sim) -> None:
+    from grippers.kit import ServerDeviceFailure
+
+    server = schunk_sim("schunk-egu-60", "pty", time_scale="20")
+    with grippers.open(server.url) as g:
+        server.faults.exception_replies(4)
+        with pytest.raises(ServerDeviceFailure, match="read holding registers") as caught:
+            g.state()
+        assert caught.value.status == 4 and caught.value.device == server.url
+        assert g.state().width >= 0  # the next exchange is answered
+
+
 def test_grippers_sim_schunk_prints_its_url_first() -> None:
     proc = subprocess.Popen(
         [

@@ -29,8 +29,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from .. import modbus
-from ..modbus import READ_HOLDING, READ_INPUT, READ_WRITE, WRITE_MULTIPLE, ExceptionCode, Request
+from ...modbus import IllegalDataAddress, Request
+from ...modbus_model import RegisterModel
 from ..registers import (
     COMMAND_ADDRESS,
     DEFAULT_SLAVE,
@@ -63,11 +63,13 @@ class ModelParams:
     watchdog_s: float | None = None
 
 
-class RobotiqModel:
-    """The register model. :meth:`handle` answers one request at simulated time ``now`` (None: silent)."""
+class RobotiqModel(RegisterModel):
+    """The register model, on the kit's :class:`RegisterModel`: :meth:`handle` answers one request at
+    simulated time ``now`` as an RTU frame (None: silent), :meth:`answer` as a PDU."""
 
     def __init__(self, params: ModelParams | None = None, *, part_width_mm: float | None = None) -> None:
         self.p = params or ModelParams()
+        self.slave = self.p.slave
         self.part_width_mm = part_width_mm
         self.command = Command()
         self.act = False
@@ -249,12 +251,11 @@ class RobotiqModel:
         half = 2 * frac if frac < 0.5 else 2 * (1 - frac)
         self.position = p.open_count + span * half
 
-    # -- Modbus --------------------------------------------------------------------------------------------
+    # -- Modbus: the registers (the kit's RegisterModel keeps the rules every device keeps) ------------------
 
-    def handle(self, req: Request, now: float) -> bytes | None:
-        """The answer to one request at simulated time ``now``: None for another slave or a broadcast."""
-        if req.slave not in (self.p.slave, 0):
-            return None
+    def received(self, request: Request, now: float) -> None:
+        """Every request to this gripper: the model runs up to ``now``; a silence past the watchdog before it
+        is fault 0x09 until the next command write."""
         self.requests += 1
         self.advance(now)
         w = self.p.watchdog_s
@@ -262,33 +263,21 @@ class RobotiqModel:
         if w is not None and last is not None and self.act and now - last > w and self.fault == Fault.NONE:
             self.fault = Fault.NO_COMMUNICATION
         self._last_request = now
-        reply = self._answer(req, now)
-        return None if req.slave == 0 else reply
 
-    def _answer(self, req: Request, now: float) -> bytes:
-        slave, fc = self.p.slave, req.function
-        if fc not in (READ_HOLDING, READ_INPUT, WRITE_MULTIPLE, READ_WRITE):
-            return modbus.exception_response(slave, fc, ExceptionCode.ILLEGAL_FUNCTION)
-        if fc in (WRITE_MULTIPLE, READ_WRITE):
-            start, n = req.write_address - COMMAND_ADDRESS, len(req.values)
-            if start < 0 or start + n > BLOCK_SIZE:
-                return modbus.exception_response(slave, fc, ExceptionCode.ILLEGAL_DATA_ADDRESS)
-            self.writes += 1
-            regs = list(self.command.registers()) + [0] * BLOCK_SIZE
-            regs[start : start + n] = req.values
-            self._write(Command.from_registers(regs[:3]), now)
-            self.advance(now)  # "executes one cycle of motion, updates the output, then returns" (FC 23)
-            if fc == WRITE_MULTIPLE:
-                return modbus.write_response(slave, req.write_address, n)
-        block = self._block(req.address, req.count)
-        if block is None:
-            return modbus.exception_response(slave, fc, ExceptionCode.ILLEGAL_DATA_ADDRESS)
-        return modbus.read_response(slave, fc, block)
+    def write(self, address: int, values: tuple[int, ...], now: float) -> None:
+        start, n = address - COMMAND_ADDRESS, len(values)
+        if start < 0 or start + n > BLOCK_SIZE:
+            raise IllegalDataAddress()
+        self.writes += 1
+        regs = list(self.command.registers()) + [0] * BLOCK_SIZE
+        regs[start : start + n] = values
+        self._write(Command.from_registers(regs[:3]), now)
+        self.advance(now)  # "executes one cycle of motion, updates the output, then returns" (FC 23)
 
-    def _block(self, address: int, count: int) -> list[int] | None:
+    def read(self, function: int, address: int, count: int, now: float) -> list[int]:
         for base, regs in ((STATUS_ADDRESS, self.status().registers()), (COMMAND_ADDRESS, (0, 0, 0))):
             start = address - base
             if start >= 0 and start + count <= BLOCK_SIZE:
                 full = list(regs) + [0] * (BLOCK_SIZE - len(regs))
                 return full[start : start + count]
-        return None
+        raise IllegalDataAddress()

@@ -3,33 +3,23 @@
 carrying the same raw RTU frames (as a UR robot's tool-communication forwarder), and the URCap's ASCII socket
 in front of the same model.
 
-What is Robotiq's here is two sessions: RTU requests parsed with the codec's :class:`RequestParser` (silent on
-another slave id or a bad CRC, as the device is), and URCap lines read with the URCap codec. The kit brings
-the rest: the scaled clock (tests that must not race it :meth:`pause` and :meth:`step` it), the fault hooks
-(drop, delay, corrupt, truncate, duplicate, garbage, silence, stall, close) and the one server thread.
+What is Robotiq's here is the register model and the URCap session (URCap lines read with the URCap codec).
+The kit brings the rest: the Modbus session (RTU requests parsed with the codec, silent on another slave id
+or a bad CRC, as the device is), the scaled clock (tests that must not race it :meth:`pause` and
+:meth:`step` it), the fault hooks (drop, delay, corrupt, truncate, duplicate, garbage, silence, stall, close,
+and on RTU exception replies) and the one server thread.
 """
 
 from __future__ import annotations
 
+from ...modbus_sim import ModbusFaults, ModbusSession
 from ...simkit import SimServer
 from .. import urcap_protocol as urcap
-from ..modbus import READ_HOLDING, WRITE_MULTIPLE, Request, RequestParser
+from ..modbus import READ_HOLDING, WRITE_MULTIPLE, Request
 from ..registers import COMMAND_ADDRESS, STATUS_ADDRESS
 from .model import RobotiqModel
 
 __all__ = ["RobotiqSimServer", "serve"]
-
-
-class RtuSession:
-    """Raw Modbus RTU frames: every slave id parsed, the model answers its own and stays silent on others."""
-
-    def __init__(self, model: RobotiqModel) -> None:
-        self.model = model
-        self.parser = RequestParser(None)
-
-    def feed(self, data: bytes, now: float) -> list[bytes]:
-        replies = (self.model.handle(req, now) for req in self.parser.feed(data))
-        return [reply for reply in replies if reply is not None]
 
 
 class UrcapSession:
@@ -52,7 +42,7 @@ class UrcapSession:
                 verb, arg = urcap.parse_command(raw.decode("ascii", "replace"))
             except ValueError:
                 continue
-            slave = self.model.p.slave
+            slave = self.model.slave
             if isinstance(arg, dict):  # SET
                 cmd = urcap.command_after_set(self.model.command, arg)
                 self.model.handle(
@@ -79,9 +69,14 @@ class RobotiqSimServer(SimServer):
         is_urcap = listen.startswith("urcap://")
         if is_urcap:
             listen = "tcp://" + listen.partition("://")[2]
-        session = UrcapSession if is_urcap else RtuSession
+        faults = ModbusFaults()
         super().__init__(
-            listen, lambda: session(model), family=family, time_scale=time_scale, advance=model.advance
+            listen,
+            (lambda: UrcapSession(model)) if is_urcap else (lambda: ModbusSession(model, "rtu", faults)),
+            family=family,
+            time_scale=time_scale,
+            advance=model.advance,
+            faults=faults,
         )
         if is_urcap:  # the URCap socket's own scheme (the backend's url_protocols)
             self.url = self.url.replace(f"{family}+tcp://", f"{family}+urcap://", 1)

@@ -41,15 +41,18 @@ def serve(model: SchunkModel, listen: str, *, time_scale: float = 1.0, slave: in
     the web API, ``pty`` for Modbus RTU on a pseudo-terminal (``slave``: its device id)."""
     unreachable = [0.0]
     if listen in ("pty", "serial"):
-        from .rtu import RtuSession
+        from ...modbus_sim import ModbusFaults, ModbusSession
+        from .rtu import SchunkRegisters
 
         model.slave_id = slave
+        registers, faults = SchunkRegisters(model, slave), ModbusFaults()
         server = SchunkServer(
             "pty",
-            lambda: RtuSession(model, slave),
+            lambda: ModbusSession(registers, "rtu", faults),
             family="schunk",
             time_scale=time_scale,
             advance=model.advance,
+            faults=faults,
         )
         if slave != 12:
             server.url += f"?slave={slave}"
