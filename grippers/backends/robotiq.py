@@ -575,6 +575,3 @@ class RobotiqBackend:
         if params.slave != DEFAULT_SLAVE:
             server.url += f"{'&' if '?' in server.url else '?'}slave={params.slave}"
         return server
-
-    def simulate(self, profile: ProfileBase, settings: Settings) -> Any:
-        return self.simulator(profile, settings)

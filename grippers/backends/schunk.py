@@ -561,6 +561,3 @@ class SchunkBackend:
         model = SchunkModel(spec, buses[fieldbus_name], part_width_mm=part, position_mm=m.min_width_mm)
         slave = settings.int("slave", s.device_id)
         return serve(model, listen, time_scale=settings.positive("time_scale", sim.time_scale), slave=slave)
-
-    def simulate(self, profile: ProfileBase, settings: Settings) -> Any:
-        return self.simulator(profile, settings)

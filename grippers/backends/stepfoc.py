@@ -385,6 +385,3 @@ class StepfocBackend:
             else:
                 raise URLError(f"{settings.url}: transport must be can or pty, not {transport!r}")
         return self.serve([model], listen, settings)
-
-    def simulate(self, profile: ProfileBase, settings: Settings) -> Any:
-        return self.simulator(profile, settings)

@@ -1,9 +1,9 @@
-"""An MSG's device settings on a STEPFOC driver for ``grippers settings`` and ``selftest`` (the backend's
-``device_settings`` hook): temperature, supply voltage, the CAN node id (command 11), the watchdog (15) and
-the heartbeat (30), which are saved to flash (command 13) behind a confirmation: a node id that no program
-expects makes the gripper disappear from the bus, and a saved watchdog or heartbeat acts at every power-up
-after (STEPFOC firmware, src/EEPROM.cpp stores both periods; src/communication_CAN.cpp ``CAN_watchdog`` is
-fed only by 61s, data packs and remote requests)."""
+"""An MSG's device settings on a STEPFOC driver for ``grippers settings`` and ``selftest`` (the family's
+command hooks, stepfoc_cli.StepfocCommands): temperature, supply voltage, the CAN node id (command 11), the
+watchdog (15) and the heartbeat (30), which are saved to flash (command 13) behind a confirmation: a node id
+that no program expects makes the gripper disappear from the bus, and a saved watchdog or heartbeat acts at
+every power-up after (STEPFOC firmware, src/EEPROM.cpp stores both periods; src/communication_CAN.cpp
+``CAN_watchdog`` is fed only by 61s, data packs and remote requests)."""
 
 from __future__ import annotations
 

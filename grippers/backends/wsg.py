@@ -471,6 +471,3 @@ class WsgBackend:
             if listen is None:
                 raise URLError(f"{settings.url}: transport must be tcp, udp, pty or can, not {transport!r}")
         return serve(model, listen, time_scale=settings.positive("time_scale", sim.time_scale))
-
-    def simulate(self, profile: ProfileBase, settings: Settings) -> Any:
-        return self.simulator(profile, settings)

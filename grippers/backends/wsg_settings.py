@@ -1,6 +1,6 @@
-"""The WSG's device settings for ``grippers settings`` and ``selftest`` (the backend's ``device_settings``
-hook): temperature, soft limits, device tag, acceleration, force limit, finger information (WSG manual 4.0.x
-§3.3-§3.5 and §3.6, commands 30h-36h, 40h, 52h/53h, 60h-63h)."""
+"""The WSG's device settings for ``grippers settings`` and ``selftest`` (the family's command hooks,
+wsg_cli.WsgCommands): temperature, soft limits, device tag, acceleration, force limit, finger information (WSG
+manual 4.0.x §3.3-§3.5 and §3.6, commands 30h-36h, 40h, 52h/53h, 60h-63h)."""
 
 from __future__ import annotations
 
