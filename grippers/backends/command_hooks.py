@@ -19,17 +19,6 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Protocol
 
-__all__ = [
-    "CommandHooks",
-    "Dissector",
-    "Identity",
-    "ProbeCandidate",
-    "RawProbe",
-    "SimCommand",
-    "bus_query",
-    "commands_of",
-]
-
 # The bare transports whose URL a family's default probe candidate can be built from: one address, no node
 # ids to guess (a CAN frame on ids nobody declared could be another device's command).
 _DERIVED_TRANSPORTS = ("tcp", "udp", "serial")
