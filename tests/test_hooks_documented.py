@@ -64,7 +64,7 @@ def _section(text: str, heading: str) -> str:
 
 def command_hooks() -> set[str]:
     """The public members of CommandHooks: every hook a family may override."""
-    from grippers.backends import CommandHooks
+    from grippers.kit import CommandHooks
 
     return {name for name in dir(CommandHooks) if not name.startswith("_")}
 
@@ -130,6 +130,7 @@ def _public_members(cls: type) -> list[str]:
 def test_the_device_contract_and_the_backend_protocols_are_named_on_the_page() -> None:
     import grippers.backends as backends
     import grippers.device as device
+    import grippers.kit as kit
 
     text = BACKENDS_MD.read_text()
     classes = [getattr(device, name) for name in device.__all__ if inspect.isclass(getattr(device, name))]
@@ -137,7 +138,7 @@ def test_the_device_contract_and_the_backend_protocols_are_named_on_the_page() -
         backends.Backend,
         backends.SimulatedBackend,
         backends.BusSimulatedBackend,
-        backends.CommandHooks,
+        kit.CommandHooks,
     ]
     missing = [
         f"{cls.__name__}.{name}"

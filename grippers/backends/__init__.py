@@ -15,10 +15,10 @@ protocols below declare every call the API, the CLI and grippers.testing make on
 
 Everything else a family offers the commands (the probe's candidates, the monitor's dissector, device
 settings, self-test lines, its own ``grippers sim``) is one object, the backend's ``commands``: a
-:class:`CommandHooks` (grippers/backends/command_hooks.py, issue 40 §2), found by :func:`commands_of`, the one
-lookup. docs/backends.md ("Hooks the commands call") describes each hook, and tests/test_hooks_documented.py
-fails when one is missing there. ``tests/test_vendor_neutral.py`` keeps the rest of the package free of
-vendor names.
+:class:`~grippers.backends.command_hooks.CommandHooks` (issue 40 §2; public as ``grippers.kit.CommandHooks``),
+found by ``commands_of``, the one lookup. docs/backends.md ("Hooks the commands call") describes each hook,
+and tests/test_hooks_documented.py fails when one is missing there. ``tests/test_vendor_neutral.py`` keeps the
+rest of the package free of vendor names.
 """
 
 from __future__ import annotations
@@ -27,16 +27,6 @@ import importlib
 from typing import TYPE_CHECKING, Any, Protocol
 
 from ..errors import URLError
-from .command_hooks import (
-    CommandHooks,
-    Dissector,
-    Identity,
-    ProbeCandidate,
-    RawProbe,
-    SimCommand,
-    bus_query,
-    commands_of,
-)
 
 if TYPE_CHECKING:
     from ..drivers.urls import ConnectionURL
@@ -49,17 +39,9 @@ __all__ = [
     "ENTRY_POINT_GROUP",
     "Backend",
     "BusSimulatedBackend",
-    "CommandHooks",
-    "Dissector",
-    "Identity",
-    "ProbeCandidate",
-    "RawProbe",
-    "SimCommand",
     "SimServer",
     "SimulatedBackend",
     "available_backends",
-    "bus_query",
-    "commands_of",
     "find_backend",
     "get_backend",
 ]

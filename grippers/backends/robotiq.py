@@ -61,7 +61,7 @@ from ..kit.motion import MotionEpochs, poll_until
 from ..profiles import ProfileBase
 from ..states import Capability, DeviceInfo, GraspResult, GraspState, GripperState, MotionResult
 from .command_hooks import CommandHooks
-from .robotiq_profile import RobotiqProfile
+from .robotiq_profile import FALLBACK_PROFILE, RobotiqProfile
 
 if TYPE_CHECKING:
     from ..servo import ServoTarget
@@ -69,8 +69,6 @@ if TYPE_CHECKING:
     from ..urls import ConnectionURL
 
 log = logging.getLogger(__name__)
-
-FALLBACK_PROFILE = "robotiq-2f85"
 
 
 # -- errors: the lead maps these two onto the library-wide classes when they land (one line each) ----------

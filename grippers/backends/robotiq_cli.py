@@ -8,8 +8,7 @@ from __future__ import annotations
 from typing import Any
 
 from .command_hooks import CommandHooks, Dissector, ProbeCandidate
-from .robotiq import FALLBACK_PROFILE
-from .robotiq_profile import RobotiqTransport
+from .robotiq_profile import FALLBACK_PROFILE, RobotiqTransport
 
 
 class RobotiqCommands(CommandHooks):

@@ -47,7 +47,7 @@ from ..kit.motion import MotionEpochs, poll_until
 from ..profiles import ProfileBase
 from ..states import Capability, DeviceInfo, GraspResult, GraspState, GripperState, MotionResult
 from .command_hooks import CommandHooks
-from .schunk_profile import SchunkProfile
+from .schunk_profile import FALLBACK_PROFILE, SchunkProfile
 
 if TYPE_CHECKING:
     from ..profile_model import Limits
@@ -55,7 +55,6 @@ if TYPE_CHECKING:
     from ..settings import Settings
     from ..urls import ConnectionURL
 
-FALLBACK_PROFILE = "schunk-egu-60"
 GO = Control.FAST_STOP_OFF  # every command word carries bit 0 set (active-low fast stop)
 
 

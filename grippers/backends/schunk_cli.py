@@ -9,7 +9,7 @@ from typing import Any
 
 from . import schunk_settings
 from .command_hooks import CommandHooks, Dissector, ProbeCandidate
-from .schunk import FALLBACK_PROFILE
+from .schunk_profile import FALLBACK_PROFILE
 
 
 class SchunkCommands(CommandHooks):

@@ -249,7 +249,8 @@ def factory_addresses() -> list[tuple[str, int, str]]:
     """(host, port, family) of every installed family's factory network address (``factory_address``
     hook, a ``tcp://HOST:PORT`` URL), once per host. A family that does not load is left out: the
     dependency checks above say why."""
-    from grippers.backends import available_backends, commands_of, find_backend
+    from grippers.backends import available_backends, find_backend
+    from grippers.backends.command_hooks import commands_of
     from grippers.urls import parse_url
 
     out: dict[str, tuple[str, int, str]] = {}

@@ -363,7 +363,8 @@ Writer = Callable[[str], None]
 
 def dissectors() -> dict[str, Any]:
     """Every installed family's ``dissector()`` (issue 28 §2), by family name and by protocol name."""
-    from grippers.backends import available_backends, commands_of, find_backend
+    from grippers.backends import available_backends, find_backend
+    from grippers.backends.command_hooks import commands_of
 
     found: dict[str, Any] = {}
     for family in available_backends():

@@ -159,7 +159,8 @@ def garbage_check(url: str, timeout: float) -> str | None:
     comes back. A device that answers with bytes that are not a packet of the family is reported as sending
     garbage (wrong baud rate, wrong protocol), not as silent. None when nothing came back, or when the family
     offers no raw probe (its backend's ``raw_probe`` hook)."""
-    from grippers.backends import commands_of, find_backend
+    from grippers.backends import find_backend
+    from grippers.backends.command_hooks import commands_of
     from grippers.errors import URLError
     from grippers.urls import parse_url, to_int
 

@@ -15,7 +15,8 @@ from typing import Any
 
 def identity_of(url: str, gripper: Any) -> dict[str, Any] | None:
     """The family's ``probe_identity`` verdict on an opened device, or None when the family has no check."""
-    from grippers.backends import commands_of, find_backend
+    from grippers.backends import find_backend
+    from grippers.backends.command_hooks import commands_of
 
     try:
         said = commands_of(find_backend(url.partition("+")[0])).probe_identity(gripper)

@@ -135,7 +135,7 @@ def expand(target: str, bitrate: int | None = None, options: dict[str, Any] | No
         if bitrate:
             bus["bitrate"] = bitrate  # -b wins over the URL, as flags do everywhere
         given["bus"] = bus
-    from grippers.backends import commands_of
+    from grippers.backends.command_hooks import commands_of
 
     offered = []
     for backend in _backends():
@@ -220,7 +220,7 @@ def machine_targets(network: bool, bitrate: int | None = None, options: dict[str
     """What ``grippers probe`` with no URL looks at: serial ports, SocketCAN interfaces and the families'
     factory addresses (their ``factory_address`` hook: a TCP connection attempt each; ``--no-network`` leaves
     them out)."""
-    from grippers.backends import commands_of
+    from grippers.backends.command_hooks import commands_of
 
     plan = Plan()
     for port in serial_ports():

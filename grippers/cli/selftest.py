@@ -217,7 +217,8 @@ class _Run:
             self.add(f"faults {when}", "none", "none", "PASS")
 
     def stroke(self) -> None:
-        from grippers.backends import commands_of, find_backend
+        from grippers.backends import find_backend
+        from grippers.backends.command_hooks import commands_of
 
         profile_mm = self.g.profile.mechanics.stroke_mm
         info = self.g.info()
@@ -326,7 +327,8 @@ class _Run:
     def settings(self) -> None:
         """The family's own lines (its ``selftest_checks`` hook), which read its device client: they run
         whether or not the family offers device settings (issue 40), and only where the client is here."""
-        from grippers.backends import commands_of, find_backend
+        from grippers.backends import find_backend
+        from grippers.backends.command_hooks import commands_of
 
         family = self.g.info().family
         hooks = commands_of(find_backend(family))

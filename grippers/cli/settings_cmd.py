@@ -164,7 +164,8 @@ def run(args: argparse.Namespace) -> int:
     changed: list[str] = []
     new_url = None
     try:
-        from grippers.backends import commands_of, find_backend
+        from grippers.backends import find_backend
+        from grippers.backends.command_hooks import commands_of
 
         family = gripper.info().family
         hooks = commands_of(find_backend(family))

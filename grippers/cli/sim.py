@@ -54,7 +54,7 @@ class Generic:
         )
 
     def run(self, args: argparse.Namespace, backend: Any) -> int:
-        from grippers.backends import commands_of
+        from grippers.backends.command_hooks import commands_of
         from grippers.profiles import list_profiles, load_profile
 
         from .output import UsageError
@@ -83,7 +83,8 @@ class Generic:
 def _find(name: str) -> tuple[Any, Any]:
     """The backend simulating ``name`` (a family, or a name its ``sim_names`` declare, ``msg``) and its
     command (its ``sim_command()``, or :class:`Generic`)."""
-    from grippers.backends import available_backends, commands_of, find_backend
+    from grippers.backends import available_backends, find_backend
+    from grippers.backends.command_hooks import commands_of
 
     from .output import UsageError
 
@@ -109,7 +110,7 @@ def _find(name: str) -> tuple[Any, Any]:
 
 def family_parser(name: str) -> tuple[argparse.ArgumentParser, Any, Any]:
     """``grippers sim NAME``'s own parser (its help, options and example), its backend and its command."""
-    from grippers.backends import commands_of
+    from grippers.backends.command_hooks import commands_of
 
     from . import EXIT_CODES, _Parser, logs
 

@@ -61,7 +61,8 @@ def test_a_width_outside_the_soft_limits_names_them_not_the_status_code() -> Non
 def test_setting_the_wsg_force_limit_says_the_next_grasp_changes_it() -> None:
     """Issue 39 §2: ``settings --force-limit`` then a stronger grasp changed the limit silently. Setting it
     says so (a GripperWarning: a ``warning:`` line of the command), and a grasp does change it."""
-    from grippers.backends import commands_of, find_backend
+    from grippers.backends import find_backend
+    from grippers.backends.command_hooks import commands_of
 
     with grippers.open("sim://wsg50") as g:
         g.home()

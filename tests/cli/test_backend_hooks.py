@@ -7,7 +7,8 @@ from __future__ import annotations
 
 import pytest
 
-from grippers.backends import CommandHooks, ProbeCandidate, commands_of, find_backend
+from grippers.backends import find_backend
+from grippers.kit import CommandHooks, ProbeCandidate, commands_of
 from grippers.urls import parse_url
 
 

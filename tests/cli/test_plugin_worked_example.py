@@ -169,7 +169,7 @@ def test_every_command_on_the_served_simulator(acme_site: Path) -> None:
 
 
 def test_its_identity_check_reads_the_model_register(installed: Path) -> None:
-    from grippers.backends import commands_of
+    from grippers.backends.command_hooks import commands_of
 
     with grippers.open("sim://acme-r1") as g:
         said = commands_of(grippers.backends.get_backend("acme")).probe_identity(g)

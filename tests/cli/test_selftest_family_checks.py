@@ -12,7 +12,8 @@ import json
 
 import pytest
 
-from grippers.backends import commands_of, find_backend
+from grippers.backends import find_backend
+from grippers.backends.command_hooks import commands_of
 from grippers.cli import main
 
 from ..selftest_verdicts import assert_passes_but_timed_speeds
