@@ -127,10 +127,10 @@ def _open_sim(url: ConnectionURL, profile: ProfileBase | None, settings: Setting
     elif profile is None:
         profile = load_profile(DEFAULT_SIM_PROFILE)
     backend = get_backend(profile.family)
-    if not hasattr(backend, "simulate"):
+    if not hasattr(backend, "simulator"):
         raise ProfileError(f"{url.url}: the {profile.family!r} backend has no simulator")
     try:
-        server = backend.simulate(profile, settings)
+        server = backend.simulator(profile, settings)
     except ValueError as exc:
         if isinstance(exc, GripperError):
             raise

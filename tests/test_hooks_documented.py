@@ -2,10 +2,10 @@
 
 A plugin is written from docs/backends.md, docs/backend-kit.md and ``examples/acme_r1`` alone. So:
 
-- every name the library asks a backend for (``hook(backend, "NAME")``, ``backend.NAME``,
-  ``getattr``/``hasattr`` on a backend) has its own entry in backends.md's "Hooks the commands call" (or is
-  one of the three required names), and every entry there is asked somewhere: no hook only in the source,
-  none only in the docs;
+- every public hook of :class:`grippers.backends.CommandHooks` (the one object a family offers the commands,
+  issue 40 §2) and every name the library asks a backend for (``backend.NAME``, ``getattr``/``hasattr`` on
+  a backend) has its own entry in backends.md's "Hooks the commands call" (or is one of the three required
+  names), and every entry there is one of them: no hook only in the source, none only in the docs;
 - every public member of the device contract (``grippers.device``) and of the backend protocols is named on
   the page;
 - the pages name no module a plugin may not import, and the worked example imports none: the public
@@ -49,9 +49,8 @@ PUBLIC_MODULES = {
 }
 REQUIRED = {"family", "profile_model", "open"}  # grippers.backends.Backend: "The backend" section
 
-# hook(find_backend(family), "dissector"), getattr(backend, "url_protocols", ...), backend.simulator(...)
+# getattr(backend, "url_protocols", ...), backend.simulator(...)
 ASKED = (
-    re.compile(r"\bhook\(.*?,\s*\"(\w+)\"\)"),
     re.compile(r"\b(?:getattr|hasattr)\(\s*backend\s*,\s*\"(\w+)\""),
     re.compile(r"\bbackend\.([a-z_]\w*)\b"),
 )
@@ -63,9 +62,17 @@ def _section(text: str, heading: str) -> str:
     return text[start : end if end != -1 else len(text)]
 
 
+def command_hooks() -> set[str]:
+    """The public members of CommandHooks: every hook a family may override."""
+    from grippers.kit import CommandHooks
+
+    return {name for name in dir(CommandHooks) if not name.startswith("_")}
+
+
 def asked_hooks() -> dict[str, str]:
-    """Every name the package asks of a backend, with the first place that asks it."""
-    found: dict[str, str] = {}
+    """Every name the package asks of a backend, with the first place that asks it, and every command hook
+    (asked through ``commands_of(backend)``)."""
+    found: dict[str, str] = dict.fromkeys(command_hooks(), "grippers/backends/command_hooks.py")
     for path in sorted((ROOT / "grippers").rglob("*.py")):
         for number, line in enumerate(path.read_text().splitlines(), 1):
             for pattern in ASKED:
@@ -86,8 +93,9 @@ def documented_hooks() -> set[str]:
 def test_the_scan_finds_the_hooks_it_must() -> None:
     """The scan itself can fail: it finds the hooks we know the commands ask, at their places."""
     asked = asked_hooks()
-    assert {"dissector", "probe_candidates", "device_settings", "selftest_checks", "simulator"} <= set(asked)
-    assert asked["dissector"].startswith("grippers/cli/"), asked["dissector"]
+    assert {"dissector", "probe_candidates", "read_settings", "selftest_checks", "simulator"} <= set(asked)
+    assert {"commands", "url_protocols"} <= set(asked)  # asked of the backend itself
+    assert asked["simulator"].startswith("grippers/"), asked["simulator"]
 
 
 def test_every_hook_the_library_asks_for_is_described() -> None:
@@ -111,7 +119,8 @@ def test_every_entry_says_what_it_is_and_shows_it() -> None:
     for entry in entries:
         heading, _, body = entry.partition("\n")
         assert re.search(r"\b(called|read)\b", body), f"{heading}: when is it called?"
-        assert "```" in body or re.search(r"The (WSG|MSG)'s", body) or "`{" in body, f"{heading}: no example"
+        example = re.search(r"The (WSG|MSG|ACME R1)'s", body)
+        assert "```" in body or example or "`{" in body, f"{heading}: no example"
 
 
 def _public_members(cls: type) -> list[str]:
@@ -121,10 +130,16 @@ def _public_members(cls: type) -> list[str]:
 def test_the_device_contract_and_the_backend_protocols_are_named_on_the_page() -> None:
     import grippers.backends as backends
     import grippers.device as device
+    import grippers.kit as kit
 
     text = BACKENDS_MD.read_text()
     classes = [getattr(device, name) for name in device.__all__ if inspect.isclass(getattr(device, name))]
-    classes += [backends.Backend, backends.SimulatedBackend, backends.BusSimulatedBackend]
+    classes += [
+        backends.Backend,
+        backends.SimulatedBackend,
+        backends.BusSimulatedBackend,
+        kit.CommandHooks,
+    ]
     missing = [
         f"{cls.__name__}.{name}"
         for cls in classes

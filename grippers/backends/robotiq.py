@@ -34,6 +34,7 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Callable
+from functools import cached_property
 from typing import TYPE_CHECKING, Any
 
 from grippers.drivers.errors import CommandFailed
@@ -59,7 +60,8 @@ from ..gripper import Gripper
 from ..kit.motion import MotionEpochs, poll_until
 from ..profiles import ProfileBase
 from ..states import Capability, DeviceInfo, GraspResult, GraspState, GripperState, MotionResult
-from .robotiq_profile import RobotiqProfile, RobotiqTransport
+from .command_hooks import CommandHooks
+from .robotiq_profile import FALLBACK_PROFILE, RobotiqProfile
 
 if TYPE_CHECKING:
     from ..servo import ServoTarget
@@ -67,8 +69,6 @@ if TYPE_CHECKING:
     from ..urls import ConnectionURL
 
 log = logging.getLogger(__name__)
-
-FALLBACK_PROFILE = "robotiq-2f85"
 
 
 # -- errors: the lead maps these two onto the library-wide classes when they land (one line each) ----------
@@ -472,36 +472,14 @@ def robotiq_gripper(
 class RobotiqBackend:
     family = "robotiq"
     profile_model = RobotiqProfile
-    bare_forms = {"serial": (30, "robotiq+serial://{rest}")}  # the "did you mean" of a bare serial port
     url_protocols = {"urcap": "tcp"}  # robotiq+urcap://HOST[:63352]: the URCap socket (grippers/api.py)
-    default_profile = FALLBACK_PROFILE  # `grippers sim robotiq` without --model
-    sim_help = (
-        "simulate a Robotiq gripper: Modbus RTU on a pseudo-terminal (pty) or tcp://HOST:PORT, or the "
-        "URCap's socket on urcap://HOST:PORT"
-    )
-    sim_example = (
-        "grippers sim robotiq --listen pty --model 2f85\n"
-        "         grippers sim robotiq --listen tcp://127.0.0.1:5020 --model hand-e\n"
-        "         grippers sim robotiq --listen urcap://127.0.0.1:63352 --model hand-e"
-    )
 
-    def dissector(self) -> Any:
-        """``grippers monitor``: Modbus RTU frames (a byte capture, or the TCP proxy to a gateway)."""
-        from grippers.drivers.robotiq.dissect import PROTOCOL, ModbusDissector
+    @cached_property
+    def commands(self) -> CommandHooks:
+        """What the commands ask of the family (robotiq_cli.py, imported when a command asks)."""
+        from .robotiq_cli import RobotiqCommands
 
-        from . import Dissector
-
-        return Dissector(PROTOCOL, stream=ModbusDissector, tcp_port=RobotiqTransport().tcp_port)
-
-    def probe_candidates(self, transport: str, where: ConnectionURL, options: dict[str, Any]) -> list[Any]:
-        """``grippers probe`` on a bare serial port: Modbus RTU at the gripper's factory slave id (9)."""
-        from . import ProbeCandidate
-
-        if transport != "serial":
-            return []
-        t = RobotiqTransport()
-        url = f"robotiq+serial://{where.serial_port}?baudrate={t.baudrate}"
-        return [ProbeCandidate(url, order=30, protocol="modbus-rtu")]  # another family on its map: identity
+        return RobotiqCommands()
 
     def open(self, url: ConnectionURL, profile: ProfileBase | None, settings: Settings) -> Gripper:
         from ..profiles import load_profile
@@ -595,6 +573,3 @@ class RobotiqBackend:
         if params.slave != DEFAULT_SLAVE:
             server.url += f"{'&' if '?' in server.url else '?'}slave={params.slave}"
         return server
-
-    def simulate(self, profile: ProfileBase, settings: Settings) -> Any:
-        return self.simulator(profile, settings)

@@ -15,6 +15,8 @@ from grippers.drivers.robotiq.registers import BAUDRATE, DEFAULT_SLAVE, FORWARDE
 
 from ..profiles import Baudrate, Length, ProfileBase, Timeout, TimeScale
 
+FALLBACK_PROFILE = "robotiq-2f85"  # opened when no profile is named, and `grippers sim robotiq`'s default
+
 
 class _Section(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)

@@ -22,6 +22,7 @@ from __future__ import annotations
 import threading
 import time
 from collections.abc import Callable
+from functools import cached_property
 from typing import TYPE_CHECKING, Any
 
 from grippers.drivers.errors import CommandFailed, GripperError, GripperTimeout
@@ -45,7 +46,8 @@ from ..gripper import Gripper
 from ..kit.motion import MotionEpochs, poll_until
 from ..profiles import ProfileBase
 from ..states import Capability, DeviceInfo, GraspResult, GraspState, GripperState, MotionResult
-from .schunk_profile import SchunkProfile
+from .command_hooks import CommandHooks
+from .schunk_profile import FALLBACK_PROFILE, SchunkProfile
 
 if TYPE_CHECKING:
     from ..profile_model import Limits
@@ -53,7 +55,6 @@ if TYPE_CHECKING:
     from ..settings import Settings
     from ..urls import ConnectionURL
 
-FALLBACK_PROFILE = "schunk-egu-60"
 GO = Control.FAST_STOP_OFF  # every command word carries bit 0 set (active-low fast stop)
 
 
@@ -459,38 +460,13 @@ class SchunkBackend:
     family = "schunk"
     profile_model = SchunkProfile
     url_protocols = {"http": "tcp"}  # schunk+http://HOST[:80]: the web API (grippers/urls.py)
-    bare_forms = {"serial": (40, "schunk+serial://{rest}")}
-    default_profile = FALLBACK_PROFILE
-    sim_help = "simulate a SCHUNK EGU/EGK unit: its web API on http://HOST:PORT, or Modbus RTU on a pty"
-    sim_example = (
-        "grippers sim schunk --listen http://127.0.0.1:8080 --model egu-60\n"
-        "         grippers sim schunk --listen pty --model egk-25"
-    )
 
-    @property
-    def device_settings(self) -> Any:
-        """``grippers settings`` and ``selftest``: the unit's position limits, temperature, release delta."""
-        from .schunk_settings import SchunkDeviceSettings
+    @cached_property
+    def commands(self) -> CommandHooks:
+        """What the commands ask of the family (schunk_cli.py, imported when a command asks)."""
+        from .schunk_cli import SchunkCommands
 
-        return SchunkDeviceSettings()
-
-    def dissector(self) -> Any:
-        """``grippers monitor``: a unit's Modbus RTU frames (a capture or stdin), instances named and the
-        process data decoded."""
-        from grippers.drivers.schunk.dissect import PROTOCOL, SchunkDissector
-
-        from . import Dissector
-
-        return Dissector(PROTOCOL, stream=SchunkDissector)
-
-    def probe_candidates(self, transport: str, where: ConnectionURL, options: dict[str, Any]) -> list[Any]:
-        """``grippers probe`` on a bare serial port: Modbus RTU at SCHUNK's device id 12 (the unit's module
-        type, 0x0500, then says which gripper it is)."""
-        from . import ProbeCandidate
-
-        if transport != "serial" or not where.serial_port:
-            return []
-        return [ProbeCandidate(f"schunk+serial://{where.serial_port}", order=40)]
+        return SchunkCommands()
 
     def open(self, url: ConnectionURL, profile: ProfileBase | None, settings: Settings) -> Gripper:
         from ..profiles import load_profile
@@ -584,6 +560,3 @@ class SchunkBackend:
         model = SchunkModel(spec, buses[fieldbus_name], part_width_mm=part, position_mm=m.min_width_mm)
         slave = settings.int("slave", s.device_id)
         return serve(model, listen, time_scale=settings.positive("time_scale", sim.time_scale), slave=slave)
-
-    def simulate(self, profile: ProfileBase, settings: Settings) -> Any:
-        return self.simulator(profile, settings)

@@ -23,6 +23,8 @@ from grippers.drivers.schunk.protocol import (
 
 from ..profiles import Length, ProfileBase, Timeout, TimeScale
 
+FALLBACK_PROFILE = "schunk-egu-60"  # opened when no profile is named, and `grippers sim schunk`'s default
+
 
 class _Section(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)

@@ -1,5 +1,5 @@
-"""A SCHUNK unit's stored settings for ``grippers settings`` and ``selftest`` (the backend's
-``device_settings`` hook), and its soft limits (``Gripper.set_soft_limits``): the unit's own minimum and
+"""A SCHUNK unit's stored settings for ``grippers settings`` and ``selftest`` (its command hooks,
+schunk_cli.py), and its soft limits (``Gripper.set_soft_limits``): the unit's own minimum and
 maximum position, 0x0600 and 0x0608, writable floats in mm (SCHUNK's writable_parameters.json). The unit
 refuses a target outside them ("command not feasible"); cleared, they span 0 .. max_phys_stroke (0x0588)."""
 
@@ -44,7 +44,7 @@ class SchunkSoftLimits:
             client.parameters[name] = value
 
 
-def _read(gripper: Any) -> dict[str, Any]:
+def read_values(gripper: Any) -> dict[str, Any]:
     from ..cli.settings_cmd import try_read
 
     client = gripper.driver
@@ -62,31 +62,22 @@ def _read(gripper: Any) -> dict[str, Any]:
     }
 
 
-class SchunkDeviceSettings:
-    """What ``grippers settings`` asks of a SCHUNK unit: its position limits (as soft limits)."""
+# The options of `grippers settings` a SCHUNK unit takes: its position limits, as soft limits.
+OPTIONS = ("soft_limits", "clear_soft_limits")
 
-    OPTIONS = ("soft_limits", "clear_soft_limits")
 
-    def supports(self, gripper: Any) -> bool:
-        from grippers.drivers.schunk.client import SchunkClient
+def check_values(gripper: Any, args: argparse.Namespace) -> None:
+    if args.soft_limits:
+        lo, hi = args.soft_limits
+        gripper.check(width=lo / 1000, command="set_soft_limits")
+        gripper.check(width=hi / 1000, command="set_soft_limits")
 
-        return isinstance(getattr(gripper, "driver", None), SchunkClient)
 
-    def read(self, gripper: Any) -> dict[str, Any]:
-        return _read(gripper)
-
-    def check(self, gripper: Any, args: argparse.Namespace) -> None:
-        if args.soft_limits:
-            lo, hi = args.soft_limits
-            gripper.check(width=lo / 1000, command="set_soft_limits")
-            gripper.check(width=hi / 1000, command="set_soft_limits")
-
-    def change(self, gripper: Any, args: argparse.Namespace, changed: list[str]) -> str | None:
-        if args.clear_soft_limits:
-            gripper.clear_soft_limits()
-            changed.append("soft_limits")
-        if args.soft_limits:
-            lo, hi = args.soft_limits
-            gripper.set_soft_limits(lo / 1000, hi / 1000)
-            changed.append("soft_limits")
-        return None
+def change_values(gripper: Any, args: argparse.Namespace, changed: list[str]) -> None:
+    if args.clear_soft_limits:
+        gripper.clear_soft_limits()
+        changed.append("soft_limits")
+    if args.soft_limits:
+        lo, hi = args.soft_limits
+        gripper.set_soft_limits(lo / 1000, hi / 1000)
+        changed.append("soft_limits")

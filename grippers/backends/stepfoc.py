@@ -15,6 +15,7 @@ import contextlib
 import time
 import uuid
 from collections.abc import Callable, Iterator
+from functools import cached_property
 from typing import TYPE_CHECKING, Any
 
 from grippers.drivers.errors import CommandFailed
@@ -38,6 +39,7 @@ from ..profiles import Limits, ProfileBase, load_profile
 from ..settings import Settings
 from ..states import Capability, DeviceInfo, GraspResult, GraspState, GripperState, MotionResult
 from ..urls import ConnectionURL
+from .command_hooks import CommandHooks
 from .stepfoc_features import MsgReconnection, MsgServo, MsgTemperature
 from .stepfoc_profile import MsgProfile
 
@@ -296,45 +298,13 @@ class MsgDevice(Device):
 class StepfocBackend:
     family = "stepfoc"
     profile_model = MsgProfile
-    # What a bare transport's URL would be for an MSG (the "did you mean" of a mistyped target), ranked.
-    bare_forms = {"serial": (20, "stepfoc+serial://{rest}"), "can": (10, "stepfoc+can://{rest}?node=0")}
 
-    @property
-    def cli_sim(self) -> Any:
-        """``grippers sim``'s options and server start for this family (grippers/cli/sim.py asks for it)."""
-        from . import stepfoc_cli
+    @cached_property
+    def commands(self) -> CommandHooks:
+        """What the commands ask of the family (stepfoc_cli.py, imported when a command asks)."""
+        from .stepfoc_cli import StepfocCommands
 
-        return stepfoc_cli
-
-    @property
-    def device_settings(self) -> Any:
-        """``grippers settings`` and ``selftest``: what this family stores besides its motion."""
-        from .stepfoc_settings import StepfocDeviceSettings
-
-        return StepfocDeviceSettings()
-
-    def selftest_checks(self, gripper: Any, add: Callable[..., None]) -> None:
-        """``grippers selftest``'s lines of this family (``add(name, measured, expected, verdict, note)``)."""
-        from .stepfoc_settings import selftest_checks
-
-        selftest_checks(gripper, add)
-
-    def dissector(self) -> Any:
-        """``grippers monitor``: STEPFOC CAN frames (its captures are candump logs)."""
-        from grippers.drivers.stepfoc.dissect import StepfocCanDissector
-
-        from . import Dissector
-
-        return Dissector(StepfocCanDissector.protocol, can=lambda _o: StepfocCanDissector())
-
-    def raw_probe(self, transport: str) -> Any:
-        if transport != "serial":
-            return None
-        from grippers.drivers.stepfoc import probe as stepfoc_probe
-
-        from . import RawProbe
-
-        return RawProbe(stepfoc_probe.identify_request())
+        return StepfocCommands()
 
     def open(self, url: ConnectionURL, profile: ProfileBase | None, settings: Settings) -> Gripper:
         assumed = not isinstance(profile, MsgProfile)  # no profile given: the rail length is a guess
@@ -415,6 +385,3 @@ class StepfocBackend:
             else:
                 raise URLError(f"{settings.url}: transport must be can or pty, not {transport!r}")
         return self.serve([model], listen, settings)
-
-    def simulate(self, profile: ProfileBase, settings: Settings) -> Any:
-        return self.simulator(profile, settings)

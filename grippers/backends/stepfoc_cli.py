@@ -1,26 +1,19 @@
-"""The STEPFOC family's command-line hooks: ``grippers sim msg`` (MSG grippers on STEPFOC drivers, as CAN
-nodes or on a UART pseudo-terminal, or the replay of a candump log; the backend offers it as its
-``cli_sim``), and ``probe_candidates`` (``grippers.backends.hook`` finds it here).
+"""The STEPFOC family's command hooks (:class:`StepfocCommands`, the backend's ``commands``): ``grippers sim
+msg`` (MSG grippers on STEPFOC drivers, as CAN nodes or on a UART pseudo-terminal, or the replay of a candump
+log), the probe's candidates and raw check, the monitor's dissector, the device settings and the self-test's
+lines (the last two in stepfoc_settings.py).
 
 The UART's speed and the node range are the profile model's (``StepfocTransport``, ``MAX_NODE``)."""
 
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
 from typing import Any
 
 from ..cli.sim_common import add_sim_arguments, serve_forever, serve_replay, settings_for, warn_private_bus
-
-NAMES = ("msg", "stepfoc")  # `grippers sim msg` (the gripper's name) or the family's
-
-HELP = "simulate MSG grippers (STEPFOC) as CAN nodes (can://IF/CH?node=N) or a UART device (pty)"
-EXAMPLE = (
-    "grippers sim msg --listen 'can://udp_multicast/239.74.163.2?node=0'\n"
-    "         grippers sim msg --listen 'can://socketcan/vcan0?node=0,1,2'\n"
-    "         grippers sim msg --listen pty --part-width 40\n"
-    "         grippers sim msg --replay session.log --listen can://socketcan/vcan0   (a candump log)"
-)
-
+from . import stepfoc_settings
+from .command_hooks import CommandHooks, Dissector, ProbeCandidate, RawProbe, bus_query
 
 BUS_PARAMETERS = ("port", "bitrate")
 
@@ -68,7 +61,7 @@ def run(args: argparse.Namespace, backend: Any) -> int:
         raise UsageError(f"profile {profile.name} is a {profile.family} profile, not an MSG one")
     listen = args.listen or "pty"
     nodes = [0]
-    bus_query = ""
+    query = ""
     if listen.startswith("can://"):
         from urllib.parse import urlencode
 
@@ -93,8 +86,8 @@ def run(args: argparse.Namespace, backend: Any) -> int:
                 int(params[key])
             except ValueError:
                 raise UsageError(f"--listen {listen}: {key} must be a number") from None
-        bus_query = urlencode(params)
-        listen = base + (f"?{bus_query}" if bus_query else "")
+        query = urlencode(params)
+        listen = base + (f"?{query}" if query else "")
     warn_private_bus(listen)
     settings = settings_for(profile, args)
     part = settings.float("part_width_mm", profile.simulator.part_width_mm)
@@ -107,25 +100,73 @@ def run(args: argparse.Namespace, backend: Any) -> int:
     what = f"simulated {profile.model}" + (f" (node {', '.join(map(str, nodes))})" if listen != "pty" else "")
     urls = getattr(server, "urls", None)  # the CAN server names every node it serves
     urls = list(urls() if callable(urls) else urls or [server.url])
-    if bus_query:  # a client needs the same port to reach the bus
-        urls = [f"{u}&{bus_query}" for u in urls]
+    if query:  # a client needs the same port to reach the bus
+        urls = [f"{u}&{query}" for u in urls]
     return serve_forever(server, what, urls, as_json=args.json)
 
 
-# --- grippers probe ----------------------------------------------------------------------------------------
+class StepfocSim:
+    """``grippers sim msg``: several CAN nodes on one bus, or a UART device; the replay of a candump log."""
+
+    add_arguments = staticmethod(add_arguments)
+    run = staticmethod(run)
 
 
-def probe_candidates(transport: str, where: Any, options: dict[str, Any]) -> list[Any]:
-    """``grippers probe`` on a bare transport: the UART on a serial port at the profile model's speed, every
-    node on a CAN bus (each with its own bus connection, so the nodes are asked in parallel)."""
-    from . import ProbeCandidate, bus_query
-    from .stepfoc_profile import MAX_NODE, StepfocTransport
+class StepfocCommands(CommandHooks):
+    """What the commands ask of the STEPFOC family (grippers.backends.CommandHooks)."""
 
-    if transport == "serial":
-        baud = StepfocTransport().baudrate
-        return [ProbeCandidate(f"stepfoc+serial://{where.serial_port}?baudrate={baud}", order=20)]
-    if transport == "can":
-        extra = bus_query(options)
-        base = f"stepfoc+can://{where.interface}/{where.channel}"
-        return [ProbeCandidate(f"{base}?node={node}{extra}", order=10) for node in range(MAX_NODE + 1)]
-    return []
+    sim_names = ("msg", "stepfoc")  # `grippers sim msg` (the gripper's name) or the family's
+    sim_help = "simulate MSG grippers (STEPFOC) as CAN nodes (can://IF/CH?node=N) or a UART device (pty)"
+    sim_example = (
+        "grippers sim msg --listen 'can://udp_multicast/239.74.163.2?node=0'\n"
+        "         grippers sim msg --listen 'can://socketcan/vcan0?node=0,1,2'\n"
+        "         grippers sim msg --listen pty --part-width 40\n"
+        "         grippers sim msg --replay session.log --listen can://socketcan/vcan0   (a candump log)"
+    )
+    settings_options = stepfoc_settings.OPTIONS
+
+    def bare_forms(self) -> dict[str, tuple[int, str]]:
+        """A bare transport's URL as an MSG's (the "did you mean" of a mistyped target), ranked."""
+        return {"serial": (20, "stepfoc+serial://{rest}"), "can": (10, "stepfoc+can://{rest}?node=0")}
+
+    def probe_candidates(self, transport: str, where: Any, options: dict[str, Any]) -> list[ProbeCandidate]:
+        """``grippers probe`` on a bare transport: the UART on a serial port at the profile model's speed,
+        every node on a CAN bus (each with its own bus connection, so the nodes are asked in parallel)."""
+        from .stepfoc_profile import MAX_NODE, StepfocTransport
+
+        if transport == "serial":
+            baud = StepfocTransport().baudrate
+            return [ProbeCandidate(f"stepfoc+serial://{where.serial_port}?baudrate={baud}", order=20)]
+        if transport == "can":
+            extra = bus_query(options)
+            base = f"stepfoc+can://{where.interface}/{where.channel}"
+            return [ProbeCandidate(f"{base}?node={node}{extra}", order=10) for node in range(MAX_NODE + 1)]
+        return []
+
+    def raw_probe(self, transport: str) -> RawProbe | None:
+        if transport != "serial":
+            return None
+        from grippers.drivers.stepfoc import probe as stepfoc_probe
+
+        return RawProbe(stepfoc_probe.identify_request())
+
+    def dissector(self) -> Dissector:
+        """``grippers monitor``: STEPFOC CAN frames (its captures are candump logs)."""
+        from grippers.drivers.stepfoc.dissect import StepfocCanDissector
+
+        return Dissector(StepfocCanDissector.protocol, can=lambda _o: StepfocCanDissector())
+
+    def read_settings(self, gripper: Any) -> dict[str, Any]:
+        return stepfoc_settings.read_values(gripper.driver)
+
+    def check_settings(self, gripper: Any, args: argparse.Namespace) -> None:
+        stepfoc_settings.check_values(gripper, args)
+
+    def change_settings(self, gripper: Any, args: argparse.Namespace, changed: list[str]) -> str | None:
+        return stepfoc_settings.change_values(gripper, args, changed)
+
+    def selftest_checks(self, gripper: Any, add: Callable[..., None]) -> None:
+        stepfoc_settings.selftest_checks(gripper, add)
+
+    def sim_command(self) -> StepfocSim:
+        return StepfocSim()

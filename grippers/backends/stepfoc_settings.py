@@ -1,9 +1,9 @@
-"""An MSG's device settings on a STEPFOC driver for ``grippers settings`` and ``selftest`` (the backend's
-``device_settings`` hook): temperature, supply voltage, the CAN node id (command 11), the watchdog (15) and
-the heartbeat (30), which are saved to flash (command 13) behind a confirmation: a node id that no program
-expects makes the gripper disappear from the bus, and a saved watchdog or heartbeat acts at every power-up
-after (STEPFOC firmware, src/EEPROM.cpp stores both periods; src/communication_CAN.cpp ``CAN_watchdog`` is
-fed only by 61s, data packs and remote requests)."""
+"""An MSG's device settings on a STEPFOC driver for ``grippers settings`` and ``selftest`` (the family's
+command hooks, stepfoc_cli.StepfocCommands): temperature, supply voltage, the CAN node id (command 11), the
+watchdog (15) and the heartbeat (30), which are saved to flash (command 13) behind a confirmation: a node id
+that no program expects makes the gripper disappear from the bus, and a saved watchdog or heartbeat acts at
+every power-up after (STEPFOC firmware, src/EEPROM.cpp stores both periods; src/communication_CAN.cpp
+``CAN_watchdog`` is fed only by 61s, data packs and remote requests)."""
 
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ from ..cli.settings_cmd import MAX_PERIOD_MS, confirm, try_read
 from .stepfoc_profile import MAX_NODE
 
 
-def _read(driver: Any) -> dict[str, Any]:
+def read_values(driver: Any) -> dict[str, Any]:
     out: dict[str, Any] = {}
     node = getattr(driver, "node", None)
     if node is not None:
@@ -70,7 +70,7 @@ def power_up_notes(watchdog_ms: int | None, heartbeat_ms: int | None, heartbeat_
     return notes
 
 
-def _check(gripper: Any, args: argparse.Namespace) -> None:
+def check_values(gripper: Any, args: argparse.Namespace) -> None:
     """Everything that can refuse the MSG changes, before the first frame that changes the node."""
     driver = gripper.driver
     wants = args.node_id is not None or args.watchdog is not None or args.heartbeat is not None or args.save
@@ -93,7 +93,7 @@ def _check(gripper: Any, args: argparse.Namespace) -> None:
         )
 
 
-def _change(gripper: Any, args: argparse.Namespace, changed: list[str]) -> str | None:
+def change_values(gripper: Any, args: argparse.Namespace, changed: list[str]) -> str | None:
     from grippers.errors import GripperTimeout
 
     driver = gripper.driver
@@ -144,32 +144,14 @@ def _change(gripper: Any, args: argparse.Namespace, changed: list[str]) -> str |
     return new_url
 
 
-class StepfocDeviceSettings:
-    """What ``grippers settings`` asks of an MSG: the options it takes, and reading, checking, changing."""
-
-    OPTIONS = ("node_id", "watchdog", "heartbeat", "save")
-
-    def supports(self, gripper: Any) -> bool:
-        """Whether the gripper's device client is here (a served gripper's is a network session)."""
-        from grippers.drivers.stepfoc.can_client import StepfocNode
-        from grippers.drivers.stepfoc.uart_client import StepfocUart
-
-        return isinstance(getattr(gripper, "driver", None), StepfocNode | StepfocUart)
-
-    def read(self, gripper: Any) -> dict[str, Any]:
-        return _read(gripper.driver)
-
-    def check(self, gripper: Any, args: argparse.Namespace) -> None:
-        _check(gripper, args)
-
-    def change(self, gripper: Any, args: argparse.Namespace, changed: list[str]) -> str | None:
-        return _change(gripper, args, changed)
+# The options of `grippers settings` an MSG takes (StepfocCommands.settings_options).
+OPTIONS = ("node_id", "watchdog", "heartbeat", "save")
 
 
 def selftest_checks(gripper: Any, add: Callable[..., None]) -> None:
     """``grippers selftest``'s MSG lines: the node id, the driver's error flags, watchdog and heartbeat."""
     driver = gripper.driver
-    values = _read(driver)
+    values = read_values(driver)
     if "node_id" in values:
         add("node id", str(values["node_id"]), "-", "INFO")
     if hasattr(driver, "error_state"):

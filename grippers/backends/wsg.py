@@ -15,6 +15,7 @@ import time
 import uuid
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from functools import cached_property
 from typing import TYPE_CHECKING, Any
 
 from grippers.drivers.errors import CommandFailed, GripperError
@@ -36,6 +37,7 @@ from ..profiles import Limits, ProfileBase, load_profile
 from ..settings import Settings
 from ..states import Capability, DeviceInfo, GraspResult, GraspState, GripperState, MotionResult
 from ..urls import ConnectionURL
+from .command_hooks import CommandHooks
 from .wsg_features import WsgDeviceTag, WsgReconnection, WsgServo, WsgSoftLimits, WsgTemperature
 from .wsg_profile import WsgProfile, WsgTransport, wsg_profile_for_device_type
 
@@ -364,34 +366,13 @@ def _narrow(limits: Limits, device: SystemLimits, profile: str) -> tuple[Limits,
 class WsgBackend:
     family = "wsg"
     profile_model = WsgProfile
-    # What a bare transport's URL would be for a WSG (the "did you mean" of a mistyped target), ranked.
-    bare_forms = {
-        "tcp": (10, "wsg+tcp://{rest}"),
-        "udp": (10, "wsg+udp://{rest}"),
-        "serial": (10, "wsg+serial://{rest}"),
-        "can": (20, "wsg+can://{rest}"),
-    }
-    reports_stroke = True  # 53h: selftest compares it with the profile
 
-    @property
-    def cli_sim(self) -> Any:
-        """``grippers sim``'s options and server start for this family (grippers/cli/sim.py asks for it)."""
-        from . import wsg_cli
+    @cached_property
+    def commands(self) -> CommandHooks:
+        """What the commands ask of the family (wsg_cli.py, imported when a command asks)."""
+        from .wsg_cli import WsgCommands
 
-        return wsg_cli
-
-    @property
-    def device_settings(self) -> Any:
-        """``grippers settings`` and ``selftest``: what this family stores besides its motion."""
-        from .wsg_settings import WsgDeviceSettings
-
-        return WsgDeviceSettings()
-
-    def selftest_checks(self, gripper: Any, add: Callable[..., None]) -> None:
-        """``grippers selftest``'s lines of this family (``add(name, measured, expected, verdict, note)``)."""
-        from .wsg_settings import selftest_checks
-
-        selftest_checks(gripper, add)
+        return WsgCommands()
 
     def open(self, url: ConnectionURL, profile: ProfileBase | None, settings: Settings) -> Gripper:
         t = profile.transport if isinstance(profile, WsgProfile) else WsgTransport()
@@ -490,6 +471,3 @@ class WsgBackend:
             if listen is None:
                 raise URLError(f"{settings.url}: transport must be tcp, udp, pty or can, not {transport!r}")
         return serve(model, listen, time_scale=settings.positive("time_scale", sim.time_scale))
-
-    def simulate(self, profile: ProfileBase, settings: Settings) -> Any:
-        return self.simulator(profile, settings)

@@ -1,13 +1,14 @@
-"""The WSG family's command-line hooks: ``grippers sim wsg`` (a WSG simulator on TCP, UDP, a pseudo-terminal
-or a CAN bus, or the replay of a capture; the backend offers this module as its ``cli_sim``), and the
-hooks ``grippers.backends.hook`` finds here: ``probe_candidates``, ``raw_probe``, ``factory_address``,
-``dissector``.
+"""The WSG family's command hooks (:class:`WsgCommands`, the backend's ``commands``): ``grippers sim wsg`` (a
+WSG simulator on TCP, UDP, a pseudo-terminal or a CAN bus, or the replay of a capture), the probe's
+candidates, raw check and factory address, the monitor's dissector, the device settings and the self-test's
+lines (the last two in wsg_settings.py).
 
 Transport defaults (ports, serial speed) are the profile model's (``WsgTransport``), read from there."""
 
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
 from typing import Any
 
 from ..cli.sim_common import (
@@ -18,6 +19,8 @@ from ..cli.sim_common import (
     start_server,
     warn_private_bus,
 )
+from . import wsg_settings
+from .command_hooks import CommandHooks, Dissector, ProbeCandidate, RawProbe, bus_query
 
 
 def default_listen() -> str:
@@ -25,16 +28,6 @@ def default_listen() -> str:
     unchanged against the simulator. A user without root gets a free port instead, and is told
     (sim_common.start_server)."""
     return f"tcp://127.0.0.1:{_transport().tcp_port}"
-
-
-NAMES = ("wsg",)  # `grippers sim wsg`
-HELP = "simulate a WSG gripper (binary protocol) on tcp://, udp://, pty or can://"
-EXAMPLE = (
-    "grippers sim wsg --listen tcp://127.0.0.1:1000\n"
-    "         grippers sim wsg --listen pty --firmware 2.2.0 --part-width 40\n"
-    "         grippers sim wsg --listen 'can://udp_multicast/239.74.163.2?send_id=0x7E8&recv_id=0x7E9'\n"
-    "         grippers sim wsg --replay session.hex --listen tcp://127.0.0.1:1000   (monitor --write)"
-)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -107,13 +100,6 @@ def _transport() -> Any:
     return WsgTransport()
 
 
-def __getattr__(name: str) -> Any:
-    """``factory_address``: computed from the profile model's TCP port when asked (no pydantic at import)."""
-    if name == "factory_address":
-        return f"tcp://{FACTORY_HOST}:{_transport().tcp_port}"
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
 # The WSG over CAN: commands on a base id, replies on base + 1, base 0x000 (docs/protocols.md §1, one public
 # driver); the probe adds the ids of every WSG profile on the search path.
 CAN_IDS: tuple[tuple[int, int], ...] = ((0x000, 0x001),)
@@ -135,59 +121,97 @@ def can_ids(given: list[int] | None) -> tuple[tuple[int, int], ...]:
     return tuple(sorted(ids)) or CAN_IDS
 
 
-def probe_candidates(transport: str, where: Any, options: dict[str, Any]) -> list[Any]:
-    from grippers.urls import format_host
+class WsgSim:
+    """``grippers sim wsg``: its own options (``--firmware``, ``--replay``) and run."""
 
-    from . import ProbeCandidate, bus_query
+    add_arguments = staticmethod(add_arguments)
+    run = staticmethod(run)
 
-    t = _transport()
-    if transport in ("tcp", "udp"):
-        port = where.port or (t.tcp_port if transport == "tcp" else t.udp_port)
-        return [ProbeCandidate(f"wsg+{transport}://{format_host(where.host, port)}", order=10)]
-    if transport == "serial":
-        return [ProbeCandidate(f"wsg+serial://{where.serial_port}?baudrate={t.baudrate}", order=10)]
-    if transport == "can":
-        ids = can_ids(options.get("can_ids"))
-        extra = bus_query(options)
+
+class WsgCommands(CommandHooks):
+    """What the commands ask of the WSG family (grippers.backends.CommandHooks)."""
+
+    sim_names = ("wsg",)
+    sim_help = "simulate a WSG gripper (binary protocol) on tcp://, udp://, pty or can://"
+    sim_example = (
+        "grippers sim wsg --listen tcp://127.0.0.1:1000\n"
+        "         grippers sim wsg --listen pty --firmware 2.2.0 --part-width 40\n"
+        "         grippers sim wsg --listen 'can://udp_multicast/239.74.163.2?send_id=0x7E8&recv_id=0x7E9'\n"
+        "         grippers sim wsg --replay session.hex --listen tcp://127.0.0.1:1000   (monitor --write)"
+    )
+    settings_options = wsg_settings.OPTIONS
+    reports_stroke = True  # 53h: selftest compares it with the profile
+
+    def __init__(self) -> None:
+        self.factory_address = f"tcp://{FACTORY_HOST}:{_transport().tcp_port}"
+
+    def bare_forms(self) -> dict[str, tuple[int, str]]:
+        """A bare transport's URL as a WSG's (the "did you mean" of a mistyped target), ranked."""
+        return {
+            "tcp": (10, "wsg+tcp://{rest}"),
+            "udp": (10, "wsg+udp://{rest}"),
+            "serial": (10, "wsg+serial://{rest}"),
+            "can": (20, "wsg+can://{rest}"),
+        }
+
+    def probe_candidates(self, transport: str, where: Any, options: dict[str, Any]) -> list[ProbeCandidate]:
+        from grippers.urls import format_host
+
+        t = _transport()
+        if transport in ("tcp", "udp"):
+            port = where.port or (t.tcp_port if transport == "tcp" else t.udp_port)
+            return [ProbeCandidate(f"wsg+{transport}://{format_host(where.host, port)}", order=10)]
+        if transport == "serial":
+            return [ProbeCandidate(f"wsg+serial://{where.serial_port}?baudrate={t.baudrate}", order=10)]
+        if transport != "can":
+            return []
         out = []
-        for send_id, recv_id in ids:
+        for send_id, recv_id in can_ids(options.get("can_ids")):
             url = (
                 f"wsg+can://{where.interface}/{where.channel}?send_id=0x{send_id:03X}&recv_id=0x{recv_id:03X}"
             )
             # A STEPFOC node answering on the ids a WSG packet would use must not receive one (an id with
             # command 0 is that node's E-stop): those WSG candidates wait for the node probe.
             nodes = tuple({i >> 7 for i in (send_id, recv_id)})
-            out.append(ProbeCandidate(url + extra, order=20, unless_nodes=nodes))
+            out.append(ProbeCandidate(url + bus_query(options), order=20, unless_nodes=nodes))
         return out
-    return []
 
+    def raw_probe(self, transport: str) -> RawProbe:
+        from grippers.drivers.wsg import probe as wsg_probe
 
-def raw_probe(transport: str) -> Any:
-    from grippers.drivers.wsg import probe as wsg_probe
+        return RawProbe(
+            wsg_probe.identify_request(),
+            goodbye=wsg_probe.goodbye(transport),  # a WSG on TCP must not be left in FAST STOP by this check
+            is_answer=wsg_probe.holds_a_packet,
+            port=_transport().tcp_port if transport == "tcp" else _transport().udp_port,
+        )
 
-    from . import RawProbe
+    def dissector(self) -> Dissector:
+        """``grippers monitor``: WSG packets from bytes (captures, the TCP proxy) or CAN frames (commands on
+        ``--can-id``, replies on the next id)."""
+        from grippers.drivers.wsg.dissect import PROTOCOL, WsgCanDissector, WsgStream
+        from grippers.drivers.wsg.protocol import PREAMBLE
 
-    return RawProbe(
-        wsg_probe.identify_request(),
-        goodbye=wsg_probe.goodbye(transport),  # a WSG on TCP must not be left in FAST STOP by this check
-        is_answer=wsg_probe.holds_a_packet,
-        port=_transport().tcp_port if transport == "tcp" else _transport().udp_port,
-    )
+        return Dissector(
+            PROTOCOL,
+            stream=WsgStream,
+            can=lambda o: WsgCanDissector(o.get("can_id", 0x000), bool(o.get("only"))),
+            tcp_port=_transport().tcp_port,
+            bytes_default=True,
+            finds=lambda data: PREAMBLE in data,
+        )
 
+    def read_settings(self, gripper: Any) -> dict[str, Any]:
+        return wsg_settings.read_values(gripper.driver)
 
-def dissector() -> Any:
-    """``grippers monitor``: WSG packets from bytes (captures, the TCP proxy) or CAN frames (commands on
-    ``--can-id``, replies on the next id)."""
-    from grippers.drivers.wsg.dissect import PROTOCOL, WsgCanDissector, WsgStream
-    from grippers.drivers.wsg.protocol import PREAMBLE
+    def check_settings(self, gripper: Any, args: argparse.Namespace) -> None:
+        wsg_settings.check_values(gripper, args)
 
-    from . import Dissector
+    def change_settings(self, gripper: Any, args: argparse.Namespace, changed: list[str]) -> None:
+        wsg_settings.change_values(gripper, args, changed)
 
-    return Dissector(
-        PROTOCOL,
-        stream=WsgStream,
-        can=lambda o: WsgCanDissector(o.get("can_id", 0x000), bool(o.get("only"))),
-        tcp_port=_transport().tcp_port,
-        bytes_default=True,
-        finds=lambda data: PREAMBLE in data,
-    )
+    def selftest_checks(self, gripper: Any, add: Callable[..., None]) -> None:
+        wsg_settings.selftest_checks(gripper, add)
+
+    def sim_command(self) -> WsgSim:
+        return WsgSim()

@@ -1,6 +1,6 @@
-"""The WSG's device settings for ``grippers settings`` and ``selftest`` (the backend's ``device_settings``
-hook): temperature, soft limits, device tag, acceleration, force limit, finger information (WSG manual 4.0.x
-§3.3-§3.5 and §3.6, commands 30h-36h, 40h, 52h/53h, 60h-63h)."""
+"""The WSG's device settings for ``grippers settings`` and ``selftest`` (the family's command hooks,
+wsg_cli.WsgCommands): temperature, soft limits, device tag, acceleration, force limit, finger information (WSG
+manual 4.0.x §3.3-§3.5 and §3.6, commands 30h-36h, 40h, 52h/53h, 60h-63h)."""
 
 from __future__ import annotations
 
@@ -21,7 +21,7 @@ FORCE_LIMIT_LASTS = (
 otherwise believe the limit still guards the part."""
 
 
-def _read(client: Any) -> dict[str, Any]:
+def read_values(client: Any) -> dict[str, Any]:
     def soft() -> dict[str, float]:
         limits = client.soft_limits()
         return {"min_mm": round(limits.minus, 3), "max_mm": round(limits.plus, 3)}
@@ -42,7 +42,7 @@ def _read(client: Any) -> dict[str, Any]:
     }
 
 
-def _check(gripper: Any, args: argparse.Namespace) -> None:
+def check_values(gripper: Any, args: argparse.Namespace) -> None:
     """Every requested WSG value against the profile, before anything is sent (issue 23 §3: a tag was
     written, then an absurd acceleration went out or failed half-way)."""
     from grippers.drivers.numbers import finite
@@ -73,7 +73,7 @@ def _check(gripper: Any, args: argparse.Namespace) -> None:
             )
 
 
-def _change(gripper: Any, args: argparse.Namespace, changed: list[str]) -> None:
+def change_values(gripper: Any, args: argparse.Namespace, changed: list[str]) -> None:
     from ..cli.output import mm_to_m
 
     client = gripper.driver
@@ -96,31 +96,13 @@ def _change(gripper: Any, args: argparse.Namespace, changed: list[str]) -> None:
         warnings.warn(FORCE_LIMIT_LASTS, GripperWarning, stacklevel=2)
 
 
-class WsgDeviceSettings:
-    """What ``grippers settings`` asks of a WSG: the options it takes, and reading, checking, changing."""
-
-    OPTIONS = ("soft_limits", "clear_soft_limits", "tag", "acceleration", "force_limit")
-
-    def supports(self, gripper: Any) -> bool:
-        """Whether the gripper's device client is here (a served gripper's is a network session)."""
-        from grippers.drivers.wsg.client import WsgClient
-
-        return isinstance(getattr(gripper, "driver", None), WsgClient)
-
-    def read(self, gripper: Any) -> dict[str, Any]:
-        return _read(gripper.driver)
-
-    def check(self, gripper: Any, args: argparse.Namespace) -> None:
-        _check(gripper, args)
-
-    def change(self, gripper: Any, args: argparse.Namespace, changed: list[str]) -> str | None:
-        _change(gripper, args, changed)
-        return None
+# The options of `grippers settings` a WSG takes (WsgCommands.settings_options).
+OPTIONS = ("soft_limits", "clear_soft_limits", "tag", "acceleration", "force_limit")
 
 
 def selftest_checks(gripper: Any, add: Callable[..., None]) -> None:
     """``grippers selftest``'s WSG lines: the stored acceleration, force limit and soft limits."""
-    values = _read(gripper.driver)
+    values = read_values(gripper.driver)
     accel = values.get("acceleration_mm_s2")
     mech = gripper.profile.mechanics
     if isinstance(accel, float) and mech.min_accel_mm_s2 is not None and mech.max_accel_mm_s2 is not None:

@@ -249,13 +249,14 @@ def factory_addresses() -> list[tuple[str, int, str]]:
     """(host, port, family) of every installed family's factory network address (``factory_address``
     hook, a ``tcp://HOST:PORT`` URL), once per host. A family that does not load is left out: the
     dependency checks above say why."""
-    from grippers.backends import available_backends, find_backend, hook
+    from grippers.backends import available_backends, find_backend
+    from grippers.backends.command_hooks import commands_of
     from grippers.urls import parse_url
 
     out: dict[str, tuple[str, int, str]] = {}
     for family in available_backends():
         try:
-            address = hook(find_backend(family), "factory_address")
+            address = commands_of(find_backend(family)).factory_address
             if address is None:
                 continue
             where = parse_url(address, bare_family="bare")

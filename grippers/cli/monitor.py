@@ -364,16 +364,16 @@ Writer = Callable[[str], None]
 
 def dissectors() -> dict[str, Any]:
     """Every installed family's ``dissector()`` (issue 28 §2), by family name and by protocol name."""
-    from grippers.backends import available_backends, find_backend, hook
+    from grippers.backends import available_backends, find_backend
+    from grippers.backends.command_hooks import commands_of
 
     found: dict[str, Any] = {}
     for family in available_backends():
         try:
-            offered = hook(find_backend(family), "dissector")
+            dissector = commands_of(find_backend(family)).dissector()
         except Exception:  # a family whose optional dependency is missing dissects nothing here
             continue
-        if offered is not None:
-            dissector = offered()
+        if dissector is not None:
             found.setdefault(family, dissector)
             found.setdefault(dissector.protocol, dissector)
     return found

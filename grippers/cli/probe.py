@@ -159,7 +159,8 @@ def garbage_check(url: str, timeout: float) -> str | None:
     comes back. A device that answers with bytes that are not a packet of the family is reported as sending
     garbage (wrong baud rate, wrong protocol), not as silent. None when nothing came back, or when the family
     offers no raw probe (its backend's ``raw_probe`` hook)."""
-    from grippers.backends import find_backend, hook
+    from grippers.backends import find_backend
+    from grippers.backends.command_hooks import commands_of
     from grippers.errors import URLError
     from grippers.urls import parse_url, to_int
 
@@ -168,8 +169,7 @@ def garbage_check(url: str, timeout: float) -> str | None:
     except URLError:
         return None  # opening it has said why
     family, transport = u.family, u.transport
-    offered = hook(find_backend(family), "raw_probe")
-    raw = offered(transport) if offered is not None else None
+    raw = commands_of(find_backend(family)).raw_probe(transport)
     if raw is None:
         return None
     request, goodbye = raw.request, raw.goodbye
@@ -319,7 +319,7 @@ def _sim_targets() -> list[str]:
     names = []
     for profile in list_profiles():
         backend = find_backend(profile.family)
-        if backend is not None and hasattr(backend, "simulate"):
+        if backend is not None and hasattr(backend, "simulator"):
             names.append(profile.name)
     return [f"sim://{name}" for name in sorted(names)]
 

@@ -15,15 +15,15 @@ from typing import Any
 
 def identity_of(url: str, gripper: Any) -> dict[str, Any] | None:
     """The family's ``probe_identity`` verdict on an opened device, or None when the family has no check."""
-    from grippers.backends import find_backend, hook
+    from grippers.backends import find_backend
+    from grippers.backends.command_hooks import commands_of
 
-    check = hook(find_backend(url.partition("+")[0]), "probe_identity")
-    if check is None:
-        return None
     try:
-        said = check(gripper)
+        said = commands_of(find_backend(url.partition("+")[0])).probe_identity(gripper)
     except Exception as exc:  # a check that cannot read is no verdict, and no reason to lose the device
         return {"mine": None, "reason": f"its identity check failed: {exc}"}
+    if said is None:
+        return None
     return {"mine": said.mine, "reason": said.reason}
 
 

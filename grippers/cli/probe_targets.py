@@ -135,13 +135,11 @@ def expand(target: str, bitrate: int | None = None, options: dict[str, Any] | No
         if bitrate:
             bus["bitrate"] = bitrate  # -b wins over the URL, as flags do everywhere
         given["bus"] = bus
-    from grippers.backends import hook
+    from grippers.backends.command_hooks import commands_of
 
     offered = []
     for backend in _backends():
-        candidates = hook(backend, "probe_candidates")
-        if candidates is not None:
-            offered += candidates(scheme, u, given)
+        offered += commands_of(backend).probe_candidates(scheme, u, given)
     for c in sorted(offered, key=lambda c: c.order):  # stable: a family's own order within one rank
         # Candidates on one serial port share it, tried one after another; the rest each have their own.
         group = f"serial:{u.serial_port}" if scheme == "serial" else c.url
@@ -222,7 +220,7 @@ def machine_targets(network: bool, bitrate: int | None = None, options: dict[str
     """What ``grippers probe`` with no URL looks at: serial ports, SocketCAN interfaces and the families'
     factory addresses (their ``factory_address`` hook: a TCP connection attempt each; ``--no-network`` leaves
     them out)."""
-    from grippers.backends import hook
+    from grippers.backends.command_hooks import commands_of
 
     plan = Plan()
     for port in serial_ports():
@@ -230,7 +228,7 @@ def machine_targets(network: bool, bitrate: int | None = None, options: dict[str
     for name in socketcan_interfaces():
         plan.candidates += expand(f"can://socketcan/{name}", bitrate, options).candidates
     for backend in _backends():
-        address = hook(backend, "factory_address")
+        address = commands_of(backend).factory_address
         if address is None:
             continue
         if network:

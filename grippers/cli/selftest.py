@@ -217,11 +217,12 @@ class _Run:
             self.add(f"faults {when}", "none", "none", "PASS")
 
     def stroke(self) -> None:
-        from grippers.backends import find_backend, hook
+        from grippers.backends import find_backend
+        from grippers.backends.command_hooks import commands_of
 
         profile_mm = self.g.profile.mechanics.stroke_mm
         info = self.g.info()
-        if hook(find_backend(info.family), "reports_stroke"):
+        if commands_of(find_backend(info.family)).reports_stroke:
             # The device reports its own limits; the backend narrows the profile's with them.
             self.stroke_mm = m_to_mm(info.limits.stroke)
             ok = abs(self.stroke_mm - profile_mm) <= POSITION_TOLERANCE * profile_mm
@@ -324,15 +325,14 @@ class _Run:
         self.g.release()
 
     def settings(self) -> None:
-        from grippers.backends import find_backend, hook
+        """The family's own lines (its ``selftest_checks`` hook), which read its device client: they run
+        whether or not the family offers device settings (issue 40), and only where the client is here."""
+        from grippers.backends import find_backend
+        from grippers.backends.command_hooks import commands_of
 
-        from .settings_cmd import device_settings_of
-
-        info = self.g.info()
-        settings = device_settings_of(self.g)
-        if settings is None:  # the family's own checks run all the same (issue 40: they need no settings)
-            self.add("settings", "-", "-", "INFO", f"the {info.family} backend offers no device settings")
-        elif not settings.supports(self.g):
+        family = self.g.info().family
+        hooks = commands_of(find_backend(family))
+        if not hooks.local(self.g):
             self.add(
                 "settings",
                 "-",
@@ -341,9 +341,9 @@ class _Run:
                 "not served over the network: run selftest on the serving machine",
             )
             return
-        checks = hook(find_backend(info.family), "selftest_checks")
-        if checks is not None:
-            checks(self.g, self.add)
+        if hooks.read_settings(self.g) is None:
+            self.add("settings", "-", "-", "INFO", f"the {family} backend offers no device settings")
+        hooks.selftest_checks(self.g, self.add)
 
 
 def _document(run: _Run, args: argparse.Namespace, info: Any, written: str | None) -> dict[str, Any]:

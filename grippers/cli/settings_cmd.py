@@ -1,14 +1,14 @@
 """``grippers settings URL``: read, and change, what a gripper stores besides its motion.
 
-What a family offers is its backend's ``device_settings`` hook (which options it takes, how they are
-checked, changed and read); this module parses the options and shows the result. The built-in families:
-WSG: temperature, soft limits, device tag, acceleration, force limit, finger information (WSG manual 4.0.x
-§3.3-§3.5 and §3.6, commands 30h-36h, 40h, 52h/53h, 60h-63h). MSG on a STEPFOC driver: temperature, supply
-voltage, the CAN node id (command 11), the watchdog (15) and the heartbeat (30), which are saved to flash
-(command 13) behind a confirmation: a node id that no program expects makes the gripper disappear from the
-bus, and a saved watchdog or heartbeat acts at every power-up after (STEPFOC firmware, src/EEPROM.cpp stores
-both periods; src/communication_CAN.cpp ``CAN_watchdog`` is fed only by 61s, data packs and remote requests).
-Device units are shown as the devices use them (mm, mm/s², N, °C).
+What a family offers is in its backend's command hooks (``settings_options``, ``check_settings``,
+``change_settings``, ``read_settings``: grippers.backends.CommandHooks); this module parses the options and
+shows the result. The built-in families: WSG: temperature, soft limits, device tag, acceleration, force limit,
+finger information (WSG manual 4.0.x §3.3-§3.5 and §3.6, commands 30h-36h, 40h, 52h/53h, 60h-63h). MSG on a
+STEPFOC driver: temperature, supply voltage, the CAN node id (command 11), the watchdog (15) and the heartbeat
+(30), which are saved to flash (command 13) behind a confirmation: a node id that no program expects makes the
+gripper disappear from the bus, and a saved watchdog or heartbeat acts at every power-up after (STEPFOC
+firmware, src/EEPROM.cpp stores both periods; src/communication_CAN.cpp ``CAN_watchdog`` is fed only by 61s,
+data packs and remote requests). Device units are shown as the devices use them (mm, mm/s², N, °C).
 
 Every value is checked, and every conflict found, before the first byte that changes the device is sent: a
 refused setting never leaves half of a command line applied.
@@ -34,7 +34,7 @@ EXAMPLE = (
     "         (which of these a gripper takes is its family's to say: grippers settings URL shows them)"
 )
 
-# Every option a family's ``device_settings`` may take (argparse dests): one given that the gripper's family
+# Every option a family's ``settings_options`` may name (argparse dests): one given that the gripper's family
 # does not take is refused by name before anything is sent.
 SETTING_OPTIONS = (
     "soft_limits",
@@ -143,23 +143,18 @@ def _given(args: argparse.Namespace, option: str) -> bool:
     return getattr(args, option, None) not in (None, False, [])
 
 
-def device_settings_of(gripper: Any) -> Any:
-    """The ``device_settings`` hook of ``gripper``'s family (issue 28 §2), or None when it offers none."""
-    from grippers.backends import find_backend, hook
-
-    return hook(find_backend(gripper.info().family), "device_settings")
-
-
-def _refuse_unreachable(gripper: Any, hook: Any, family: str) -> None:
-    """Refuse before anything is written: a family without settings, or a gripper whose device client is
-    not here (a served one: issue 23 §3, the tag went out over the API, then the acceleration failed)."""
-    if hook is None:
-        raise UsageError(f"the {family} backend offers no device settings")
-    if not hook.supports(gripper):
+def _refuse_unreachable(gripper: Any, hooks: Any) -> None:
+    """Refuse before anything is written: a gripper whose device client is not here (a served one: issue 23
+    §3, the tag went out over the API, then the acceleration failed)."""
+    if not hooks.local(gripper):
         raise UsageError(
             f"{gripper.url}: device settings are not served over the network; run grippers settings on the "
             "machine that serves this gripper, with the device's own URL"
         )
+
+
+def _no_settings(family: str) -> UsageError:
+    return UsageError(f"the {family} backend offers no device settings")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -169,17 +164,24 @@ def run(args: argparse.Namespace) -> int:
     changed: list[str] = []
     new_url = None
     try:
+        from grippers.backends import find_backend
+        from grippers.backends.command_hooks import commands_of
+
         family = gripper.info().family
-        hook = device_settings_of(gripper)
-        _refuse_unreachable(gripper, hook, family)
-        foreign = [o for o in SETTING_OPTIONS if _given(args, o) and o not in hook.OPTIONS]
+        hooks = commands_of(find_backend(family))
+        _refuse_unreachable(gripper, hooks)
+        foreign = [o for o in SETTING_OPTIONS if _given(args, o) and o not in hooks.settings_options]
+        if foreign and not hooks.settings_options:
+            raise _no_settings(family)
         if foreign:
             names = ", ".join("--" + o.replace("_", "-") for o in foreign)
-            takes = ", ".join("--" + o.replace("_", "-") for o in hook.OPTIONS) or "no option"
+            takes = ", ".join("--" + o.replace("_", "-") for o in hooks.settings_options)
             raise UsageError(f"{names}: not settings of a {family} gripper (it takes {takes})")
-        hook.check(gripper, args)
-        new_url = hook.change(gripper, args, changed)
-        values = hook.read(gripper)
+        hooks.check_settings(gripper, args)
+        new_url = hooks.change_settings(gripper, args, changed)
+        values = hooks.read_settings(gripper)
+        if values is None:
+            raise _no_settings(family)
     finally:
         gripper.close()
     document = {

@@ -1,9 +1,10 @@
 """``grippers sim FAMILY``: serve a simulated gripper of any installed family over a real transport.
 
-The family's backend says what its simulator takes (issue 28 §2): a backend with a ``cli_sim`` object (its
-``HELP``, ``EXAMPLE``, ``NAMES``, ``add_arguments(parser)`` and ``run(args, backend)``) has its own options
-(a WSG's ``--firmware``, an MSG's CAN nodes); a backend with only ``simulator(profile, settings, listen)``
-gets the common options (:class:`Generic`). The family is read first and its parser built then, so
+The family's command hooks say what its simulator takes (issue 28 §2, issue 40 §2): ``sim_help``,
+``sim_example`` and ``sim_names`` word the command; a family whose ``sim_command()`` gives an object
+(``add_arguments(parser)``, ``run(args, backend)``) has its own options (a WSG's ``--firmware``, an MSG's CAN
+nodes); the others get the common options over the backend's ``simulator(profile, settings, listen)``
+(:class:`Generic`). The family is read first and its parser built then, so
 ``grippers --help`` loads no backend.
 """
 
@@ -35,17 +36,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 class Generic:
-    """The ``grippers sim`` of a family that declares no ``cli_sim``: a profile, where to listen, the clock
+    """The ``grippers sim`` of a family without a ``sim_command()``: a profile, where to listen, the clock
     and a part, passed to the backend's ``simulator(profile, settings, listen)``."""
 
-    NAMES: tuple[str, ...] = ()
-
-    def __init__(self, family: str, backend: Any) -> None:
-        from grippers.backends import hook
-
+    def __init__(self, family: str) -> None:
         self.family = family
-        self.HELP = hook(backend, "sim_help") or f"simulate a {family} gripper with its backend's simulator"
-        self.EXAMPLE = hook(backend, "sim_example") or f"grippers sim {family} --listen pty --model NAME"
 
     def add_arguments(self, parser: argparse.ArgumentParser) -> None:
         from .sim_common import add_sim_arguments
@@ -59,14 +54,14 @@ class Generic:
         )
 
     def run(self, args: argparse.Namespace, backend: Any) -> int:
-        from grippers.backends import hook
+        from grippers.backends.command_hooks import commands_of
         from grippers.profiles import list_profiles, load_profile
 
         from .output import UsageError
         from .sim_common import serve_forever, settings_for, warn_private_bus
 
         if args.profile is None:
-            default = hook(backend, "default_profile") or next(
+            default = commands_of(backend).default_profile or next(
                 (p.name for p in list_profiles() if p.family == backend.family), None
             )
             if default is None:
@@ -86,9 +81,10 @@ class Generic:
 
 
 def _find(name: str) -> tuple[Any, Any]:
-    """The backend simulating ``name`` (a family, or a name its ``cli_sim`` declares, ``msg``) and its
-    command (its ``cli_sim``, or :class:`Generic`)."""
-    from grippers.backends import available_backends, find_backend, hook
+    """The backend simulating ``name`` (a family, or a name its ``sim_names`` declare, ``msg``) and its
+    command (its ``sim_command()``, or :class:`Generic`)."""
+    from grippers.backends import available_backends, find_backend
+    from grippers.backends.command_hooks import commands_of
 
     from .output import UsageError
 
@@ -99,28 +95,32 @@ def _find(name: str) -> tuple[Any, Any]:
                 other = find_backend(family)
             except Exception:  # a family whose optional dependency is missing has no simulator here
                 continue
-            if name in getattr(hook(other, "cli_sim"), "NAMES", ()):
+            if name in commands_of(other).sim_names:
                 backend = other
                 break
     if backend is None:
         raise UsageError(f"no family {name!r} to simulate (installed: {', '.join(available_backends())})")
-    command = hook(backend, "cli_sim")
+    command = commands_of(backend).sim_command()
     if command is None:
         if not callable(getattr(backend, "simulator", None)):
             raise UsageError(f"the {backend.family} family offers no simulator")
-        command = Generic(name, backend)
+        command = Generic(name)
     return backend, command
 
 
 def family_parser(name: str) -> tuple[argparse.ArgumentParser, Any, Any]:
     """``grippers sim NAME``'s own parser (its help, options and example), its backend and its command."""
+    from grippers.backends.command_hooks import commands_of
+
     from . import EXIT_CODES, _Parser, logs
 
     backend, command = _find(name)
+    hooks = commands_of(backend)
+    example = hooks.sim_example or f"grippers sim {name} --listen pty --model NAME"
     parser = _Parser(
         prog=f"grippers sim {name}",
-        description=command.HELP,
-        epilog=f"Example: {command.EXAMPLE}\n{EXIT_CODES}",
+        description=hooks.sim_help or f"simulate a {name} gripper with its backend's simulator",
+        epilog=f"Example: {example}\n{EXIT_CODES}",
         formatter_class=argparse.RawDescriptionHelpFormatter,  # the examples, one per line
     )
     parser.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help="show tracebacks")

@@ -20,12 +20,13 @@ Forms = Mapping[str, Sequence[str]]  # bare transport -> the family URL forms to
 def bare_forms() -> dict[str, list[str]]:
     """What a bare transport carries, from every installed family's backend (its ``bare_forms``: transport ->
     (rank, form)), best-ranked first: the family URLs to suggest for ``tcp://HOST`` and the like."""
-    from grippers.backends import available_backends, find_backend, hook
+    from grippers.backends import available_backends, find_backend
+    from grippers.backends.command_hooks import commands_of
 
     ranked: dict[str, list[tuple[int, str]]] = {}
     for family in available_backends():
         try:
-            forms = hook(find_backend(family), "bare_forms") or {}
+            forms = commands_of(find_backend(family)).bare_forms()
         except Exception:  # a family whose optional dependency is missing: no hint from it
             continue
         for transport, (rank, form) in forms.items():

@@ -21,13 +21,15 @@ Four parts, each usable alone:
 - **The polled-motion helper** (from :mod:`grippers.kit.motion`): :func:`poll_until` waits for a motion's
   end by polling the device, ends the wait when a stop or a newer motion comes (:class:`MotionEpochs`), at
   close or at the timeout, and maps the device's faults.
-- **The hooks' values** (docs/backends.md, "Hooks the commands call"): what a family's optional hooks return
-  and take, under one import with the rest: :class:`ProbeCandidate`, :class:`RawProbe`, :class:`Identity` and
-  :func:`bus_query` (``grippers probe``), :class:`Dissector`, :class:`CanDissector` and :func:`monitor_record`
-  (``grippers monitor``: one record of its JSON document, ``raw`` as hex text), and :class:`ServoTarget` (what
-  a ``servo`` feature's ``send()`` receives). They are defined where the library uses them
-  (:mod:`grippers.backends`, :mod:`grippers.servo`, the drivers' ``dissect``); this is where a plugin imports
-  them from.
+- **The command hooks** (docs/backends.md, "Hooks the commands call"): :class:`CommandHooks`, the one object
+  a family offers the commands as its backend's ``commands`` (every hook with a default; :func:`commands_of`
+  finds it), and what the hooks
+  take and return, under one import with the rest: :class:`ProbeCandidate`, :class:`RawProbe`,
+  :class:`Identity` and :func:`bus_query` (``grippers probe``), :class:`Dissector`, :class:`CanDissector` and
+  :func:`monitor_record` (``grippers monitor``: one record of its JSON document, ``raw`` as hex text),
+  :class:`SimCommand` (a family's own ``grippers sim``) and :class:`ServoTarget` (what a ``servo`` feature's
+  ``send()`` receives). They are defined where the library uses them (the backends' ``command_hooks``,
+  :mod:`grippers.servo`, the drivers' ``dissect``); this is where a plugin imports them from.
 
 Everything here is public and stable for plugin authors; the drivers layer underneath imports nothing of
 :mod:`grippers`, so a family's driver may use the same classes from ``grippers.drivers``.
@@ -75,13 +77,23 @@ from grippers.drivers.simkit import (
     flip_last_byte,
 )
 
-from ..backends import Dissector, Identity, ProbeCandidate, RawProbe, bus_query
+from ..backends.command_hooks import (
+    CommandHooks,
+    Dissector,
+    Identity,
+    ProbeCandidate,
+    RawProbe,
+    SimCommand,
+    bus_query,
+    commands_of,
+)
 from ..servo import ServoTarget
 from .motion import MotionEpochs, poll_until
 
 __all__ = [
     "ByteLink",
     "CanDissector",
+    "CommandHooks",
     "DeviceSession",
     "Dissector",
     "ExceptionCode",
@@ -112,11 +124,13 @@ __all__ = [
     "ServerDeviceFailure",
     "ServoTarget",
     "SimClock",
+    "SimCommand",
     "SimServer",
     "TcpLink",
     "TraceFn",
     "apply_fault",
     "bus_query",
+    "commands_of",
     "first_half",
     "flip_last_byte",
     "modbus_exception",

@@ -61,7 +61,8 @@ def test_a_width_outside_the_soft_limits_names_them_not_the_status_code() -> Non
 def test_setting_the_wsg_force_limit_says_the_next_grasp_changes_it() -> None:
     """Issue 39 §2: ``settings --force-limit`` then a stronger grasp changed the limit silently. Setting it
     says so (a GripperWarning: a ``warning:`` line of the command), and a grasp does change it."""
-    from grippers.backends.wsg_settings import WsgDeviceSettings
+    from grippers.backends import find_backend
+    from grippers.backends.command_hooks import commands_of
 
     with grippers.open("sim://wsg50") as g:
         g.home()
@@ -69,7 +70,7 @@ def test_setting_the_wsg_force_limit_says_the_next_grasp_changes_it() -> None:
             soft_limits=None, clear_soft_limits=False, tag=None, acceleration=None, force_limit=20.0
         )
         with pytest.warns(GripperWarning, match="until the next grasp"):
-            WsgDeviceSettings().change(g, args, [])
+            commands_of(find_backend("wsg")).change_settings(g, args, [])
         assert g.driver.force_limit() == pytest.approx(20.0)
         g.grasp(0.020, force=40.0)
         assert g.driver.force_limit() == pytest.approx(40.0)  # what the warning and docs/cli.md say

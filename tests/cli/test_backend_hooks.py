@@ -1,95 +1,80 @@
-"""``grippers.backends.hook``: where the CLI finds what a family offers (issue 28 §2).
-
-A family's CLI module (``X_cli`` beside its backend's module ``X``) is asked first, then the backend object;
-a backend in a top-level module (a plugin's) has only its attributes; a family without the hook gives None,
-and the command says so in words that fit every family.
+"""``grippers.backends.commands_of``: the one place the commands find what a family offers them (issue 40
+§2): its backend's ``commands`` (a :class:`~grippers.backends.CommandHooks`), or the defaults, which derive
+the probe's candidates and the "did you mean" forms from the family's profile URLs.
 """
 
 from __future__ import annotations
 
-import sys
-import types
-
 import pytest
 
-from grippers.backends import find_backend, hook
+from grippers.backends import find_backend
+from grippers.kit import CommandHooks, ProbeCandidate, commands_of
+from grippers.urls import parse_url
 
 
-def _install(monkeypatch: pytest.MonkeyPatch, name: str, **attrs: object) -> types.ModuleType:
-    module = types.ModuleType(name)
-    for key, value in attrs.items():
-        setattr(module, key, value)
-    monkeypatch.setitem(sys.modules, name, module)
-    return module
+def _bare(url: str):
+    return parse_url(url, bare_family="bare")
 
 
-def test_the_cli_module_wins_over_the_backend(monkeypatch: pytest.MonkeyPatch) -> None:
-    import grippers.backends as registry
+class Plain:
+    """A backend with no ``commands``: every hook is the default."""
 
-    monkeypatch.setattr(registry, "_cli_modules", {})
-    backend_module = _install(monkeypatch, "grippers.backends._hooktest")
-    _install(monkeypatch, "grippers.backends._hooktest_cli", factory_address="tcp://10.0.0.9:7")
-
-    class Backend:
-        factory_address = "tcp://10.0.0.1:1"
-        bare_forms = {"tcp": (1, "x+tcp://{rest}")}
-
-    Backend.__module__ = backend_module.__name__
-    backend = Backend()
-    assert hook(backend, "factory_address") == "tcp://10.0.0.9:7"  # the CLI module's
-    assert hook(backend, "bare_forms") == {"tcp": (1, "x+tcp://{rest}")}  # not there: the backend's
-    assert hook(backend, "dissector") is None  # offered by neither
+    family = "plain"
+    profile_model = None
 
 
-def test_a_top_level_plugin_has_its_attributes_only(monkeypatch: pytest.MonkeyPatch) -> None:
-    import grippers.backends as registry
-
-    monkeypatch.setattr(registry, "_cli_modules", {})
-    _install(monkeypatch, "hooktest_plugin")
-    _install(monkeypatch, "hooktest_plugin_cli", factory_address="tcp://10.0.0.9:7")  # not its CLI module
-
-    class Backend:
-        pass
-
-    Backend.__module__ = "hooktest_plugin"
-    assert hook(Backend(), "factory_address") is None
-    assert hook(None, "dissector") is None  # an unknown family
+def test_a_backend_without_commands_gets_the_defaults(monkeypatch: pytest.MonkeyPatch) -> None:
+    hooks = commands_of(Plain())
+    assert type(hooks) is CommandHooks and hooks.family == "plain"
+    assert hooks.dissector() is None and hooks.raw_probe("tcp") is None and hooks.factory_address is None
+    assert hooks.read_settings(object()) is None and hooks.sim_command() is None
+    assert not hooks.reports_stroke and hooks.probe_identity(object()) is None
+    # No profile names the family: nothing to derive a candidate from.
+    assert hooks.probe_candidates("tcp", _bare("tcp://10.0.0.5"), {}) == []
+    assert commands_of(None).family == ""  # an unknown family: the defaults of none
 
 
-def test_a_missing_cli_module_is_no_hook_a_broken_one_an_error(monkeypatch: pytest.MonkeyPatch) -> None:
-    import grippers.backends as registry
+def test_the_default_candidates_come_from_the_family_profile_urls(monkeypatch: pytest.MonkeyPatch) -> None:
+    hooks = CommandHooks()
+    hooks.bind(Plain())
+    monkeypatch.setattr(hooks, "_transports", ("tcp", "can"), raising=False)  # as if its profiles said so
+    assert hooks.probe_candidates("tcp", _bare("tcp://10.0.0.5:7"), {}) == [
+        ProbeCandidate("plain+tcp://10.0.0.5:7", order=50)
+    ]
+    assert hooks.probe_candidates("tcp", _bare("tcp://10.0.0.5"), {})[0].url == "plain+tcp://10.0.0.5"
+    assert hooks.probe_candidates("serial", _bare("serial:///dev/ttyX"), {}) == []  # no profile on serial
+    assert hooks.probe_candidates("can", _bare("can://virtual/x"), {}) == []  # node ids unknown: none
+    assert hooks.bare_forms() == {"tcp": (50, "plain+tcp://{rest}")}
 
-    monkeypatch.setattr(registry, "_cli_modules", {})
 
-    class Quiet:
-        pass
+def test_a_served_gripper_is_not_local() -> None:
+    class Opened:
+        url = "zenoh://hand?connect=tcp/127.0.0.1:7447"
 
-    Quiet.__module__ = "grippers.backends._no_such_family"
-    assert hook(Quiet(), "dissector") is None
+    hooks = commands_of(find_backend("wsg"))
+    assert not hooks.local(Opened())
+    Opened.url = "wsg+tcp://127.0.0.1:1000"
+    assert hooks.local(Opened())
 
-    def broken_import(name: str, *args: object, **kwargs: object) -> object:
-        raise ModuleNotFoundError("No module named 'needed_extra'", name="needed_extra")
 
-    class Broken:
-        pass
+def test_commands_that_are_not_command_hooks_are_refused() -> None:
+    class Wrong:
+        family = "wrong"
+        commands = object()
 
-    Broken.__module__ = "grippers.backends._broken_family"
-    monkeypatch.setattr(registry.importlib, "import_module", broken_import)
-    with pytest.raises(ModuleNotFoundError, match="needed_extra"):
-        hook(Broken(), "dissector")
+    with pytest.raises(TypeError, match="CommandHooks"):
+        commands_of(Wrong())
 
 
 def test_the_built_in_families_ports_come_from_their_profile_models() -> None:
     """The WSG's factory address, probe ports and serial speed are its profile model's (issue 32 §4)."""
     from grippers.backends.wsg_profile import WsgTransport
-    from grippers.urls import parse_url
 
-    wsg = find_backend("wsg")
+    wsg = commands_of(find_backend("wsg"))
     t = WsgTransport()
-    assert hook(wsg, "factory_address") == f"tcp://192.168.1.20:{t.tcp_port}"
-    probe = hook(wsg, "probe_candidates")
-    assert [c.url for c in probe("udp", parse_url("udp://10.0.0.5", bare_family="bare"), {})] == [
+    assert wsg.factory_address == f"tcp://192.168.1.20:{t.tcp_port}"
+    assert [c.url for c in wsg.probe_candidates("udp", _bare("udp://10.0.0.5"), {})] == [
         f"wsg+udp://10.0.0.5:{t.udp_port}"
     ]
-    serial = probe("serial", parse_url("serial:///dev/ttyX", bare_family="bare"), {})
+    serial = wsg.probe_candidates("serial", _bare("serial:///dev/ttyX"), {})
     assert serial[0].url.endswith(f"?baudrate={t.baudrate}")

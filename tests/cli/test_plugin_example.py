@@ -106,6 +106,7 @@ ACME_PLUGIN = """
 from typing import Literal
 
 from grippers.backends.robotiq import RobotiqBackend, RobotiqProfile
+from grippers.kit import CommandHooks
 
 
 class AcmeProfile(RobotiqProfile):
@@ -115,15 +116,12 @@ class AcmeProfile(RobotiqProfile):
 class AcmeBackend(RobotiqBackend):
     family = "acme"
     profile_model = AcmeProfile
-    default_profile = None  # `grippers sim acme`: the first acme profile on the search path
+    commands = CommandHooks()  # the defaults: `grippers sim acme` simulates the first acme profile found
 
     def simulator(self, profile, settings, listen=None):
         server = super().simulator(profile, settings, listen)
         server.url = server.url.replace("robotiq+", "acme+", 1)
         return server
-
-    def simulate(self, profile, settings):
-        return self.simulator(profile, settings)
 """
 
 ACME_PROFILE = """

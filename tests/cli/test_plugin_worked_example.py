@@ -14,6 +14,7 @@ import os
 import shutil
 import subprocess
 import sys
+import time
 import tomllib
 from collections.abc import Iterator
 from pathlib import Path
@@ -116,11 +117,14 @@ def test_probe_and_state_commands(acme_site: Path) -> None:
     assert doc["referenced"] is False and doc["width_mm"] == pytest.approx(0.0)
 
 
-def test_grippers_sim_serves_it_and_probe_finds_it_on_a_bare_tcp_host(acme_site: Path) -> None:
-    """``grippers sim acme``: the generic sim command with the plugin's ``simulator`` hook; then ``grippers
-    probe tcp://HOST:PORT`` tries the plugin's ``probe_candidates`` and names the ACME gripper there."""
+def test_every_command_on_the_served_simulator(acme_site: Path) -> None:
+    """``grippers sim acme``: the generic sim command over the plugin's ``simulator``; then, against its URL,
+    prints, every command a user runs: state, info, the motions, stop and ack, settings (read and change,
+    through the plugin's command hooks), and ``grippers probe tcp://HOST:PORT``, whose candidate the hooks'
+    defaults build from the profile's URL and whose identity check reads the R1's model register."""
     env = {**os.environ, "PYTHONPATH": str(acme_site), "PYTHONUNBUFFERED": "1"}
     cmd = [sys.executable, "-m", "grippers", "sim", "acme", "--listen", "tcp://127.0.0.1:0", "--json"]
+    cmd += ["--part-width", "30", "--time-scale", "20"]
     proc = subprocess.Popen(cmd, cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         assert proc.stdout is not None
@@ -129,19 +133,61 @@ def test_grippers_sim_serves_it_and_probe_finds_it_on_a_bare_tcp_host(acme_site:
         url = json.loads(line)["urls"][0]
         assert url.startswith("acme+tcp://127.0.0.1:"), url
         port = url.rsplit(":", 1)[1]
-        state = _grippers(acme_site, "state", url, "--json")
-        assert state.returncode == 0 and json.loads(state.stdout)["state"]["referenced"] is False, (
-            state.stderr
-        )
-        probe = _grippers(acme_site, "probe", f"tcp://127.0.0.1:{port}")
+
+        def ok(*args: str) -> str:
+            r = _grippers(acme_site, *args)
+            assert r.returncode == 0, f"grippers {' '.join(args)}: {r.stdout}{r.stderr}"
+            return r.stdout
+
+        assert json.loads(ok("state", url, "--json"))["state"]["referenced"] is False
+        assert "R1" in ok("info", url) and "acme-r1" in ok("info", url)
+        ok("home", url)
+        assert json.loads(ok("move", url, "50", "--json"))["result"]["width_mm"] == pytest.approx(50, abs=1)
+        grasp = _grippers(acme_site, "grasp", url, "30", "--force", "20")
+        assert grasp.returncode == 0, grasp.stdout + grasp.stderr
+        ok("release", url)
+        ok("stop", url)
+        ok("stop", url, "--fast")
+        ok("ack", url)
+        assert json.loads(ok("settings", url, "--json"))["settings"] == {"force_limit_n": 100.0}
+        changed = json.loads(ok("settings", url, "--force-limit", "60", "--json"))
+        assert changed["settings"] == {"force_limit_n": 60.0} and changed["changed"] == ["force_limit_n"]
+        refused = _grippers(acme_site, "settings", url, "--force-limit", "500")
+        assert refused.returncode == 2 and "force" in refused.stderr, refused.stderr  # outside the profile's
+        other = _grippers(acme_site, "settings", url, "--tag", "x")
+        assert other.returncode == 2 and "it takes --force-limit" in other.stderr, other.stderr
+        probe = _grippers(acme_site, "probe", f"tcp://127.0.0.1:{port}", "--json")
         assert probe.returncode == 0, probe.stdout + probe.stderr
-        assert f"acme+tcp://127.0.0.1:{port}" in probe.stdout and "R1" in probe.stdout
+        found = [g for g in json.loads(probe.stdout)["grippers"] if g["url"].startswith("acme+")]
+        assert [g["url"] for g in found] == [f"acme+tcp://127.0.0.1:{port}"] and found[0]["model"] == "R1"
     finally:
         proc.terminate()
         proc.wait(10)
         for stream in (proc.stdout, proc.stderr):
             if stream:
                 stream.close()
+
+
+def test_its_identity_check_reads_the_model_register(installed: Path) -> None:
+    from grippers.backends.command_hooks import commands_of
+
+    with grippers.open("sim://acme-r1") as g:
+        said = commands_of(grippers.backends.get_backend("acme")).probe_identity(g)
+    assert said is not None and said.mine is True and "0x5231" in said.reason
+
+
+def test_servo_heads_for_the_newest_target(installed: Path) -> None:
+    with grippers.open("sim://acme-r1?time_scale=20") as g:
+        g.home()
+        g.servo(0.06)
+        g.servo(0.045)  # the newer target wins, without a stop in between
+        assert g.servo_flush(10)
+        deadline = time.monotonic() + 10
+        while abs(g.state().width - 0.045) > 0.001 and time.monotonic() < deadline:
+            time.sleep(0.02)
+        assert g.state().width == pytest.approx(0.045, abs=0.001)
+        g.stop()
+        assert g.move(0.07).width == pytest.approx(0.07)  # a motion after servoing
 
 
 def test_selftest_runs_on_it(acme_site: Path) -> None:
@@ -153,7 +199,8 @@ def test_selftest_runs_on_it(acme_site: Path) -> None:
     assert r.returncode in (0, 3), r.stdout + r.stderr
     lines = assert_passes_but_timed_speeds(json.loads(r.stdout))
     assert "home (1st)" in lines and "close without a part" in lines, sorted(lines)
-    assert lines["settings"]["note"] == "the acme backend offers no device settings", lines["settings"]
+    assert "settings" not in lines, lines["settings"]  # the family offers settings: no "offers none" line
+    assert lines["force limit"]["verdict"] == "PASS", lines["force limit"]  # the plugin's selftest_checks
 
 
 def test_monitor_reads_a_capture_with_the_plugin_dissector(acme_site: Path, tmp_path: Path) -> None:

@@ -17,24 +17,13 @@ import grippers
 import grippers.backends as registry
 from grippers.cli import main
 from grippers.cli.schemas import validate
-from grippers.kit import Identity, ProbeCandidate
+from grippers.kit import CommandHooks, Identity, ProbeCandidate
 
 pytestmark = pytest.mark.timeout(90)
 
 
-class TwinBackend:
-    """A family on the Robotiq register map: its devices answer the same Modbus reads."""
-
-    family = "twin"
-    profile_model = None
-    verdict: Identity | None = None  # what its identity check reads back (set by each test)
-
-    def open(self, url, profile, settings):
-        timeout = settings.positive("timeout", 1.0)
-        baudrate = settings.int("baudrate", 115200)
-        settings.check()
-        target = f"robotiq+serial://{url.serial_port}?baudrate={baudrate}&profile=robotiq-2f85"
-        return grippers.open(target, timeout=timeout)
+class TwinCommands(CommandHooks):
+    """Its command hooks: a candidate on a bare serial port, speaking Modbus RTU, and its identity check."""
 
     def probe_candidates(self, transport, where, options):
         if transport != "serial":
@@ -43,7 +32,23 @@ class TwinBackend:
         return [ProbeCandidate(url, order=25, protocol="modbus-rtu")]
 
     def probe_identity(self, gripper):
-        return self.verdict
+        return self.backend.verdict
+
+
+class TwinBackend:
+    """A family on the Robotiq register map: its devices answer the same Modbus reads."""
+
+    family = "twin"
+    profile_model = None
+    verdict: Identity | None = None  # what its identity check reads back (set by each test)
+    commands = TwinCommands()
+
+    def open(self, url, profile, settings):
+        timeout = settings.positive("timeout", 1.0)
+        baudrate = settings.int("baudrate", 115200)
+        settings.check()
+        target = f"robotiq+serial://{url.serial_port}?baudrate={baudrate}&profile=robotiq-2f85"
+        return grippers.open(target, timeout=timeout)
 
 
 @pytest.fixture

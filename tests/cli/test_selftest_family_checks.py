@@ -1,9 +1,9 @@
-"""A family's ``selftest_checks`` run whether or not it offers ``device_settings`` (issue 40: a plugin had to
+"""A family's ``selftest_checks`` run whether or not it offers device settings (issue 40: a plugin had to
 add a read-only settings hook only to get its own self-test lines).
 
-The Robotiq offers no device settings; its backend is given a ``selftest_checks`` hook for the test (the
-attribute lookup is the documented one, docs/backends.md "Where a hook is looked up"), and the run must carry
-its line beside the "offers no device settings" one.
+The Robotiq offers no device settings; its command hooks (``commands``, docs/backends.md "Hooks the commands
+call") are given a ``selftest_checks`` for the test, and the run must carry its line beside the "offers no
+device settings" one.
 """
 
 from __future__ import annotations
@@ -13,6 +13,7 @@ import json
 import pytest
 
 from grippers.backends import find_backend
+from grippers.backends.command_hooks import commands_of
 from grippers.cli import main
 
 from ..selftest_verdicts import assert_passes_but_timed_speeds
@@ -27,7 +28,7 @@ def test_a_family_without_settings_still_gets_its_selftest_lines(monkeypatch, ca
         seen.append(gripper.info().family)
         add("family check", "ok", "ok", "PASS", "from the family's hook")
 
-    monkeypatch.setattr(find_backend("robotiq"), "selftest_checks", selftest_checks, raising=False)
+    monkeypatch.setattr(commands_of(find_backend("robotiq")), "selftest_checks", selftest_checks)
     code = main(["selftest", "sim://robotiq-2f85?time_scale=5&activated=true", "--yes", "--json"])
     out = capsys.readouterr().out
     assert code in (0, 3), out

@@ -158,19 +158,18 @@ def test_a_newer_motion_supersedes_without_a_stop(g: Any) -> None:
     assert newer.wait(10).width == pytest.approx(target, abs=1e-3)
 
 
-def test_a_feature_the_device_leaves_none_is_not_supported(g: Any) -> None:
-    """The ACME R1 offers no servo object: servo() is NotSupported and nothing is sent; the Robotiq offers
-    one, so the same call moves it. Neither offers temperature, soft limits or a device tag."""
-    if g.device.servo is None:
-        target = g.simulator.model.target
-        with pytest.raises(NotSupported) as err:
-            g.servo(0.04, 0.1)
-        assert err.value.command == "servo" and g.name in str(err.value)
-        assert g.simulator.model.target == target and not g.state().moving  # nothing was sent
-    else:
-        g.servo(0.04, 0.15)
-        _until("the servo target reached", lambda: abs(g.state().width - 0.04) < 1e-3)
-        g.stop()
+def test_a_feature_the_device_leaves_none_is_not_supported(g: Any, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Both offer a servo object, so servo() moves them; left None (a device without one), servo() is
+    NotSupported and nothing is sent. Neither offers temperature, soft limits or a device tag."""
+    g.servo(0.04, 0.15)
+    _until("the servo target reached", lambda: abs(g.state().width - 0.04) < 1e-3)
+    g.stop()
+    monkeypatch.setattr(g.device, "servo", None)
+    width = g.state().width
+    with pytest.raises(NotSupported) as err:
+        g.servo(0.06, 0.1)
+    assert err.value.command == "servo" and g.name in str(err.value)
+    assert g.state().width == pytest.approx(width, abs=1e-4) and not g.state().moving  # nothing was sent
     assert g.device.temperature is None and g.device.soft_limits is None and g.device.device_tag is None
     for call in (g.temperature, lambda: g.set_soft_limits(0.01, 0.05), g.device_tag):
         with pytest.raises(NotSupported):

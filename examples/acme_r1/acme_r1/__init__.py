@@ -1,18 +1,21 @@
 """ACME R1 grippers for the ``grippers`` library: the worked plugin of docs/backends.md.
 
 Three parts, as in every family: ``codec.py`` (the frames, sans-IO), ``sim.py`` (a simulator on the same
-codec) and this module: the profile model (the ``[acme]`` section), :class:`AcmeLink` (a socket and the
-exchange), :class:`AcmeDevice` (the public device contract, :class:`grippers.device.Device`, in SI units) and
-:class:`AcmeBackend` (what the entry point names: open, the simulator, the probe's candidates, the monitor's
-dissector). Only public names of ``grippers`` are used: the library's gripper holds the device and does the
-limits, the defaults, the motion rule, the streams, the fast-stop latch and close.
+codec) and this module: the profile model (the ``[acme]`` section), :class:`AcmeLink` (register reads and
+writes over the kit's TCP link), :class:`AcmeDevice` (the public device contract,
+:class:`grippers.device.Device`, in SI units, with reconnection and servoing), :class:`AcmeCommands` (what the
+commands ask beyond a gripper: settings, self-test lines, the probe's identity check, the monitor's dissector)
+and :class:`AcmeBackend` (what the entry point names: open and the simulator). Only public names of
+``grippers`` are used: the library's gripper holds the device and does the limits, the defaults, the motion
+rule, the streams, servoing, the fast-stop latch and close; the command hooks' defaults derive the probe's
+candidates from the profile's URL.
 """
 
 from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any, Literal
+from typing import TYPE_CHECKING, Literal
 
 from pydantic import BaseModel, ConfigDict
 
@@ -32,12 +35,15 @@ from grippers import (
     URLError,
 )
 from grippers.device import Device
-from grippers.kit import Dissector, MotionEpochs, ProbeCandidate, TcpLink, poll_until
+from grippers.kit import CommandHooks, Dissector, Identity, MotionEpochs, ServoTarget, TcpLink, poll_until
 from grippers.profiles import ProfileBase, load_profile
+from grippers.urls import parse_url
 
-from .codec import Control, Decoder, Frame, Reg, Status
+from .codec import MODEL_R1, Control, Decoder, Frame, Reg, Status
 
 if TYPE_CHECKING:
+    from argparse import Namespace
+
     from grippers.settings import Settings
     from grippers.urls import ConnectionURL
 
@@ -118,6 +124,7 @@ class AcmeDevice(Device):
         self.limits = profile.limits()
         self.epochs = MotionEpochs()  # a newer motion or a stop ends the older waits
         self.reconnection = AcmeReconnection(self)
+        self.servo = AcmeServo(self)
 
     @property
     def driver(self) -> AcmeLink:
@@ -137,11 +144,16 @@ class AcmeDevice(Device):
             return NotReferenced(f"{command} before home()", device=self.name, command=command)
         return CommandFailed("the device reports a fault", device=self.name, command=command)
 
-    def go(self, command: str, width: float, speed: float, force: float, timeout: float) -> Reading:
-        """Write the target and GO (HOME for home), then poll until the jaws rest (grippers.kit.motion)."""
+    def send(self, command: str, width: float, speed: float, force: float) -> int:
+        """Write the target and GO (HOME for home) in a new motion epoch, whose number it returns."""
         motion = self.epochs.begin(f"superseded by a newer motion before it ended ({command})")
         self.link.write(Reg.TARGET, round(width * 10_000), round(speed * 1000), round(force), command=command)
         self.link.write(Reg.CONTROL, Control.HOME if command == "home" else Control.GO, command=command)
+        return motion
+
+    def go(self, command: str, width: float, speed: float, force: float, timeout: float) -> Reading:
+        """Send the motion, then poll until the jaws rest (grippers.kit.motion)."""
+        motion = self.send(command, width, speed, force)
         return poll_until(
             lambda: self.status(command),
             lambda reading: not reading[0] & Status.MOVING,
@@ -237,17 +249,70 @@ class AcmeReconnection:
         old.close()
 
 
-class AcmeBackend:
-    """What the ``grippers.backends`` entry point names: the family's name, its profile model, and hooks."""
+class AcmeServo:
+    """``Gripper.servo()``: each target sent with GO at once; the R1 heads for the newest without a stop."""
 
-    family = "acme"
-    profile_model = AcmeProfile
+    def __init__(self, device: AcmeDevice) -> None:
+        self.device = device
+
+    def begin(self) -> None:
+        pass
+
+    def send(self, target: ServoTarget) -> bool:
+        force = self.device.limits.min_force if target.force is None else target.force
+        self.device.send("servo", target.width, target.speed, force)
+        return True
+
+    def end(self) -> None:
+        pass
+
+
+class AcmeCommands(CommandHooks):
+    """What the commands ask of the family beyond a gripper; the probe's candidates are the defaults', built
+    from the profile's URL (``acme+tcp://HOST``)."""
+
     default_profile = "acme-r1"  # `grippers sim acme` without --model
     sim_help = "simulate an ACME R1 gripper on loopback TCP"
     sim_example = "grippers sim acme --listen tcp://127.0.0.1:5500 --part-width 30"
+    settings_options = ("force_limit",)
+
+    def dissector(self) -> Dissector:
+        from .codec import AcmeDissector
+
+        return Dissector("acme", stream=AcmeDissector, tcp_port=AcmeSection().tcp_port)
+
+    def probe_identity(self, gripper: Gripper) -> Identity:
+        (model,) = gripper.driver.read(Reg.MODEL, 1, "probe")
+        return Identity(model == MODEL_R1, f"register MODEL holds {model:#06x}")
+
+    def read_settings(self, gripper: Gripper) -> dict[str, float]:
+        return {"force_limit_n": float(gripper.driver.read(Reg.FORCE_LIMIT, 1, "settings")[0])}
+
+    def check_settings(self, gripper: Gripper, args: Namespace) -> None:
+        if args.force_limit is not None:
+            gripper.check(force=args.force_limit, command="force_limit")  # the profile's force range
+
+    def change_settings(self, gripper: Gripper, args: Namespace, changed: list[str]) -> None:
+        if args.force_limit is not None:
+            gripper.driver.write(Reg.FORCE_LIMIT, round(args.force_limit), command="settings")
+            changed.append("force_limit_n")
+
+    def selftest_checks(self, gripper: Gripper, add: Callable[..., None]) -> None:
+        limit = self.read_settings(gripper)["force_limit_n"]
+        ok = limit >= gripper.limits.max_force
+        add("force limit", f"{limit:g} N", f">= {gripper.limits.max_force:g} N", "PASS" if ok else "WARN")
+
+
+class AcmeBackend:
+    """What the ``grippers.backends`` entry point names: the family's name, its profile model, the command
+    hooks, ``open`` and the simulator."""
+
+    family = "acme"
+    profile_model = AcmeProfile
+    commands = AcmeCommands()
 
     def open(self, url: ConnectionURL, profile: ProfileBase | None, settings: Settings) -> Gripper:
-        profile = profile or load_profile(self.default_profile)
+        profile = profile or load_profile("acme-r1")
         if not isinstance(profile, AcmeProfile):
             raise URLError(f"{url.url}: profile {profile.name!r} is not an ACME profile")
         if url.transport != "tcp" or not url.host:
@@ -259,30 +324,16 @@ class AcmeBackend:
         return Gripper(device, profile, url.url, timeout=timeout)
 
     def simulator(self, profile: ProfileBase, settings: Settings, listen: str | None = None) -> AcmeServer:
-        """A simulated R1 on loopback TCP (``listen``: tcp://127.0.0.1:PORT, default a free port)."""
+        """A simulated R1 on loopback TCP (``listen``: tcp://HOST:PORT, default a free port); ``sim://``,
+        ``grippers sim acme`` and the conformance suite start it."""
         from .sim import AcmeModel, AcmeServer  # imported when a simulator is started
 
         assert isinstance(profile, AcmeProfile)
-        host, _, port = (listen or "tcp://127.0.0.1:0").removeprefix("tcp://").rpartition(":")
-        if not host or not port.isdigit():
+        where = parse_url(listen or "tcp://127.0.0.1:0", bare_family="acme", listen=True)
+        if where.transport != "tcp":
             raise URLError(f"{listen}: the ACME simulator listens on tcp://HOST:PORT")
-        part = settings.float("part_width_mm", profile.acme.part_width_mm)
-        model = AcmeModel(profile.mechanics.stroke_mm, part)
-        return AcmeServer(model, host, int(port), time_scale=settings.positive("time_scale", 1.0))
-
-    def simulate(self, profile: ProfileBase, settings: Settings) -> AcmeServer:
-        return self.simulator(profile, settings)
-
-    def dissector(self) -> Dissector:
-        """``grippers monitor``: the R1's frames in a byte capture or through the TCP proxy."""
-        from .codec import AcmeDissector
-
-        return Dissector("acme", stream=AcmeDissector, tcp_port=AcmeSection().tcp_port)
-
-    def probe_candidates(
-        self, transport: str, where: ConnectionURL, options: dict[str, Any]
-    ) -> list[ProbeCandidate]:
-        """``grippers probe tcp://HOST``: try the R1's port there too."""
-        if transport != "tcp" or not where.host:
-            return []
-        return [ProbeCandidate(f"acme+tcp://{where.host}:{where.port or AcmeSection().tcp_port}", order=60)]
+        model = AcmeModel(
+            profile.mechanics.stroke_mm, settings.float("part_width_mm", profile.acme.part_width_mm)
+        )
+        scale = settings.positive("time_scale", 1.0)
+        return AcmeServer(model, where.host or "127.0.0.1", where.port or 0, time_scale=scale)

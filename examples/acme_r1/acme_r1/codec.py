@@ -23,6 +23,11 @@ class Reg(IntEnum):
     CONTROL = 3  # write-only: a Control code
     STATUS = 4  # read-only: Status bits
     POSITION = 5  # read-only
+    FORCE_LIMIT = 6  # stored: the most a GO presses with, whatever FORCE asks (N)
+    MODEL = 7  # read-only: MODEL_R1
+
+
+MODEL_R1 = 0x5231  # "R1": what the MODEL register of every R1 holds
 
 
 class Control(IntEnum):

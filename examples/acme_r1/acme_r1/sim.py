@@ -11,7 +11,7 @@ from __future__ import annotations
 from grippers.kit import SimServer
 from grippers.urls import format_host
 
-from .codec import ERR_ADDRESS, ERR_VALUE, Control, Decoder, Frame, FrameError, Reg, Status
+from .codec import ERR_ADDRESS, ERR_VALUE, MODEL_R1, Control, Decoder, Frame, FrameError, Reg, Status
 
 
 class AcmeModel:
@@ -20,7 +20,7 @@ class AcmeModel:
     def __init__(self, stroke_mm: float, part_width_mm: float | None = None) -> None:
         self.stroke, self.part = stroke_mm, part_width_mm
         self.position = self.target = 0.0  # powers up closed and not homed
-        self.speed, self.force = 50.0, 10.0
+        self.speed, self.force, self.force_limit = 50.0, 10.0, 100
         self.status = Status(0)
         self.t = 0.0
 
@@ -46,7 +46,7 @@ class AcmeModel:
 
     def read(self, addr: int, count: int) -> tuple[int, ...]:
         regs = [round(self.target * 10), round(self.speed), round(self.force), 0, int(self.status)]
-        regs.append(round(self.position * 10))
+        regs += [round(self.position * 10), self.force_limit, MODEL_R1]
         if addr + count > len(regs) or count == 0:
             raise LookupError(addr)
         return tuple(regs[addr : addr + count])
@@ -58,7 +58,9 @@ class AcmeModel:
             elif a == Reg.SPEED and v > 0:
                 self.speed = float(v)
             elif a == Reg.FORCE:
-                self.force = float(v)
+                self.force = float(min(v, self.force_limit))
+            elif a == Reg.FORCE_LIMIT and 0 < v <= 1000:
+                self.force_limit = v
             elif a == Reg.CONTROL and v in tuple(Control):
                 self.control(Control(v))
             else:
