@@ -37,9 +37,11 @@ import asyncio
 import dataclasses
 import inspect
 import logging
+import math
 import os
 import queue
 import threading
+import weakref
 from collections.abc import AsyncIterator, Callable, Coroutine, Generator
 from typing import Any, Concatenate, Generic, ParamSpec, TypeVar
 
@@ -193,6 +195,63 @@ def _deliver(
         pass
 
 
+class _Backstops:
+    """The time bounds of one loop's pending native reads, kept by one timer of that loop (not one each).
+
+    Why one: a timer per call (``call_later`` and its ``cancel``, every cancelled handle left in the loop's
+    heap until it is swept) cost 5-8 % of an in-process ``await g.state()`` (issue 43 §8; docs/performance.md,
+    target 13), and nearly every bound is cancelled unused. Here a read costs a dict entry; the timer is armed
+    for the earliest bound and, when it fires, ends the reads whose bound has passed and re-arms for the next.
+    Each read still ends at its own bound (a few milliseconds late at most, as any timer of a busy loop)."""
+
+    __slots__ = ("_loop", "_due", "_timer", "_at")
+
+    def __init__(self, loop: asyncio.AbstractEventLoop) -> None:
+        self._loop = loop
+        self._due: dict[asyncio.Future[Any], tuple[float, Callable[[], None]]] = {}
+        self._timer: asyncio.TimerHandle | None = None
+        self._at = math.inf
+
+    def add(self, fut: asyncio.Future[Any], bound: float, expire: Callable[[], None]) -> None:
+        """Call ``expire()`` once ``bound`` seconds have passed, unless :meth:`remove` came first."""
+        at = self._loop.time() + bound
+        self._due[fut] = (at, expire)
+        if at < self._at:
+            self._arm(at)
+
+    def remove(self, fut: asyncio.Future[Any]) -> None:
+        self._due.pop(fut, None)  # the timer stays armed: when it fires it finds nothing due, and stops
+
+    def _arm(self, at: float) -> None:
+        if self._timer is not None:
+            self._timer.cancel()
+        self._timer, self._at = self._loop.call_at(at, self._fire), at
+
+    def _fire(self) -> None:
+        self._timer, self._at = None, math.inf
+        now = self._loop.time() + _EARLY_S
+        late = [(fut, expire) for fut, (at, expire) in self._due.items() if at <= now]
+        for fut, expire in late:
+            del self._due[fut]
+            expire()
+        if self._due:
+            self._arm(min(at for at, _ in self._due.values()))
+
+
+_EARLY_S = 0.001  # a loop may run a timer up to its clock's resolution early: still this read's bound
+
+
+def _backstops(loop: asyncio.AbstractEventLoop) -> _Backstops:
+    """``loop``'s :class:`_Backstops`, made on first use (kept with the loop: it ends with it)."""
+    found = _BACKSTOPS.get(loop)
+    if found is None:
+        found = _BACKSTOPS[loop] = _Backstops(loop)
+    return found
+
+
+_BACKSTOPS: weakref.WeakKeyDictionary[asyncio.AbstractEventLoop, _Backstops] = weakref.WeakKeyDictionary()
+
+
 async def _awaited_read(
     loop: asyncio.AbstractEventLoop,
     fut: asyncio.Future[T],
@@ -202,10 +261,10 @@ async def _awaited_read(
 ) -> T:
     """Await a read the driver completes from its reader; give it up on cancel or at its timeout.
 
-    Where the driver keeps the time itself (``started.timeout`` None), a timer of this loop still bounds the
-    wait at ``backstop`` seconds: the driver's clock runs on its reader, and a reader that stalls (a bus read
-    by another event loop that ended, issue 33 §2) must not leave this await pending for ever. A few
-    microseconds a call (docs/performance.md, target 13).
+    Where the driver keeps the time itself (``started.timeout`` None), the loop still bounds the wait at
+    ``backstop`` seconds: the driver's clock runs on its reader, and a reader that stalls (a bus read by
+    another event loop that ended, issue 33 §2) must not leave this await pending for ever. The bound is kept
+    by the loop's one :class:`_Backstops` timer, not a timer per call (docs/performance.md, target 13).
     """
 
     bound = backstop if started.timeout is None else started.timeout
@@ -215,14 +274,15 @@ async def _awaited_read(
             text = f"no reply within {bound:g} s"
             fut.set_exception(GripperTimeout(text, device=device, command=started.command))
 
-    timer = loop.call_later(bound, too_late)
+    bounds = _backstops(loop)
+    bounds.add(fut, bound, too_late)
     try:
         return await fut
     except BaseException:
         started.cancel()  # cancelled or timed out: the exchange is abandoned, the next call goes at once
         raise
     finally:
-        timer.cancel()
+        bounds.remove(fut)
 
 
 class AsyncMotionHandle(Generic[T]):
