@@ -7,9 +7,9 @@ pays, which was most of the asyncio face's margin over the threaded call on the 
 §8; docs/performance.md, target 13). With a descriptor the event loop reads the bus itself, as it reads
 SocketCAN (drivers/stepfoc/can_reader.py), and the reply reaches its task with no hand-over.
 
-How: the same bus, channels and frames as python-can's (a ``VirtualBus`` subclass on python-can's own channel
-table, so other users of the channel, ours or not, see no difference), plus a Linux ``eventfd`` that is
-readable whenever a frame may be waiting. It is signalled only while a reader is registered on it
+How: the same bus, channels, queue and frames as python-can's (a ``VirtualBus`` subclass on python-can's own
+channel table, so other users of the channel, ours or not, see no difference), plus a Linux ``eventfd`` that
+is readable whenever a frame may be waiting. It is signalled only while a reader is registered on it
 (:meth:`WaitableVirtualBus.signal_reads`, set by the bus reader when an event loop takes the bus and cleared
 when it gives the bus back): a signal is a system call on the sender's thread, which a threaded program, whose
 reader thread blocks on the queue itself, should not pay for every frame.
@@ -27,7 +27,7 @@ import queue
 from typing import Any
 
 import can
-from can.interfaces.virtual import VirtualBus, channels_lock
+from can.interfaces.virtual import VirtualBus
 
 __all__ = ["WaitableVirtualBus", "waitable"]
 
@@ -37,23 +37,13 @@ def waitable() -> bool:
     return hasattr(os, "eventfd")
 
 
-class _SignallingQueue(queue.Queue[can.Message]):
-    """A bus's receive queue that writes its eventfd after each frame it queues, while ``signalled``."""
-
-    def __init__(self, fd: int, maxsize: int) -> None:
-        super().__init__(maxsize)
-        self.fd = fd
-        self.signalled = False
-
-    def _put(self, item: can.Message) -> None:  # called with self.mutex held (queue.Queue.put)
-        super()._put(item)
-        if self.signalled:
-            os.eventfd_write(self.fd, 1)
-
-
 class WaitableVirtualBus(VirtualBus):
     """python-can's ``VirtualBus`` (same arguments, same channels) with a ``fileno()`` an event loop can
-    wait on while :meth:`signal_reads` is on (see the module docstring)."""
+    wait on while :meth:`signal_reads` is on (see the module docstring).
+
+    While it is off, the bus is python-can's own to the instruction: its queue's ``put`` and its receive are
+    python-can's, not wrappers of them (a threaded program pays nothing for the descriptor it does not use);
+    turning it on sets the signalling ones on the instance."""
 
     def __init__(self, channel: Any = None, **kwargs: Any) -> None:
         self._fd = os.eventfd(0, os.EFD_NONBLOCK | os.EFD_CLOEXEC)
@@ -62,10 +52,6 @@ class WaitableVirtualBus(VirtualBus):
         except BaseException:
             os.close(self._fd)
             raise
-        signalling = _SignallingQueue(self._fd, self.queue.maxsize)
-        with channels_lock:  # swapped before anyone can have put a frame on the queue python-can made
-            self.channel[self.channel.index(self.queue)] = signalling
-            self.queue = signalling
 
     def fileno(self) -> int:
         return self._fd
@@ -74,16 +60,25 @@ class WaitableVirtualBus(VirtualBus):
         """Signal the descriptor for every frame from now on (``on``), or stop. Turned on, it is signalled
         at once if frames already wait, so a reader registered just before misses none."""
         q = self.queue
-        assert isinstance(q, _SignallingQueue)
-        with q.mutex:
+        with q.mutex:  # queue.Queue.put calls _put with it held: no frame is queued meanwhile
             if self._fd < 0:  # shut down
                 return
-            q.signalled = on
-            if on and q._qsize() > 0:
-                os.eventfd_write(self._fd, 1)
+            if on:
+                vars(q)["_put"] = self._put_and_signal
+                vars(self)["_recv_internal"] = self._recv_signalled
+                if q._qsize() > 0:  # type: ignore[attr-defined]  # queue.Queue's own, under its mutex
+                    os.eventfd_write(self._fd, 1)
+            else:
+                vars(q).pop("_put", None)
+                vars(self).pop("_recv_internal", None)
 
-    def _recv_internal(self, timeout: float | None) -> tuple[can.Message | None, bool]:
-        if timeout != 0:  # a thread that blocks on the queue itself
+    def _put_and_signal(self, item: can.Message) -> None:
+        """The queue's ``_put`` while signalled (called with its mutex held): queue, then signal."""
+        self.queue.queue.append(item)  # type: ignore[attr-defined]  # what queue.Queue._put does
+        os.eventfd_write(self._fd, 1)
+
+    def _recv_signalled(self, timeout: float | None) -> tuple[can.Message | None, bool]:
+        if timeout != 0:  # a thread that blocks on the queue itself (a blocked loop's own request)
             return super()._recv_internal(timeout)
         self._check_if_open()
         q = self.queue
@@ -103,10 +98,8 @@ class WaitableVirtualBus(VirtualBus):
         try:
             super().shutdown()
         finally:
-            q = self.queue
-            with q.mutex:  # no frame signals the descriptor once it is closed (it may be reused)
-                if isinstance(q, _SignallingQueue):
-                    q.signalled = False
+            self.signal_reads(False)  # no frame signals the descriptor once it is closed (it may be reused)
+            with self.queue.mutex:
                 fd, self._fd = self._fd, -1
             if fd >= 0:
                 os.close(fd)
