@@ -66,7 +66,7 @@ class WaitableVirtualBus(VirtualBus):
             if on:
                 vars(q)["_put"] = self._put_and_signal
                 vars(self)["_recv_internal"] = self._recv_signalled
-                if q._qsize() > 0:  # type: ignore[attr-defined]  # queue.Queue's own, under its mutex
+                if q._qsize() > 0:  # queue.Queue's own, under its mutex
                     os.eventfd_write(self._fd, 1)
             else:
                 vars(q).pop("_put", None)
@@ -74,7 +74,7 @@ class WaitableVirtualBus(VirtualBus):
 
     def _put_and_signal(self, item: can.Message) -> None:
         """The queue's ``_put`` while signalled (called with its mutex held): queue, then signal."""
-        self.queue.queue.append(item)  # type: ignore[attr-defined]  # what queue.Queue._put does
+        self.queue.queue.append(item)  # what queue.Queue._put does
         os.eventfd_write(self._fd, 1)
 
     def _recv_signalled(self, timeout: float | None) -> tuple[can.Message | None, bool]:
