@@ -104,6 +104,7 @@ def test_the_loop_reads_the_in_process_virtual_bus() -> None:
             native = await g.state()
             threaded = await asyncio.to_thread(g.sync.state)  # a worker waits; the loop reads its reply
             assert without_time(native) == without_time(threaded)
+            assert g.sync.state().width >= 0  # a blocking call on the loop's own thread reads the bus itself
             states = await asyncio.gather(*(g.state() for _ in range(50)))
             assert len(states) == 50 and all(st.width >= 0 for st in states)
             await g.home()
