@@ -6,8 +6,9 @@ native: the backend starts the read (``AsyncSupport.start_state``), the driver's
 and the reply reaches the event loop through one ``call_soon_threadsafe``: no worker thread and no thread hop
 on the way out (issue 20 §2; the WSG's exchange engine and the STEPFOC bus complete a callback from the reader
 that already owns the transport, as python-can's notifier does for a bus without a file descriptor). Where the
-transport has one (an MSG on SocketCAN), the loop itself is that reader while the face is open
-(``read_on_loop``; drivers/stepfoc/can_reader.py), so the reply is decoded where its task awaits it. Motions
+transport has one (an MSG on SocketCAN, or on python-can's ``virtual`` bus as the library opens it:
+drivers/virtual_can.py), the loop itself is that reader while the face is open (``read_on_loop``;
+drivers/stepfoc/can_reader.py), so the reply is decoded where its task awaits it. Motions
 and the other calls run the threaded gripper's own code on a small, fixed set of worker threads started at
 open (:data:`WORKERS`, plus one that runs only stop, fast stop and acknowledge): a motion lasts seconds, so a
 hop costs nothing there, while the backends are where units change and where the grasp outcome, the MSG's
@@ -717,10 +718,10 @@ def open(  # noqa: A001 - mirrors grippers.open
     """Open a gripper for asyncio: ``async with grippers.aio.open(url) as g`` or ``g = await ...open(url)``.
 
     Takes what :func:`grippers.open` takes (a URL, a profile name or file, keyword overrides).
-    ``read_on_loop``: where the transport allows it (an MSG on a SocketCAN or ``udp_multicast`` bus), the
-    event loop reads it itself while the gripper is open and the loop runs, so a reply reaches its task with
-    no thread hand-over; a loop that stops reading (blocked, idle, ended) hands the bus back to the driver's
-    reader thread after 0.2 s, so the other users of the bus wait at most that long
+    ``read_on_loop``: where the transport allows it (an MSG on a SocketCAN, ``udp_multicast`` or ``virtual``
+    bus), the event loop reads it itself while the gripper is open and the loop runs, so a reply reaches its
+    task with no thread hand-over; a loop that stops reading (blocked, idle, ended) hands the bus back to the
+    driver's reader thread after 0.2 s, so the other users of the bus wait at most that long
     (drivers/stepfoc/can_reader.py). False keeps the driver's reader thread.
     """
     return _Opening(target, overrides, read_on_loop)
