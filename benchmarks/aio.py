@@ -4,9 +4,9 @@ Both faces drive one gripper, so the device, the transport and the backend are s
 cost of the asyncio face alone. Batches of each alternate (drift on a shared machine hits both alike); the
 figures are the median latency of each, the ratio the median of five sessions' (a fresh simulator process
 each). WSG over loopback TCP; MSG over python-can's ``udp_multicast`` bus, which has a file descriptor, as
-SocketCAN has, so the event loop reads it itself (drivers/stepfoc/can_reader.py); the MSG over the in-process
-``virtual`` bus, which has none, is printed beside it: there the reply is handed from the reader thread. The
-MSG's simulator runs on a CPU of its own, as a device computes on its own processor (:func:`device_apart`).
+SocketCAN has, so the event loop reads it itself (drivers/stepfoc/can_reader.py). The MSG's simulator runs on
+a CPU of its own, as a device computes on its own processor (:func:`device_apart`). Two more rows with the
+simulator in this process (:func:`_in_process`, issue 43 §8).
 """
 
 from __future__ import annotations
@@ -96,8 +96,9 @@ def _asyncio_floor_wsg(port: int, rounds: int, batch: int) -> tuple[float, float
 
 
 def _asyncio_floor_hop(rounds: int, batch: int) -> tuple[float, float]:
-    """The MSG's floor: a reply handed over by a reader thread, as the STEPFOC bus hands it over, to a
-    thread blocked on a lock (the threaded call) or to a task through ``call_soon_threadsafe``."""
+    """The MSG's floor: another thread's wake of a thread blocked on a lock (how a threaded call learns of
+    its reply) against its wake of an event loop (``call_soon_threadsafe`` to a task: the same self-pipe
+    write and ``epoll`` wake by which a loop learns that its bus is readable)."""
     import queue
     import threading
 
@@ -347,8 +348,6 @@ def run(quick: bool) -> list[Result]:
         else:
             details += [
                 "python-can udp_multicast bus: a file descriptor, as SocketCAN has: the event loop reads it",
-                "a bus without one (python-can virtual, the simulator in this process): the MSG in-process "
-                "row, the reply handed from the reader thread",
             ]
         results.append(
             Result(
@@ -369,11 +368,12 @@ IN_PROCESS_LIMITS = {"WSG": 1.25, "MSG": 1.35}  # issue 43 §8
 
 def _in_process(pairs: int, batch: int) -> list[Result]:
     """``await g.state()`` against ``g.state()`` with the simulator in this process (``sim://``), as tests and
-    notebooks use it (issue 43 §8): the WSG's simulator thread on loopback TCP, the MSG's on python-can's
-    ``virtual`` bus, which has no file descriptor, so its replies are handed from the reader thread to the
-    loop. Beside each, asyncio's own floor in the same run: for the WSG the five queries over a bare
-    ``asyncio.Protocol`` against a bare blocking socket, to an in-process simulator; for the MSG the hand-over
-    alone (``call_soon_threadsafe`` to a task against a thread blocked on a lock)."""
+    notebooks use it (issue 43 §8): the WSG's simulator thread on loopback TCP, where the driver's reader
+    thread chains the five queries and hands the state to the loop; the MSG's on python-can's ``virtual`` bus,
+    which the library opens with a descriptor (drivers/virtual_can.py), so the loop reads its replies itself.
+    Beside each, asyncio's own floor in the same run: for the WSG the five queries over a bare
+    ``asyncio.Protocol`` against a bare blocking socket, to an in-process simulator; for the MSG a wake alone
+    (``call_soon_threadsafe`` to a task against a thread blocked on a lock)."""
     from grippers.drivers.wsg.sim import WsgModel, serve
 
     results = []
@@ -389,7 +389,7 @@ def _in_process(pairs: int, batch: int) -> list[Result]:
             floor = f"asyncio.Protocol {us(bare_async)} against a blocking socket {us(bare)}"
         else:
             bare, bare_async = _asyncio_floor_hop(max(2, pairs // SESSIONS), batch)
-            floor = f"call_soon_threadsafe to a task {us(bare_async)} against a lock {us(bare)}"
+            floor = f"a wake: call_soon_threadsafe to a task {us(bare_async)} against a lock {us(bare)}"
         limit = IN_PROCESS_LIMITS[label]
         results.append(
             Result(

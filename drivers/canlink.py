@@ -22,6 +22,8 @@ from typing import Any
 
 import can  # every module that imports this one speaks CAN through python-can already
 
+from .virtual_can import WaitableVirtualBus, waitable
+
 __all__ = ["LINK_ERRNOS", "describe_failure", "is_link_failure", "open_bus", "standard_message"]
 
 # errno values that mean "the interface itself is gone or down", not "this one frame failed"
@@ -68,8 +70,14 @@ def open_bus(**kwargs: Any) -> can.BusABC:
 
     python-can says "Cannot import module can.interfaces.gs_usb for CAN interface 'gs_usb': No module named
     'usb'" (a CanInterfaceNotImplementedError); the user needs to know what to install. The same exception
-    type is raised, so callers' handling (a ConnectionLost naming the device) is unchanged."""
+    type is raised, so callers' handling (a ConnectionLost naming the device) is unchanged.
+
+    ``virtual`` opens python-can's virtual bus with a descriptor an event loop can wait on, where the platform
+    has one (:mod:`.virtual_can`): the same channels and frames, so it talks to any other user of them."""
     interface = str(kwargs.get("interface") or "")
+    if interface == "virtual" and waitable():
+        # python-can's virtual bus, with a descriptor an event loop can wait on (drivers/virtual_can.py)
+        return WaitableVirtualBus(**{k: v for k, v in kwargs.items() if k != "interface"})
     try:
         return can.Bus(**kwargs)
     except (can.CanInterfaceNotImplementedError, ImportError) as exc:

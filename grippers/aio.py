@@ -6,8 +6,9 @@ native: the backend starts the read (``AsyncSupport.start_state``), the driver's
 and the reply reaches the event loop through one ``call_soon_threadsafe``: no worker thread and no thread hop
 on the way out (issue 20 §2; the WSG's exchange engine and the STEPFOC bus complete a callback from the reader
 that already owns the transport, as python-can's notifier does for a bus without a file descriptor). Where the
-transport has one (an MSG on SocketCAN), the loop itself is that reader while the face is open
-(``read_on_loop``; drivers/stepfoc/can_reader.py), so the reply is decoded where its task awaits it. Motions
+transport has one (an MSG on SocketCAN, or on python-can's ``virtual`` bus as the library opens it:
+drivers/virtual_can.py), the loop itself is that reader while the face is open (``read_on_loop``;
+drivers/stepfoc/can_reader.py), so the reply is decoded where its task awaits it. Motions
 and the other calls run the threaded gripper's own code on a small, fixed set of worker threads started at
 open (:data:`WORKERS`, plus one that runs only stop, fast stop and acknowledge): a motion lasts seconds, so a
 hop costs nothing there, while the backends are where units change and where the grasp outcome, the MSG's
@@ -37,9 +38,11 @@ import asyncio
 import dataclasses
 import inspect
 import logging
+import math
 import os
 import queue
 import threading
+import weakref
 from collections.abc import AsyncIterator, Callable, Coroutine, Generator
 from typing import Any, Concatenate, Generic, ParamSpec, TypeVar
 
@@ -193,6 +196,63 @@ def _deliver(
         pass
 
 
+class _Backstops:
+    """The time bounds of one loop's pending native reads, kept by one timer of that loop (not one each).
+
+    Why one: a timer per call (``call_later`` and its ``cancel``, every cancelled handle left in the loop's
+    heap until it is swept) cost 5-8 % of an in-process ``await g.state()`` (issue 43 §8; docs/performance.md,
+    target 13), and nearly every bound is cancelled unused. Here a read costs a dict entry; the timer is armed
+    for the earliest bound and, when it fires, ends the reads whose bound has passed and re-arms for the next.
+    Each read still ends at its own bound (a few milliseconds late at most, as any timer of a busy loop)."""
+
+    __slots__ = ("_loop", "_due", "_timer", "_at")
+
+    def __init__(self, loop: asyncio.AbstractEventLoop) -> None:
+        self._loop = loop
+        self._due: dict[asyncio.Future[Any], tuple[float, Callable[[], None]]] = {}
+        self._timer: asyncio.TimerHandle | None = None
+        self._at = math.inf
+
+    def add(self, fut: asyncio.Future[Any], bound: float, expire: Callable[[], None]) -> None:
+        """Call ``expire()`` once ``bound`` seconds have passed, unless :meth:`remove` came first."""
+        at = self._loop.time() + bound
+        self._due[fut] = (at, expire)
+        if at < self._at:
+            self._arm(at)
+
+    def remove(self, fut: asyncio.Future[Any]) -> None:
+        self._due.pop(fut, None)  # the timer stays armed: when it fires it finds nothing due, and stops
+
+    def _arm(self, at: float) -> None:
+        if self._timer is not None:
+            self._timer.cancel()
+        self._timer, self._at = self._loop.call_at(at, self._fire), at
+
+    def _fire(self) -> None:
+        self._timer, self._at = None, math.inf
+        now = self._loop.time() + _EARLY_S
+        late = [(fut, expire) for fut, (at, expire) in self._due.items() if at <= now]
+        for fut, expire in late:
+            del self._due[fut]
+            expire()
+        if self._due:
+            self._arm(min(at for at, _ in self._due.values()))
+
+
+_EARLY_S = 0.001  # a loop may run a timer up to its clock's resolution early: still this read's bound
+
+
+def _backstops(loop: asyncio.AbstractEventLoop) -> _Backstops:
+    """``loop``'s :class:`_Backstops`, made on first use (kept with the loop: it ends with it)."""
+    found = _BACKSTOPS.get(loop)
+    if found is None:
+        found = _BACKSTOPS[loop] = _Backstops(loop)
+    return found
+
+
+_BACKSTOPS: weakref.WeakKeyDictionary[asyncio.AbstractEventLoop, _Backstops] = weakref.WeakKeyDictionary()
+
+
 async def _awaited_read(
     loop: asyncio.AbstractEventLoop,
     fut: asyncio.Future[T],
@@ -202,10 +262,10 @@ async def _awaited_read(
 ) -> T:
     """Await a read the driver completes from its reader; give it up on cancel or at its timeout.
 
-    Where the driver keeps the time itself (``started.timeout`` None), a timer of this loop still bounds the
-    wait at ``backstop`` seconds: the driver's clock runs on its reader, and a reader that stalls (a bus read
-    by another event loop that ended, issue 33 §2) must not leave this await pending for ever. A few
-    microseconds a call (docs/performance.md, target 13).
+    Where the driver keeps the time itself (``started.timeout`` None), the loop still bounds the wait at
+    ``backstop`` seconds: the driver's clock runs on its reader, and a reader that stalls (a bus read by
+    another event loop that ended, issue 33 §2) must not leave this await pending for ever. The bound is kept
+    by the loop's one :class:`_Backstops` timer, not a timer per call (docs/performance.md, target 13).
     """
 
     bound = backstop if started.timeout is None else started.timeout
@@ -215,14 +275,15 @@ async def _awaited_read(
             text = f"no reply within {bound:g} s"
             fut.set_exception(GripperTimeout(text, device=device, command=started.command))
 
-    timer = loop.call_later(bound, too_late)
+    bounds = _backstops(loop)
+    bounds.add(fut, bound, too_late)
     try:
         return await fut
     except BaseException:
         started.cancel()  # cancelled or timed out: the exchange is abandoned, the next call goes at once
         raise
     finally:
-        timer.cancel()
+        bounds.remove(fut)
 
 
 class AsyncMotionHandle(Generic[T]):
@@ -657,10 +718,10 @@ def open(  # noqa: A001 - mirrors grippers.open
     """Open a gripper for asyncio: ``async with grippers.aio.open(url) as g`` or ``g = await ...open(url)``.
 
     Takes what :func:`grippers.open` takes (a URL, a profile name or file, keyword overrides).
-    ``read_on_loop``: where the transport allows it (an MSG on a SocketCAN or ``udp_multicast`` bus), the
-    event loop reads it itself while the gripper is open and the loop runs, so a reply reaches its task with
-    no thread hand-over; a loop that stops reading (blocked, idle, ended) hands the bus back to the driver's
-    reader thread after 0.2 s, so the other users of the bus wait at most that long
+    ``read_on_loop``: where the transport allows it (an MSG on a SocketCAN, ``udp_multicast`` or ``virtual``
+    bus), the event loop reads it itself while the gripper is open and the loop runs, so a reply reaches its
+    task with no thread hand-over; a loop that stops reading (blocked, idle, ended) hands the bus back to the
+    driver's reader thread after 0.2 s, so the other users of the bus wait at most that long
     (drivers/stepfoc/can_reader.py). False keeps the driver's reader thread.
     """
     return _Opening(target, overrides, read_on_loop)

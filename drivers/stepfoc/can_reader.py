@@ -4,8 +4,9 @@ Why two: a reply read by a thread reaches an asyncio task only through ``call_so
 event loop that costs about as much as the asyncio face's whole margin over a blocked thread
 (docs/performance.md, target 13). A bus with a file descriptor (SocketCAN, python-can's ``udp_multicast``)
 can instead be read by the loop itself (``loop.add_reader``, as python-can's ``Notifier`` does when given a
-loop): the reply is decoded on the thread whose task awaits it, with no hand-over at all. A bus without one
-(``virtual``, most vendor interfaces) keeps its thread.
+loop): the reply is decoded on the thread whose task awaits it, with no hand-over at all; so can python-can's
+``virtual`` bus as the library opens it (drivers/virtual_can.py, issue 43 §8). A bus without one (most vendor
+interfaces, a ``virtual`` bus handed in already open) keeps its thread.
 
 Why the thread stays while the loop reads (issue 33 §2): the bus is shared by every user in the process (other
 grippers on other nodes, threaded or on other loops, monitors), and a loop may stop reading at any moment:
@@ -55,6 +56,14 @@ def bus_fileno(bus: can.BusABC) -> int | None:
     except (NotImplementedError, OSError, AttributeError, ValueError):
         return None
     return fd if isinstance(fd, int) and fd >= 0 else None
+
+
+def _signal_reads(bus: can.BusABC, on: bool) -> None:
+    """Tell a bus whose descriptor is signalled only while someone waits on it (python-can's virtual bus as
+    :mod:`grippers.drivers.virtual_can` opens it) that a loop now waits on it, or no longer does."""
+    signal = getattr(bus, "signal_reads", None)
+    if signal is not None:
+        signal(on)
 
 
 class BusReader:
@@ -194,6 +203,8 @@ class BusReader:
         with self._lock:
             if self._loop is not loop:
                 return
+            if self._fd is not None:
+                _signal_reads(self._source(), False)
             self._loop, self._fd, self._timer, self._users, self._want = None, None, None, 0, False
             self._owner = THREAD
         log.debug("%s: the event loop was closed while attached; the reader thread reads", self._name)
@@ -238,10 +249,12 @@ class BusReader:
         if self._owner != LOOP or handover != self._handovers:
             self._want = True  # taken back before this loop ran (it was idle or blocked): it runs now
             return
-        fd = bus_fileno(self._source())
+        bus = self._source()
+        fd = bus_fileno(bus)
         if fd is None:
             return  # cannot happen for a bus attach() accepted; the thread takes the bus back when stale
         self._seen = time.monotonic()
+        _signal_reads(bus, True)
         loop.add_reader(fd, self._readable)
         self._fd = fd
         self._timer = loop.call_later(READ_POLL_S, self._tick)
@@ -249,6 +262,8 @@ class BusReader:
     def _loop_end(self) -> None:
         loop, fd = self._loop, self._fd
         self._fd = None
+        if fd is not None:
+            _signal_reads(self._source(), False)
         if self._timer is not None:
             self._timer.cancel()
             self._timer = None

@@ -18,6 +18,7 @@ from typing import Any
 import pytest
 
 import grippers.aio
+from grippers.drivers import canlink
 from grippers.drivers.stepfoc.device import CanLink
 from grippers.drivers.stepfoc.sim import MsgModel, serve_can
 from tests.aio.test_aio_state_native_msg import NODE, udp_multicast_bus, without_time
@@ -92,7 +93,33 @@ def test_read_on_loop_false_keeps_the_reader_thread(sim: tuple[str, Any]) -> Non
     run(main())
 
 
-def test_a_bus_without_a_file_descriptor_keeps_its_reader_thread() -> None:
+def test_the_loop_reads_the_in_process_virtual_bus() -> None:
+    """``sim://msg-150``'s python-can ``virtual`` bus, as the library opens it, has a descriptor
+    (drivers/virtual_can.py, issue 43 §8): the loop reads it, concurrent awaits and a motion on a worker are
+    all answered, and the bus goes back to the thread when the face closes."""
+
+    async def main() -> None:
+        async with grippers.aio.open("sim://msg-150", timeout=TIMEOUT) as g:
+            await until(lambda: loop_reads(g), "the reader thread handed over to the loop")
+            native = await g.state()
+            threaded = await asyncio.to_thread(g.sync.state)  # a worker waits; the loop reads its reply
+            assert without_time(native) == without_time(threaded)
+            assert g.sync.state().width >= 0  # a blocking call on the loop's own thread reads the bus itself
+            states = await asyncio.gather(*(g.state() for _ in range(50)))
+            assert len(states) == 50 and all(st.width >= 0 for st in states)
+            await g.home()
+            moved = await g.move(0.05)
+            assert abs(moved.width - 0.05) < 0.002 and abs((await g.state()).width - 0.05) < 0.002
+            assert loop_reads(g)
+            sync = g.sync
+        assert not sync.driver.bus._reader.loop_reads
+
+    run(main())
+
+
+def test_a_bus_without_a_file_descriptor_keeps_its_reader_thread(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A platform without ``eventfd`` opens python-can's own ``virtual`` bus, which has no descriptor."""
+    monkeypatch.setattr(canlink, "waitable", lambda: False)
     channel = f"aio-loop-virtual-{uuid.uuid4().hex[:8]}"
     server = serve_can([MsgModel(node=NODE)], f"can://virtual/{channel}", time_scale=20.0)
 
