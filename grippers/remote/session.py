@@ -11,6 +11,7 @@ import re
 from typing import Any
 
 from ..errors import ConnectionLost, URLError
+from ..units import to_ms
 
 DEFAULT_LISTEN = "tcp/127.0.0.1:7447"
 _RUST_SOURCE = re.compile(r"\s+at\s+\S+\.rs:\d+\.?")  # Zenoh's errors end with the Rust file that raised them
@@ -83,7 +84,7 @@ def make_config(
         if lease_s is not None:
             # Zenoh's link lease: how long a silent peer (cable pulled) counts as alive. The control lease
             # relies on it, so it is set to the lease timeout (keep-alives at a quarter of it).
-            config.insert_json5("transport/link/tx/lease", str(max(100, int(lease_s * 1000))))
+            config.insert_json5("transport/link/tx/lease", str(max(100, int(to_ms(lease_s)))))
             config.insert_json5("transport/link/tx/keep_alive", "4")
     except Exception as exc:
         raise URLError(f"zenoh config: {zenoh_message(exc)}") from None
