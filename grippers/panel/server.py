@@ -22,6 +22,7 @@ from typing import Any
 
 import uvicorn
 
+from ..drivers.urls import parse_address
 from ..errors import URLError
 from ..gripper import Gripper
 from .app import MAX_MESSAGE, Panel, make_app
@@ -37,11 +38,13 @@ START_TIMEOUT_S = 10.0
 
 def parse_listen(text: str) -> tuple[str, int]:
     """``HOST:PORT`` (``[::1]:8000``, ``0.0.0.0:0``, ``:8000``: loopback) as (host, port); else URLError."""
-    host, sep, port = text.rpartition(":")
-    host = host.strip("[]") or "127.0.0.1"
-    if not sep or not port.isdigit() or not 0 <= int(port) <= 65535:
-        raise URLError(f"--listen {text!r}: write HOST:PORT (127.0.0.1:8000; port 0 picks a free one)")
-    return host, int(port)
+    try:
+        host, port = parse_address(text, listen=True)  # the one grammar: drivers/urls.py
+    except URLError:
+        raise URLError(
+            f"--listen {text!r}: write HOST:PORT (127.0.0.1:8000; port 0 picks a free one)"
+        ) from None
+    return host or "127.0.0.1", port
 
 
 class PanelServer:

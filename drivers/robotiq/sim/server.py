@@ -12,6 +12,7 @@ the rest: the scaled clock (tests that must not race it :meth:`pause` and :meth:
 from __future__ import annotations
 
 from ...simkit import SimServer
+from ...urls import on_transport
 from .. import urcap_protocol as urcap
 from ..modbus import READ_HOLDING, WRITE_MULTIPLE, Request, RequestParser
 from ..registers import COMMAND_ADDRESS, STATUS_ADDRESS
@@ -76,9 +77,8 @@ class RobotiqSimServer(SimServer):
         self, model: RobotiqModel, listen: str, *, time_scale: float = 1.0, family: str = "robotiq"
     ) -> None:
         self.model = model
-        is_urcap = listen.startswith("urcap://")
-        if is_urcap:
-            listen = "tcp://" + listen.partition("://")[2]
+        listen, protocol = on_transport(listen, {"urcap": "tcp"})
+        is_urcap = protocol == "urcap"
         session = UrcapSession if is_urcap else RtuSession
         super().__init__(
             listen, lambda: session(model), family=family, time_scale=time_scale, advance=model.advance
