@@ -60,6 +60,7 @@ SPLITTERS = {
     "replace",
 }
 HOST_PORT_SPLITTERS = {"rpartition", "rsplit"}  # text.rpartition(":"): HOST:PORT by hand
+QUERY_SPLITTERS = {"partition", "rpartition", "split", "rsplit"}  # url.partition("?"): a query by hand
 URL_EXCEPTIONS = {
     # A typo corrector: it reads the text the grammar refused (``wsg+tpc:/host``, ``10.0.0.5:1000``) to
     # guess what the user meant, so it cannot ask the grammar; what it suggests is then parsed by it.
@@ -138,6 +139,8 @@ def url_parsing(path: str, tree: ast.AST) -> list[Finding]:
             method, first = node.func.attr, _text(node.args[0]) or ""
             if method in SPLITTERS and "://" in first:
                 add(node, f"{ast.unparse(node)[:60]}: a scheme split by hand (scheme_of, on_transport)")
+            elif method in QUERY_SPLITTERS and first == "?":
+                add(node, f"{ast.unparse(node)[:60]}: a query split by hand (web_target, with_query)")
             elif method in HOST_PORT_SPLITTERS and first == ":":
                 add(node, f"{ast.unparse(node)[:60]}: HOST:PORT split by hand (parse_address)")
             elif method in ("strip", "lstrip", "rstrip") and "[" in first:
@@ -202,6 +205,7 @@ SNIPPETS_PARSING = [
     "bare = text.lower().startswith('can://')",
     "host, _, port = text.rpartition(':')",
     "host = host.strip('[]')",
+    "base = url.split('?')[0]",
     "from urllib.parse import quote",
     "import urllib.parse",
     "from grippers.drivers.urls import parse_query",

@@ -22,7 +22,7 @@ from typing import Any
 
 import uvicorn
 
-from ..drivers.urls import parse_address
+from ..drivers.urls import parse_address, with_query
 from ..errors import URLError
 from ..gripper import Gripper
 from .app import MAX_MESSAGE, Panel, make_app
@@ -120,7 +120,7 @@ class PanelServer:
         if not self._server.started:
             self.close()
             raise URLError(f"the panel did not start on {self.host}:{self.port} (see the log)")
-        log.info("panel at %s", self.url.split("?")[0])
+        log.info("panel at %s", with_query(self.url, {}))  # without the token
         return self
 
     def close(self) -> None:
