@@ -137,7 +137,12 @@ def url_parsing(path: str, tree: ast.AST) -> list[Finding]:
                 add(node, f"{ast.unparse(node)[:60]}: a scheme tested by hand (is_url, scheme_of)")
         elif isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) and node.args:
             method, first = node.func.attr, _text(node.args[0]) or ""
-            if method in SPLITTERS and "://" in first:
+            texts = (
+                [_text(e) or "" for e in node.args[0].elts]
+                if isinstance(node.args[0], ast.Tuple)
+                else [first]
+            )
+            if method in SPLITTERS and any("://" in t for t in texts):
                 add(node, f"{ast.unparse(node)[:60]}: a scheme split by hand (scheme_of, on_transport)")
             elif method in QUERY_SPLITTERS and first == "?":
                 add(node, f"{ast.unparse(node)[:60]}: a query split by hand (web_target, with_query)")
@@ -203,6 +208,7 @@ SNIPPETS_PARSING = [
     "scheme = url.partition('://')[0]",
     "ok = '://' in text",
     "bare = text.lower().startswith('can://')",
+    "shared = port.startswith(('loop://', 'socket://'))",
     "host, _, port = text.rpartition(':')",
     "host = host.strip('[]')",
     "base = url.split('?')[0]",
