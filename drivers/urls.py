@@ -173,56 +173,6 @@ def parse_address(text: str, *, listen: bool = False) -> tuple[str | None, int]:
     return host, port
 
 
-# Zenoh's endpoints whose address is HOST:PORT (the others, a Unix socket or a serial line, carry a path).
-ZENOH_IP_PROTOCOLS = ("tcp", "udp", "tls", "quic", "ws")
-
-
-def zenoh_endpoint(endpoint: str, what: str) -> tuple[str, str | None, int | None]:
-    """A Zenoh endpoint (``tcp/127.0.0.1:7447``, ``tls/[::1]:7447#iface=lo``, ``unixsock-stream/path``) as
-    (protocol, host, port); host and port are None for a protocol without an IP address. A URLError naming
-    ``what`` (``--listen``, ``zenoh://…: connect``) for one that cannot be an endpoint, said before anything
-    opens instead of Zenoh's error from deep inside its session."""
-    proto, slash, rest = endpoint.partition("/")
-    if not slash or not proto or not rest:
-        raise URLError(f"{what} {endpoint!r}: an endpoint is PROTOCOL/ADDRESS, e.g. tcp/127.0.0.1:7447")
-    if proto not in ZENOH_IP_PROTOCOLS:
-        return proto, None, None
-    address = rest.split("#", 1)[0].split("?", 1)[0]  # Zenoh's own metadata (#iface=) and config (?)
-    try:
-        host, port = parse_address(address, listen=True)
-    except URLError:
-        host, port = None, -1
-    if host is None or port < 0:
-        raise URLError(f"{what} {endpoint!r}: the address must be HOST:PORT with a port of 0-65535")
-    return proto, host, port
-
-
-def zenoh_port(endpoint: str) -> int | None:
-    """The port of a Zenoh endpoint; None for one without (a Unix socket) or one that is no endpoint."""
-    try:
-        return zenoh_endpoint(endpoint, "endpoint")[2]
-    except URLError:
-        return None
-
-
-def check_endpoints(endpoints: list[str], what: str) -> list[str]:
-    """``endpoints`` as given, each checked by :func:`zenoh_endpoint`."""
-    for endpoint in endpoints:
-        zenoh_endpoint(endpoint, what)
-    return endpoints
-
-
-def zenoh_endpoints(text: str, what: str) -> list[str]:
-    """A ``zenoh://`` URL's ``connect=`` value, endpoints joined by ``,``, as a checked list."""
-    return check_endpoints([e for e in text.split(",") if e], what)
-
-
-def served_url(name: str, params: Mapping[str, str]) -> str:
-    """``zenoh://NAME?k=v``: the URL of a gripper served under ``name``, with a discovery URL's settings."""
-    rest = "&".join(f"{k}={quote(v, safe='/:,.[]')}" for k, v in params.items())
-    return f"zenoh://{name}?{rest}"
-
-
 def shown(url: str) -> str:
     """The URL as error messages quote it."""
     text = repr(url)
@@ -598,3 +548,56 @@ def to_bool(value: Any, name: str, url: str = "") -> bool:
     if text in ("0", "false", "no", "off"):
         return False
     raise URLError(f"{url or 'settings'}: {name} must be true or false, not {str(value)[:40]!r}")
+
+
+# --- Zenoh endpoints (zenoh://NAME?connect=tcp/HOST:7447, grippers serve --listen) -------------------------
+
+
+# Zenoh's endpoints whose address is HOST:PORT (the others, a Unix socket or a serial line, carry a path).
+ZENOH_IP_PROTOCOLS = ("tcp", "udp", "tls", "quic", "ws")
+
+
+def zenoh_endpoint(endpoint: str, what: str) -> tuple[str, str | None, int | None]:
+    """A Zenoh endpoint (``tcp/127.0.0.1:7447``, ``tls/[::1]:7447#iface=lo``, ``unixsock-stream/path``) as
+    (protocol, host, port); host and port are None for a protocol without an IP address. A URLError naming
+    ``what`` (``--listen``, ``zenoh://…: connect``) for one that cannot be an endpoint, said before anything
+    opens instead of Zenoh's error from deep inside its session."""
+    proto, slash, rest = endpoint.partition("/")
+    if not slash or not proto or not rest:
+        raise URLError(f"{what} {endpoint!r}: an endpoint is PROTOCOL/ADDRESS, e.g. tcp/127.0.0.1:7447")
+    if proto not in ZENOH_IP_PROTOCOLS:
+        return proto, None, None
+    address = rest.split("#", 1)[0].split("?", 1)[0]  # Zenoh's own metadata (#iface=) and config (?)
+    try:
+        host, port = parse_address(address, listen=True)
+    except URLError:
+        host, port = None, -1
+    if host is None or port < 0:
+        raise URLError(f"{what} {endpoint!r}: the address must be HOST:PORT with a port of 0-65535")
+    return proto, host, port
+
+
+def zenoh_port(endpoint: str) -> int | None:
+    """The port of a Zenoh endpoint; None for one without (a Unix socket) or one that is no endpoint."""
+    try:
+        return zenoh_endpoint(endpoint, "endpoint")[2]
+    except URLError:
+        return None
+
+
+def check_endpoints(endpoints: list[str], what: str) -> list[str]:
+    """``endpoints`` as given, each checked by :func:`zenoh_endpoint`."""
+    for endpoint in endpoints:
+        zenoh_endpoint(endpoint, what)
+    return endpoints
+
+
+def zenoh_endpoints(text: str, what: str) -> list[str]:
+    """A ``zenoh://`` URL's ``connect=`` value, endpoints joined by ``,``, as a checked list."""
+    return check_endpoints([e for e in text.split(",") if e], what)
+
+
+def served_url(name: str, params: Mapping[str, str]) -> str:
+    """``zenoh://NAME?k=v``: the URL of a gripper served under ``name``, with a discovery URL's settings."""
+    rest = "&".join(f"{k}={quote(v, safe='/:,.[]')}" for k, v in params.items())
+    return f"zenoh://{name}?{rest}"
