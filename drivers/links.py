@@ -36,7 +36,7 @@ from typing import Any, Generic, Protocol, TypeVar
 from .closing import Closing
 from .errors import ConnectionLost, GripperError, GripperTimeout, ProtocolError, URLError
 from .serial_ports import open_serial_port
-from .urls import ConnectionURL, format_host, parse_url, to_int
+from .urls import ConnectionURL, format_host, parse_url, scheme_of, to_int
 
 __all__ = [
     "ByteLink",
@@ -413,7 +413,7 @@ def open_link(
     if isinstance(address, ConnectionURL):
         url: ConnectionURL | None = address
     else:
-        scheme = address.partition("://")[0].lower() if "://" in address else ""
+        scheme = scheme_of(address)
         url = (
             parse_url(address, bare_family="link")
             if scheme.endswith(("tcp", "serial", "udp", "can"))

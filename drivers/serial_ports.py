@@ -16,10 +16,13 @@ from pathlib import Path
 from typing import Any
 
 from .errors import ConnectionLost
+from .urls import scheme_of
 
 __all__ = ["open_serial_port", "port_holders"]
 
 MAX_HOLDERS_SHOWN = 3
+# pyserial's URL handlers that open no device file of their own (nothing to hold exclusively).
+_SHARED_URLS = ("loop", "socket", "rfc2217", "spy", "alt", "hwgrep")
 _BUSY_ERRNOS = {errno.EAGAIN, errno.EWOULDBLOCK, errno.EBUSY}
 
 
@@ -28,7 +31,7 @@ def open_serial_port(port: str, *, device: str, **options: Any) -> Any:
     when the port cannot be opened, "busy" with its holder when another process holds it."""
     import serial  # the kit is importable without a serial port in sight
 
-    exclusive = not port.startswith(("loop://", "socket://", "rfc2217://", "spy://", "alt://", "hwgrep://"))
+    exclusive = scheme_of(port) not in _SHARED_URLS
     try:
         return serial.serial_for_url(port, exclusive=True if exclusive else None, **options)
     except (*_open_errors(), serial.SerialException) as exc:

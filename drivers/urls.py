@@ -39,6 +39,10 @@ The rules, each one a :class:`~grippers.drivers.errors.URLError` naming the URL 
   mean? On a bus, the wrong ``node`` drives another gripper); the same value twice is accepted.
 - Host, interface, channel, profile, serial port and query values are percent-decoded; a control character
   (raw or decoded) anywhere is refused: a newline in a URL is an injection, not a device name.
+
+Every module that reads a URL, an address or a query calls one of this module's readers (:func:`parse_url`,
+:func:`scheme_of`, :func:`parse_address`, :func:`zenoh_endpoints`, :func:`web_fields`, :func:`on_transport`,
+...), never the string splitting under them (issue 40 §6; tests/test_readable_tree.py names the exceptions).
 """
 
 from __future__ import annotations
@@ -46,7 +50,7 @@ from __future__ import annotations
 import difflib
 import ipaddress
 import re
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 from urllib.parse import parse_qsl, quote, unquote, unquote_plus, urlencode, urlsplit, urlunsplit
@@ -55,22 +59,39 @@ from .errors import URLError
 from .numbers import finite
 
 __all__ = [
+    "append_params",
     "BUS_OPTIONS",
     "SERIAL_CHANNEL_INTERFACES",
     "TRANSPORTS",
     "ConnectionURL",
     "URLError",
     "bus_options",
+    "check_endpoints",
+    "encode_query",
     "format_host",
     "is_url",
+    "on_transport",
+    "parse_address",
     "parse_query",
     "parse_url",
     "refuse_unknown",
+    "same_origin",
+    "scheme_of",
+    "served_url",
     "shown",
     "to_bool",
     "to_float",
     "to_int",
+    "web_fields",
+    "web_host",
+    "web_origin",
+    "web_target",
     "with_params",
+    "with_query",
+    "without_secrets",
+    "zenoh_endpoint",
+    "zenoh_endpoints",
+    "zenoh_port",
 ]
 
 TRANSPORTS = ("tcp", "udp", "serial", "can")
@@ -117,6 +138,39 @@ class ConnectionURL:
 
 def is_url(text: str) -> bool:
     return "://" in text
+
+
+def scheme_of(text: object) -> str:
+    """The scheme of a URL in lower case, as :func:`parse_url` reads it (``wsg+tcp``, ``can``, ``sim``);
+    ``""`` for anything that is not a URL. For a caller that picks a reader by the scheme before parsing."""
+    return text.partition("://")[0].lower() if isinstance(text, str) and is_url(text) else ""
+
+
+def on_transport(url: str, protocols: Mapping[str, str]) -> tuple[str, str | None]:
+    """A URL whose scheme names a protocol of ``protocols`` (``{"urcap": "tcp"}``: ``urcap://h:p`` or
+    ``robotiq+urcap://h:p``) rewritten onto that protocol's transport (``tcp://h:p``), with the protocol's
+    name; any other URL as given, with None. For a simulator's listen URL in a family's own scheme (the
+    Robotiq URCap socket, a SCHUNK unit's ``http://``), which the grammar then reads as usual."""
+    scheme, sep, rest = url.partition("://")
+    family, plus, name = scheme.lower().rpartition("+")
+    base = protocols.get(name) if sep else None
+    if base is None:
+        return url, None
+    return f"{family}{plus}{base}://{rest}", name
+
+
+def parse_address(text: str, *, listen: bool = False) -> tuple[str | None, int]:
+    """``HOST:PORT`` without a scheme (``127.0.0.1:8000``, ``[::1]:7447``, ``gripper.local:1000``) by the
+    rules of a URL's host and port: an IPv6 address in brackets (its zone as ``%25``), the port 0..65535
+    and never left out. ``listen``: an address to bind, where port 0 (any free port) and an empty host
+    (``:8000``, None: the caller's default) are allowed."""
+    if not isinstance(text, str):
+        raise URLError(f"{text!r} is not an address (HOST:PORT)")
+    _no_control(text, text, "address")
+    host, port = _host_port(text, text, listen)
+    if port is None:
+        raise URLError(f"{shown(text)}: an address is HOST:PORT, with the port")
+    return host, port
 
 
 def shown(url: str) -> str:
@@ -231,6 +285,42 @@ def web_origin(text: str) -> tuple[str, str] | None:
     return parts.scheme, parts.netloc
 
 
+def web_host(value: str) -> str:
+    """The host of an HTTP ``Host`` header (``[::1]:8000``, ``localhost:8000``, ``10.0.0.2``), without its
+    port or an IPv6 address's brackets; a bare IPv6 address (``::1``) as it is."""
+    if value.startswith("["):
+        return value[1 : value.find("]")] if "]" in value else value
+    return value.rsplit(":", 1)[0] if value.count(":") == 1 else value
+
+
+def same_origin(origin: str, host: str) -> bool:
+    """Whether an HTTP ``Origin`` (``http://h:p``) names the host and port a request was sent to (its
+    ``Host`` header), the scheme's default port standing for a port left out (the panel's CSRF check)."""
+    parts = web_origin(origin)
+    if parts is None:
+        return False
+    scheme, netloc = parts
+    default = "443" if scheme == "https" else "80"
+    ours = host if ":" in host.rsplit("]", 1)[-1] else f"{host}:{default}"
+    theirs = netloc if ":" in netloc.rsplit("]", 1)[-1] else f"{netloc}:{default}"
+    return ours.lower() == theirs.lower()
+
+
+def web_target(target: str) -> tuple[str, dict[str, str]]:
+    """An HTTP request target (``/adi/data.json?inst=0x0040``) as (path, fields): :func:`web_fields`."""
+    path, _, query = target.partition("?")
+    return path, web_fields(query, target)
+
+
+def web_fields(text: str, what: str = "web request") -> dict[str, str]:
+    """An HTTP query string or an HTML form body (``k=v&k2=v2``) as fields by the grammar's query rules;
+    a malformed one carries no fields (a web server answers it: it does not raise)."""
+    try:
+        return parse_query(what, text)
+    except URLError:
+        return {}
+
+
 def bus_options(url: ConnectionURL) -> dict[str, int]:
     """The python-can bus options a CAN URL's query carries, for a command that opens the bus itself
     (``grippers probe``, ``grippers monitor``), read the way the backends read them.
@@ -272,11 +362,37 @@ def with_params(url: str, *, check: Callable[[str], Any] | None = None, **values
     schemes too); this module's :func:`parse_url` by default.
     """
     (check or parse_url)(url)  # only a URL of the grammar is rewritten
-    serial = url.partition("://")[0].lower().endswith("+serial")
-    base, _, query = url.rpartition("?") if serial and "?" in url else url.partition("?")
+    base, query = _split_query(url)
     kept = [f for f in query.split("&") if f and unquote_plus(f.partition("=")[0]) not in values]
     ours = [f"{quote(k, safe='')}={quote(str(v), safe='/:,.')}" for k, v in values.items()]
     return f"{base}?{'&'.join(ours + kept)}"
+
+
+def encode_query(params: Mapping[str, Any]) -> str:
+    """``k=v&k2=v2``, percent-encoded, as :func:`parse_query` reads it back (``""`` for no parameters)."""
+    return urlencode({k: str(v) for k, v in params.items()})
+
+
+def with_query(url: str, params: Mapping[str, Any]) -> str:
+    """``url`` with its query replaced by ``params`` (none: no ``?``), by the grammar's rule of where a
+    query starts (a serial URL's at its last ``?``)."""
+    query = encode_query(params)
+    return _split_query(url)[0] + (f"?{query}" if query else "")
+
+
+def append_params(url: str, params: Mapping[str, Any]) -> str:
+    """``url`` with ``params`` added after the query it has (``gripper_sim``'s ``&profile=``, a simulated
+    bus's ``&port=`` on every node's URL)."""
+    base, query = _split_query(url)
+    return f"{base}?{'&'.join(q for q in (query, encode_query(params)) if q)}"
+
+
+def _split_query(url: str) -> tuple[str, str]:
+    """(base, query) of ``url``: a serial port may be a pyserial URL with a ``?`` of its own, so a serial
+    URL's query follows its last ``?``, every other's its first."""
+    serial = scheme_of(url).endswith("+serial")
+    base, _, query = url.rpartition("?") if serial and "?" in url else url.partition("?")
+    return base, query
 
 
 def refuse_unknown(
@@ -432,3 +548,56 @@ def to_bool(value: Any, name: str, url: str = "") -> bool:
     if text in ("0", "false", "no", "off"):
         return False
     raise URLError(f"{url or 'settings'}: {name} must be true or false, not {str(value)[:40]!r}")
+
+
+# --- Zenoh endpoints (zenoh://NAME?connect=tcp/HOST:7447, grippers serve --listen) -------------------------
+
+
+# Zenoh's endpoints whose address is HOST:PORT (the others, a Unix socket or a serial line, carry a path).
+ZENOH_IP_PROTOCOLS = ("tcp", "udp", "tls", "quic", "ws")
+
+
+def zenoh_endpoint(endpoint: str, what: str) -> tuple[str, str | None, int | None]:
+    """A Zenoh endpoint (``tcp/127.0.0.1:7447``, ``tls/[::1]:7447#iface=lo``, ``unixsock-stream/path``) as
+    (protocol, host, port); host and port are None for a protocol without an IP address. A URLError naming
+    ``what`` (``--listen``, ``zenoh://…: connect``) for one that cannot be an endpoint, said before anything
+    opens instead of Zenoh's error from deep inside its session."""
+    proto, slash, rest = endpoint.partition("/")
+    if not slash or not proto or not rest:
+        raise URLError(f"{what} {endpoint!r}: an endpoint is PROTOCOL/ADDRESS, e.g. tcp/127.0.0.1:7447")
+    if proto not in ZENOH_IP_PROTOCOLS:
+        return proto, None, None
+    address = rest.split("#", 1)[0].split("?", 1)[0]  # Zenoh's own metadata (#iface=) and config (?)
+    try:
+        host, port = parse_address(address, listen=True)
+    except URLError:
+        host, port = None, -1
+    if host is None or port < 0:
+        raise URLError(f"{what} {endpoint!r}: the address must be HOST:PORT with a port of 0-65535")
+    return proto, host, port
+
+
+def zenoh_port(endpoint: str) -> int | None:
+    """The port of a Zenoh endpoint; None for one without (a Unix socket) or one that is no endpoint."""
+    try:
+        return zenoh_endpoint(endpoint, "endpoint")[2]
+    except URLError:
+        return None
+
+
+def check_endpoints(endpoints: list[str], what: str) -> list[str]:
+    """``endpoints`` as given, each checked by :func:`zenoh_endpoint`."""
+    for endpoint in endpoints:
+        zenoh_endpoint(endpoint, what)
+    return endpoints
+
+
+def zenoh_endpoints(text: str, what: str) -> list[str]:
+    """A ``zenoh://`` URL's ``connect=`` value, endpoints joined by ``,``, as a checked list."""
+    return check_endpoints([e for e in text.split(",") if e], what)
+
+
+def served_url(name: str, params: Mapping[str, str]) -> str:
+    """``zenoh://NAME?k=v``: the URL of a gripper served under ``name``, with a discovery URL's settings."""
+    rest = "&".join(f"{k}={quote(v, safe='/:,.[]')}" for k, v in params.items())
+    return f"zenoh://{name}?{rest}"

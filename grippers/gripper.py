@@ -31,6 +31,7 @@ from .servo_face import ServoControl
 from .states import Capability, DeviceInfo, GraspResult, GraspState, GripperState, MotionResult
 from .streams import StateStream, StreamSet, put_dropping_oldest
 from .unclosed import close_unreferenced
+from .units import to_mm
 
 if TYPE_CHECKING:
     from .face_support import AsyncSupport
@@ -172,7 +173,7 @@ class Gripper:
         self._check_motion("move")
         t = self._timeout(timeout, "move", self.limits.stroke, s)
         call = lambda: self.device.move(w, s, t)  # noqa: E731
-        return self._run_motion("move", call, wait, timeout=t, what=f" to {w * 1000:g} mm")
+        return self._run_motion("move", call, wait, timeout=t, what=f" to {to_mm(w):g} mm")
 
     def grasp(
         self,
@@ -192,7 +193,7 @@ class Gripper:
         self._check_motion("grasp")
         t = self._timeout(timeout, "grasp", self.limits.stroke, s)
         call = lambda: grasp_with_room(self.device, self.limits, self._motions, self._latch, (w, s, f, t))  # noqa: E731
-        return self._run_motion("grasp", call, wait, timeout=2 * t, what=f" {w * 1000:g} mm")
+        return self._run_motion("grasp", call, wait, timeout=2 * t, what=f" {to_mm(w):g} mm")
 
     def release(
         self,
@@ -211,7 +212,7 @@ class Gripper:
         self._check_motion("release")
         t = self._timeout(timeout, "release", self.limits.stroke, s)
         call = lambda: self.device.release(w, s, t)  # noqa: E731
-        return self._run_motion("release", call, wait, timeout=t, what=f" to {w * 1000:g} mm")
+        return self._run_motion("release", call, wait, timeout=t, what=f" to {to_mm(w):g} mm")
 
     def stop(self) -> None:
         """Stop the fingers where they are; a running motion raises CommandFailed "aborted by stop()".

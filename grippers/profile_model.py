@@ -15,7 +15,7 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from .settings import RANGES
 from .timeouts import MAX_TIMEOUT_S
-from .units import to_m
+from .units import to_amps, to_m
 
 # Every number is finite and below a bound no real gripper comes near: beyond them a profile cannot work
 # (an infinite stroke makes home() wait for ever, an opening width of 1e308 overflows in state(), a WSG stroke
@@ -185,7 +185,7 @@ class ProfileBase(_Model):
             max_speed=to_m(min(m.max_speed_mm_s, s.max_speed_mm_s or m.max_speed_mm_s)),
             min_force=m.min_force_n,
             max_force=min(m.max_force_n, s.max_force_n or m.max_force_n),
-            max_current=None if max_current is None else max_current / 1000,  # mA -> A
+            max_current=to_amps(max_current),
         )
 
     def matches(self, name: str) -> bool:

@@ -20,9 +20,11 @@ from __future__ import annotations
 import json
 import math
 import struct
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
+
+from .units import split_ns, to_m, to_ns
 
 JOINT_STATE = "sensor_msgs/msg/JointState"
 JOINT_TOPIC = "/joint_states"
@@ -139,12 +141,12 @@ class McapSink:
         # readers (rosbags) know only ROS schema encodings and refuse a file with a "jsonschema" one.
         self._json_channel = self._raw.register_channel(JSON_TOPIC, "json", 0)
         self._raw.add_metadata(METADATA_NAME, {"json": json.dumps(dict(header))})
-        self._start_ns = int(float(header.get("start_unix", 0.0)) * 1e9)
+        self._start_ns = to_ns(float(header.get("start_unix", 0.0)))
         self._grippers = max(1, len(header.get("grippers", ())))
         self.flush()
 
     def add(self, row: Mapping[str, Any]) -> None:
-        stamp = self._start_ns + int(float(row["t_s"]) * 1e9)
+        stamp = self._start_ns + to_ns(float(row["t_s"]))
         plain = {k: v for k, v in row.items() if v is not None}
         self._raw.add_message(
             self._json_channel,
@@ -176,17 +178,17 @@ class McapSink:
 
 
 def _joint_state(row: Mapping[str, Any], stamp_ns: int) -> dict[str, Any]:
-    def si(key: str, scale: float) -> list[float]:
+    def si(key: str, convert: Callable[[float], float]) -> list[float]:
         value = row.get(key)
-        return [] if value is None or not math.isfinite(float(value)) else [float(value) * scale]
+        return [] if value is None or not math.isfinite(float(value)) else [convert(float(value))]
 
-    sec, nanosec = divmod(stamp_ns, 1_000_000_000)
+    sec, nanosec = split_ns(stamp_ns)
     return {
         "header": {"stamp": {"sec": sec, "nanosec": nanosec}, "frame_id": ""},
         "name": [JOINT_NAME],
-        "position": si("width_mm", 1e-3),
-        "velocity": si("speed_mm_s", 1e-3),
-        "effort": si("force_n", 1.0),
+        "position": si("width_mm", to_m),
+        "velocity": si("speed_mm_s", to_m),
+        "effort": si("force_n", float),
     }
 
 

@@ -16,9 +16,9 @@ import http.client
 import json
 import threading
 from collections.abc import Callable
-from urllib.parse import urlencode
 
 from ..errors import CommandFailed, ConnectionLost, GripperTimeout, ProtocolError
+from ..urls import encode_query
 from .protocol import CodecError, from_hex, inst_text, padded, parameter
 
 Trace = Callable[[str, bytes], None]
@@ -115,7 +115,7 @@ class WebLink:
     def read(self, inst: int, command: str) -> bytes:
         """The instance's bytes, padded to the parameter's size as SCHUNK's driver pads them."""
         path = _READ_PATHS.get(inst) or _READ_PATHS.setdefault(
-            inst, f"/adi/data.json?{urlencode({'inst': inst_text(inst), 'count': '1'})}"
+            inst, f"/adi/data.json?{encode_query({'inst': inst_text(inst), 'count': '1'})}"
         )
         status, data = self.request("GET", path, None, command)
         self._status(status, command)
@@ -141,7 +141,7 @@ class WebLink:
             raise ProtocolError(str(exc), device=self.device, command=command) from None
 
     def write(self, inst: int, data: bytes, command: str) -> None:
-        body = urlencode({"inst": inst_text(inst), "value": data.hex().upper()}).encode()
+        body = encode_query({"inst": inst_text(inst), "value": data.hex().upper()}).encode()
         status, reply = self.request("POST", "/adi/update.json", body, command)
         self._status(status, command)
         try:

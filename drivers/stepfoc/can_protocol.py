@@ -21,7 +21,7 @@ from enum import Enum, IntEnum
 from typing import Any, NamedTuple
 
 from ..errors import LimitError, ProtocolError, URLError
-from ..urls import parse_url, shown
+from ..urls import parse_url, scheme_of, shown
 
 __all__ = [
     "COMMANDS",
@@ -668,8 +668,7 @@ def parse_can_url(listen: str) -> tuple[str, str, dict[str, str]]:
     """``[stepfoc+]can://INTERFACE/CHANNEL?k=v`` -> (interface, channel, query), by the one URL grammar
     (``drivers/urls.py``: everything after the first ``/`` is the channel, so a multicast channel may be an
     IPv6 address full of colons). A malformed URL is a URLError (also a ValueError)."""
-    scheme = listen.partition("://")[0] if isinstance(listen, str) else ""
-    if scheme not in ("can", "stepfoc+can"):
+    if scheme_of(listen) not in ("can", "stepfoc+can"):
         raise URLError(f"not a CAN URL: {shown(listen)} (expected can://INTERFACE/CHANNEL)")
     url = parse_url(listen, bare_family="stepfoc")
     assert url.interface and url.channel  # the grammar refuses a CAN URL without them

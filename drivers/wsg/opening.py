@@ -9,7 +9,7 @@ from __future__ import annotations
 from typing import Any
 
 from ..errors import LimitError
-from ..urls import TRANSPORTS, parse_url, refuse_unknown, shown, to_bool, to_float, to_int
+from ..urls import TRANSPORTS, parse_url, refuse_unknown, scheme_of, shown, to_bool, to_float, to_int
 from .transports import (
     DEFAULT_BAUDRATE,
     DEFAULT_CAN_RECV_ID,
@@ -42,8 +42,7 @@ def transport_from_url(url: str, *, connect_timeout: float) -> Transport:
     ``[wsg+]can://INTERFACE/CHANNEL?send_id=..&recv_id=..&bitrate=..``, read by the one grammar
     (``drivers/urls.py``). A scheme of another family is a LimitError (not a WSG); a URL the grammar
     refuses, or an unknown parameter, a URLError."""
-    scheme = url.partition("://")[0].lower() if isinstance(url, str) else ""
-    if scheme.removeprefix("wsg+") not in TRANSPORTS:
+    if scheme_of(url).removeprefix("wsg+") not in TRANSPORTS:
         raise LimitError(f"unsupported WSG URL {shown(url)} (tcp, udp, serial or can)")
     u = parse_url(url, bare_family="wsg")
     refuse_unknown(url, u.params, _FROM_URL_PARAMETERS[u.transport])

@@ -29,13 +29,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def _replay(args: argparse.Namespace, blob: bytes) -> tuple[Any, Any]:
     from grippers.drivers.stepfoc.sim.replay import StepfocReplayServer, stepfoc_script
+    from grippers.drivers.urls import scheme_of
     from grippers.urls import parse_url, to_int
 
     from ..cli.output import UsageError
 
     script = stepfoc_script(blob, args.replay)
     listen = args.listen or ""
-    if not listen.startswith("can://"):
+    if scheme_of(listen) != "can":
         raise UsageError("--replay serves STEPFOC nodes on a CAN bus: --listen can://INTERFACE/CHANNEL")
     where = parse_url(listen, bare_family="stepfoc")
     interface, channel = where.interface or "", where.channel or ""
@@ -61,14 +62,13 @@ def run(args: argparse.Namespace, backend: Any) -> int:
         raise UsageError(f"profile {profile.name} is a {profile.family} profile, not an MSG one")
     listen = args.listen or "pty"
     nodes = [0]
-    query = ""
-    if listen.startswith("can://"):
-        from urllib.parse import urlencode
+    bus: dict[str, str] = {}
+    from grippers.drivers.urls import append_params, scheme_of, with_query
 
+    if scheme_of(listen) == "can":
         from grippers.urls import parse_url
 
         params = dict(parse_url(listen, bare_family="stepfoc").params)  # the one grammar: drivers/urls.py
-        base = listen.partition("?")[0]
         try:
             nodes = [int(n, 0) for n in params.pop("node", "0").split(",")]
         except ValueError:
@@ -86,8 +86,8 @@ def run(args: argparse.Namespace, backend: Any) -> int:
                 int(params[key])
             except ValueError:
                 raise UsageError(f"--listen {listen}: {key} must be a number") from None
-        query = urlencode(params)
-        listen = base + (f"?{query}" if query else "")
+        bus = params
+        listen = with_query(listen, bus)
     warn_private_bus(listen)
     settings = settings_for(profile, args)
     part = settings.float("part_width_mm", profile.simulator.part_width_mm)
@@ -100,8 +100,8 @@ def run(args: argparse.Namespace, backend: Any) -> int:
     what = f"simulated {profile.model}" + (f" (node {', '.join(map(str, nodes))})" if listen != "pty" else "")
     urls = getattr(server, "urls", None)  # the CAN server names every node it serves
     urls = list(urls() if callable(urls) else urls or [server.url])
-    if query:  # a client needs the same port to reach the bus
-        urls = [f"{u}&{query}" for u in urls]
+    if bus:  # a client needs the same port to reach the bus
+        urls = [append_params(u, bus) for u in urls]
     return serve_forever(server, what, urls, as_json=args.json)
 
 

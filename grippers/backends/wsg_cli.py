@@ -47,6 +47,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _replay(args: argparse.Namespace, blob: bytes) -> tuple[Any, Any]:
+    from grippers.drivers.urls import scheme_of
     from grippers.drivers.wsg.sim.replay import WsgReplayServer, wsg_script
     from grippers.urls import parse_url
 
@@ -54,7 +55,7 @@ def _replay(args: argparse.Namespace, blob: bytes) -> tuple[Any, Any]:
 
     script = wsg_script(blob, args.replay)
     listen = args.listen or default_listen()
-    if listen.partition("://")[0] != "tcp":
+    if scheme_of(listen) != "tcp":
         raise UsageError(f"--replay serves a WSG on tcp://HOST:PORT, not {listen!r}")
     where = parse_url(listen, bare_family="wsg", listen=True)  # the one grammar: drivers/urls.py
     host, port = where.host, where.port

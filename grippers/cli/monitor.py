@@ -39,14 +39,15 @@ CHUNK = 1 << 16  # a raw capture is decoded in pieces of this size, as they arri
 
 
 def _host_port(text: str) -> tuple[str, int]:
-    host, sep, port = text.rpartition(":")
+    from grippers.drivers.urls import URLError, parse_address
+
     try:
-        number = int(port)
-    except ValueError:
-        number = -1
-    if not sep or not host or not 0 <= number <= 65535:
+        host, port = parse_address(text, listen=True)  # the one grammar: drivers/urls.py
+    except URLError:
+        host, port = None, -1
+    if host is None:
         raise argparse.ArgumentTypeError(f"expected HOST:PORT, not {text!r}")
-    return host.strip("[]"), number
+    return host, port
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -441,25 +442,26 @@ def apply_url(args: argparse.Namespace) -> None:
     says, as they do for ``grippers.open``.
     """
     target = args.capture
-    if target is None or "://" not in target:
-        return
-    from grippers.errors import URLError
-    from grippers.urls import parse_url
+    from grippers.urls import is_url
 
-    bare = target.lower().startswith("can://")
+    if target is None or not is_url(target):
+        return
+    from grippers.drivers.urls import bus_options, scheme_of
+    from grippers.errors import URLError
+    from grippers.urls import parse_url, to_int
+
+    bare = scheme_of(target) == "can"
     url = parse_url(target, bare_family="can" if bare else None)  # a bare bus: every family's frames
     dissector = dissectors().get(url.family) if not bare else None
     if url.transport == "can":
         args.interface = args.interface or url.interface
         args.channel = args.channel or url.channel
         if args.bitrate is None and "bitrate" in url.params:
-            args.bitrate = int(url.params["bitrate"], 0)
+            args.bitrate = to_int(url.params["bitrate"], "bitrate", target)
         if args.protocol == "auto" and dissector is not None and dissector.can is not None:
             args.protocol = url.family
         if "send_id" in url.params:
             args.can_id = can_id(url.params["send_id"])
-        from grippers.drivers.urls import bus_options
-
         if "port" in url.params:  # a udp_multicast bus of its own (issue 33 §3: it watched the default port)
             args.bus_port = bus_options(url)["port"]
     elif url.transport == "tcp" and dissector is not None and dissector.stream is not None:

@@ -334,6 +334,8 @@ def collect(
     profile: str | None = None,
 ) -> dict[str, Any]:
     """Probe and build the JSON document (grippers.probe/2)."""
+    from grippers.urls import scheme_of
+
     from . import probe_targets as pt
 
     loaded = None
@@ -344,7 +346,7 @@ def collect(
 
     if target is None:
         plan = pt.machine_targets(network=network, bitrate=bitrate, options={"can_ids": can_ids})
-    elif target.startswith("zenoh://"):  # grippers served over Zenoh: ask who is served (docs/remote.md)
+    elif scheme_of(target) == "zenoh":  # grippers served over Zenoh: ask who is served (docs/remote.md)
         from grippers.remote import served_urls
 
         plan = pt.Plan([pt.Candidate(u, pt.location_of(u), group=u) for u in served_urls(target, timeout)])
@@ -426,12 +428,14 @@ def _cause(reason: str | None, url: str) -> str:
     'ConnectionLost: cannot open the CAN bus: ...'."""
     if not reason:
         return "-"
+    from grippers.urls import is_url
+
     kind, sep, text = reason.partition(": ")
     if not sep:
         return reason
     segments = text.split(": ")
     while len(segments) > 1 and (
-        "://" in segments[0]
+        is_url(segments[0])
         or segments[0].startswith(("serial:", "/"))
         or segments[0] in url
         or segments[0].isidentifier()

@@ -13,7 +13,7 @@ import os
 from dataclasses import dataclass, field
 from typing import Any
 
-from grippers.drivers.urls import BUS_OPTIONS, bus_options, refuse_unknown
+from grippers.drivers.urls import BUS_OPTIONS, bus_options, is_url, refuse_unknown, scheme_of
 from grippers.errors import URLError
 from grippers.urls import ConnectionURL, parse_url, to_int
 
@@ -93,7 +93,7 @@ def expand(target: str, bitrate: int | None = None, options: dict[str, Any] | No
     plan = Plan()
     if text.startswith("/") or (len(text) > 3 and text[:3].upper() == "COM" and text[3:].isdigit()):
         text = f"serial://{text}"  # a bare device path is a serial port
-    if "://" not in text:
+    if not is_url(text):
         from .suggest import hint
 
         fix = hint(text)
@@ -101,8 +101,7 @@ def expand(target: str, bitrate: int | None = None, options: dict[str, Any] | No
             f"{target!r} is not a URL (expected e.g. tcp://HOST, can://IF/CH, serial:///dev/ttyX)"
             + (f" ({fix})" if fix else "")
         )
-    raw_scheme = text.partition("://")[0]
-    scheme = raw_scheme.lower()
+    scheme = scheme_of(text)
     if scheme == "sim":
         u = _parse(text)
         if u.profile:
@@ -120,7 +119,7 @@ def expand(target: str, bitrate: int | None = None, options: dict[str, Any] | No
         known = ", ".join((*BARE_SCHEMES, "FAMILY+TRANSPORT (e.g. FAMILY+tcp)", "sim"))
         fix = hint(text)
         raise UsageError(
-            f"{target!r}: unknown scheme {raw_scheme!r} (known: {known})" + (f"; {fix}" if fix else "")
+            f"{target!r}: unknown scheme {scheme!r} (known: {known})" + (f"; {fix}" if fix else "")
         )
     u = _parse(text, bare=True)
     given: dict[str, Any] = {"bitrate": bitrate, **(options or {})}

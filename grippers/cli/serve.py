@@ -118,11 +118,13 @@ def parse_targets(items: list[str]) -> list[tuple[str | None, str]]:
     (issue 43 §3: they got one about a scheme, or were served under a key ending in a newline)."""
     from pathlib import Path
 
+    from grippers.urls import is_url
+
     out: list[tuple[str | None, str]] = []
     for item in items:
         head, eq, tail = item.partition("=")
-        setting = "?" in head and "://" not in tail and not Path(tail).suffix  # PROFILE?setting=value
-        if not eq or "://" in head or setting or Path(item).exists():
+        setting = "?" in head and not is_url(tail) and not Path(tail).suffix  # PROFILE?setting=value
+        if not eq or is_url(head) or setting or Path(item).exists():
             out.append((None, item))
         else:
             out.append((head, tail))
@@ -131,10 +133,10 @@ def parse_targets(items: list[str]) -> list[tuple[str | None, str]]:
 
 def run(args: argparse.Namespace) -> int:
     import grippers
+    from grippers.drivers.urls import check_endpoints
     from grippers.errors import URLError
     from grippers.remote import protocol
     from grippers.remote.server import Server
-    from grippers.remote.session import check_endpoints
 
     from .output import UsageError, write_json
 

@@ -106,7 +106,13 @@ class _Terminated(Exception):
 def warn_private_bus(listen: str) -> None:
     """python-can's ``virtual`` bus lives in one process: a client in another shell would wait for answers
     that never come, so say so before serving."""
-    if listen.startswith("can://virtual"):
+    from grippers.urls import URLError, parse_url
+
+    try:
+        url = parse_url(listen, bare_family="sim", listen=True)
+    except URLError:
+        return  # serving it says what is wrong
+    if url.transport == "can" and url.interface == "virtual":
         print(
             "grippers sim: warning: python-can's virtual bus exists only inside this process; no other "
             "process can reach it (use can://udp_multicast/239.74.163.2 or can://socketcan/vcan0)",

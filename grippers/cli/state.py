@@ -9,6 +9,7 @@ import argparse
 import time
 from typing import TYPE_CHECKING, Any
 
+from ..units import millisecond_of
 from .common import add_common, add_target, open_gripper, positive_float
 from .logs import issued_warnings
 from .output import EXIT_OK, STATE_SCHEMA_ID, fmt_num, key_values, state_dict, write_json
@@ -78,7 +79,7 @@ def render(doc: dict[str, Any]) -> str:
 
 def render_line(doc: dict[str, Any]) -> str:
     s = doc["state"]
-    stamp = time.strftime("%H:%M:%S", time.localtime(doc["time"])) + f".{int(doc['time'] * 1000) % 1000:03d}"
+    stamp = time.strftime("%H:%M:%S", time.localtime(doc["time"])) + f".{millisecond_of(doc['time']):03d}"
     faults = ",".join(s["faults"]) or "-"
     if s["force_n"] is None and s["current_a"] is not None:
         effort = f"current {fmt_num(s['current_a'], 'A', 3):>8}"

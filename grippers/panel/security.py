@@ -25,7 +25,7 @@ from collections.abc import Awaitable, Callable, MutableMapping
 from http.cookies import SimpleCookie
 from typing import Any
 
-from grippers.drivers.urls import URLError, parse_query, web_origin
+from grippers.drivers.urls import same_origin, web_fields, web_host
 
 Scope = MutableMapping[str, Any]
 Message = MutableMapping[str, Any]
@@ -52,7 +52,7 @@ def new_token() -> str:
 
 def is_loopback(host: str) -> bool:
     """``127.0.0.1``, ``::1``, ``localhost``: a name or address only this machine reaches."""
-    host = host.strip("[]")
+    host = web_host(host)
     if host.lower() == "localhost" or host.lower().endswith(".localhost"):
         return True
     try:
@@ -68,13 +68,6 @@ def cookie_name(port: int) -> str:
 
 def _headers(scope: Scope) -> dict[str, str]:
     return {k.decode("latin-1").lower(): v.decode("latin-1") for k, v in scope.get("headers", [])}
-
-
-def _host_of(value: str) -> str:
-    """The host part of a ``Host`` header (``[::1]:8000``, ``localhost:8000``, ``10.0.0.2``)."""
-    if value.startswith("["):
-        return value[1 : value.find("]")] if "]" in value else value
-    return value.rsplit(":", 1)[0] if value.count(":") == 1 else value
 
 
 class Guard:
@@ -111,11 +104,11 @@ class Guard:
     def _check(self, scope: Scope, headers: dict[str, str]) -> tuple[int, str, bool]:
         """``(status, reason, token came in the URL)``; status 0 lets the request through."""
         host = headers.get("host", "")
-        if self.token is None and not is_loopback(_host_of(host)):
+        if self.token is None and not is_loopback(web_host(host)):
             return 403, "this panel answers loopback names only (start it with --token for others)", False
         acts = scope["type"] == "websocket" or scope.get("method", "GET") not in SAFE_METHODS
         origin = headers.get("origin")
-        if acts and origin is not None and not _same_origin(origin, host):
+        if acts and origin is not None and not same_origin(origin, host):
             return 403, "cross-origin request refused", False
         if self.token is None:
             return 0, "", False
@@ -127,10 +120,7 @@ class Guard:
         return 0, "", from_url
 
     def _given(self, scope: Scope, headers: dict[str, str]) -> tuple[str | None, bool]:
-        try:  # the project's one query parser; a malformed query carries no token
-            query = parse_query("panel request", scope.get("query_string", b"").decode("latin-1"))
-        except URLError:
-            query = {}
+        query = web_fields(scope.get("query_string", b"").decode("latin-1"), "panel request")
         if query.get("token"):
             return query["token"], True
         auth = headers.get("authorization", "")
@@ -143,18 +133,6 @@ class Guard:
             return None, False
         morsel = jar.get(self.cookie)
         return (morsel.value, False) if morsel is not None else (None, False)
-
-
-def _same_origin(origin: str, host: str) -> bool:
-    """An ``Origin`` (``http://h:p``) naming the host and port the request was sent to (its ``Host``)."""
-    parts = web_origin(origin)
-    if parts is None:
-        return False
-    scheme, netloc = parts
-    default = "443" if scheme == "https" else "80"
-    ours = host if ":" in host.rsplit("]", 1)[-1] else f"{host}:{default}"
-    theirs = netloc if ":" in netloc.rsplit("]", 1)[-1] else f"{netloc}:{default}"
-    return ours.lower() == theirs.lower()
 
 
 async def _refuse(scope: Scope, receive: Receive, send: Send, status: int, why: str) -> None:

@@ -22,8 +22,8 @@ from typing import Any
 
 import uvicorn
 
-from grippers.drivers.inet import family_of
-
+from ..drivers.inet import family_of
+from ..drivers.urls import parse_address, with_query
 from ..errors import URLError
 from ..gripper import Gripper
 from .app import MAX_MESSAGE, Panel, make_app
@@ -39,11 +39,13 @@ START_TIMEOUT_S = 10.0
 
 def parse_listen(text: str) -> tuple[str, int]:
     """``HOST:PORT`` (``[::1]:8000``, ``0.0.0.0:0``, ``:8000``: loopback) as (host, port); else URLError."""
-    host, sep, port = text.rpartition(":")
-    host = host.strip("[]") or "127.0.0.1"
-    if not sep or not port.isdigit() or not 0 <= int(port) <= 65535:
-        raise URLError(f"--listen {text!r}: write HOST:PORT (127.0.0.1:8000; port 0 picks a free one)")
-    return host, int(port)
+    try:
+        host, port = parse_address(text, listen=True)  # the one grammar: drivers/urls.py
+    except URLError:
+        raise URLError(
+            f"--listen {text!r}: write HOST:PORT (127.0.0.1:8000; port 0 picks a free one)"
+        ) from None
+    return host or "127.0.0.1", port
 
 
 class PanelServer:
@@ -118,7 +120,7 @@ class PanelServer:
         if not self._server.started:
             self.close()
             raise URLError(f"the panel did not start on {self.host}:{self.port} (see the log)")
-        log.info("panel at %s", self.url.split("?")[0])
+        log.info("panel at %s", with_query(self.url, {}))  # without the token
         return self
 
     def close(self) -> None:

@@ -23,6 +23,7 @@ from typing import Any
 from ..cli.output import info_dict, limits_dict, state_dict
 from ..errors import GripperError, LimitError
 from ..gripper import Capability, Gripper, GripperState
+from ..units import to_m
 from .control import Control, Page
 from .recording import PanelRecording
 
@@ -56,10 +57,6 @@ def error_dict(exc: BaseException) -> dict[str, Any]:
         log.exception("panel: unexpected error")
         text = f"internal error: {type(exc).__name__}: {exc}"
     return {"ok": False, "error": type(exc).__name__, "message": " ".join(text.split())}
-
-
-def _mm(value: float | None) -> float | None:
-    return None if value is None else value / 1000.0
 
 
 class GripperSession:
@@ -215,22 +212,22 @@ class GripperSession:
         return out
 
     def _start(self, command: str, v: dict[str, Any]) -> Any:
-        g, speed = self.gripper, _mm(v.get("speed_mm_s"))
+        g, speed = self.gripper, to_m(v.get("speed_mm_s"))
         if command == "home":
             return g.home(wait=False)
         if command == "move":
             if v.get("width_mm") is None:
                 raise LimitError("give a width", device=g.name, command="move")
-            return g.move(v["width_mm"] / 1000.0, speed, wait=False)
+            return g.move(to_m(v["width_mm"]), speed, wait=False)
         if command == "jog":
             delta = v.get("delta_mm")
             if delta is None:
                 raise LimitError("give a distance", device=g.name, command="jog")
-            return g.move(g.state().width + delta / 1000.0, speed, wait=False)
+            return g.move(g.state().width + to_m(delta), speed, wait=False)
         if command == "grasp":
             if v.get("width_mm") is None:
                 raise LimitError("give the part's width", device=g.name, command="grasp")
-            return g.grasp(v["width_mm"] / 1000.0, speed, v.get("force_n"), wait=False)
+            return g.grasp(to_m(v["width_mm"]), speed, v.get("force_n"), wait=False)
         return g.release(None, speed, wait=False)
 
     def _ended(self, page: Page, command: str, handle: Any) -> None:

@@ -16,13 +16,14 @@ import socket
 from typing import Any
 
 from ..device import Device, DeviceContext
+from ..drivers.urls import zenoh_endpoints
 from ..errors import GripperError, ProtocolError, URLError
 from ..gripper import Capability, DeviceInfo, GraspResult, Gripper, GripperState, MotionResult
 from ..profiles import Limits, ProfileBase, parse_profile
 from ..servo import ServoTarget
 from . import payloads, protocol
 from .link import ServedLink
-from .session import check_endpoints, make_config
+from .session import make_config
 
 DEFAULT_TIMEOUT = 2.0
 DEFAULT_LINK_LEASE = 1.0  # s; matches the server's default --lease-timeout
@@ -43,9 +44,7 @@ class ZenohBackend:
             protocol.check_name(name)
         except ValueError as exc:
             raise URLError(f"{url.url}: {exc}") from None
-        connect = check_endpoints(
-            [e for e in settings.str("connect", "").split(",") if e], f"{url.url}: connect"
-        )
+        connect = zenoh_endpoints(settings.str("connect", ""), f"{url.url}: connect")
         config_file = settings.str("zenoh_config", None)
         scout = settings.bool("scout", False)
         if not (connect or config_file or scout):

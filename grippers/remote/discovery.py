@@ -4,8 +4,8 @@ and whether a name is served already (``grippers serve`` refuses to serve it twi
 from __future__ import annotations
 
 from typing import Any
-from urllib.parse import quote
 
+from ..drivers.urls import scheme_of, served_url, zenoh_endpoints
 from ..errors import GripperError, URLError
 from ..urls import parse_url
 from . import protocol
@@ -33,18 +33,17 @@ def served_names(connect: list[str], timeout: float = 2.0, *, config_file: str |
 
 def served_urls(target: str, timeout: float = 2.0) -> list[str]:
     """``zenoh://?connect=E``: one ``zenoh://NAME?connect=E`` per served gripper; ``zenoh://NAME?…`` as is."""
-    if not target.startswith("zenoh://"):
+    if scheme_of(target) != "zenoh":
         raise URLError(f"{target!r} is not a zenoh:// URL")
     url = parse_url(target)  # the one grammar: drivers/urls.py
     if url.channel:
         return [target]
     params = url.params
-    connect = [e for e in params.get("connect", "").split(",") if e]
+    connect = zenoh_endpoints(params.get("connect", ""), f"{target!r}: connect")
     if not connect and "zenoh_config" not in params:
         raise URLError(f"{target!r}: say where to look: zenoh://?connect=tcp/HOST:7447")
     names = served_names(connect, timeout, config_file=params.get("zenoh_config"))
-    rest = "&".join(f"{k}={quote(v, safe='/:,.[]')}" for k, v in params.items())
-    return [f"zenoh://{n}?{rest}" for n in names]
+    return [served_url(n, params) for n in names]
 
 
 def refuse_duplicate(session: Any, name: str, *, declared: bool = False) -> None:

@@ -16,6 +16,7 @@ from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
 from .. import commands
+from ..drivers.urls import zenoh_port
 from ..errors import AccessDenied, CommandFailed, ConnectionLost, GripperError, ProtocolError
 from ..gripper import Gripper
 from . import payloads, protocol
@@ -520,7 +521,7 @@ class Server:
                 served.start()
             for served in self.served:
                 refuse_duplicate(self.session, served.name, declared=True)
-            given = [e for e in self._listen if e.rsplit(":", 1)[-1] != "0"]
+            given = [e for e in self._listen if zenoh_port(e) != 0]
             self.locators = own_locators(self.session) or given
         except BaseException:
             self.close()

@@ -10,11 +10,12 @@ import json
 import re
 from typing import Any
 
+from ..drivers.urls import zenoh_endpoint
 from ..errors import ConnectionLost, URLError
+from ..units import to_ms
 
 DEFAULT_LISTEN = "tcp/127.0.0.1:7447"
 _RUST_SOURCE = re.compile(r"\s+at\s+\S+\.rs:\d+\.?")  # Zenoh's errors end with the Rust file that raised them
-_IP_PROTOCOLS = ("tcp", "udp", "tls", "quic", "ws")
 
 
 def zenoh_message(exc: BaseException) -> str:
@@ -22,19 +23,13 @@ def zenoh_message(exc: BaseException) -> str:
     return _RUST_SOURCE.sub("", str(exc)).strip() or type(exc).__name__
 
 
-def check_endpoints(endpoints: list[str], what: str) -> list[str]:
-    """URLError for an endpoint that cannot be one (``tcp/127.0.0.1:99999``): said before anything opens, in
-    one line, instead of Zenoh's error from deep inside its session."""
-    for endpoint in endpoints:
-        proto, slash, rest = endpoint.partition("/")
-        if not slash or not proto or not rest:
-            raise URLError(f"{what} {endpoint!r}: an endpoint is PROTOCOL/ADDRESS, e.g. tcp/127.0.0.1:7447")
-        if proto in _IP_PROTOCOLS:
-            address = rest.split("#", 1)[0].split("?", 1)[0]
-            host, colon, port = address.rpartition(":")
-            if not colon or not host or not port.isdigit() or not 0 <= int(port) <= 65535:
-                raise URLError(f"{what} {endpoint!r}: the address must be HOST:PORT with a port of 0-65535")
-    return endpoints
+def _reads_back(endpoint: str) -> bool:
+    """Whether a listen endpoint's real address is known only once bound: port 0, or every interface."""
+    try:
+        _proto, host, port = zenoh_endpoint(endpoint, "listen")
+    except URLError:
+        return False  # Zenoh says what is wrong with it
+    return port == 0 or host in ("0.0.0.0", "::")
 
 
 def import_zenoh() -> Any:
@@ -71,7 +66,7 @@ def make_config(
             config.insert_json5("mode", json.dumps(mode))
         if listen is not None:
             config.insert_json5("listen/endpoints", json.dumps(listen))
-            if any(e.rsplit(":", 1)[-1] == "0" or "/0.0.0.0:" in e or "/[::]:" in e for e in listen):
+            if any(_reads_back(e) for e in listen):
                 # Port 0 or every interface: the real endpoints are read back from our own admin space
                 # (own_locators), read-only, to print the URLs that reach us.
                 config.insert_json5("adminspace/enabled", "true")
@@ -83,7 +78,7 @@ def make_config(
         if lease_s is not None:
             # Zenoh's link lease: how long a silent peer (cable pulled) counts as alive. The control lease
             # relies on it, so it is set to the lease timeout (keep-alives at a quarter of it).
-            config.insert_json5("transport/link/tx/lease", str(max(100, int(lease_s * 1000))))
+            config.insert_json5("transport/link/tx/lease", str(max(100, int(to_ms(lease_s)))))
             config.insert_json5("transport/link/tx/keep_alive", "4")
     except Exception as exc:
         raise URLError(f"zenoh config: {zenoh_message(exc)}") from None

@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 
 from ..drivers.urls import without_secrets
 from ..gripper import DeviceInfo, GripperState
+from ..units import to_ms
 
 OK, WARN, ERROR, STALE = 0, 1, 2, 3  # diagnostic_msgs/DiagnosticStatus levels (bytes on the wire)
 # A WSG's "the last command failed" flag (a blocked move sets it): worth a WARN, not an ERROR.
@@ -90,7 +91,7 @@ class Health:
 
     def values(self) -> list[tuple[str, str]]:
         info, st = self.info, self.state
-        age = (time.monotonic() - self.state_at) * 1000 if st is not None else float("nan")
+        age = to_ms(time.monotonic() - self.state_at) if st is not None else float("nan")
         out = [
             ("family", info.family if info else ""),
             ("model", info.model if info else ""),

@@ -47,9 +47,8 @@ class GripperSims:
         self.servers: list[Any] = []
 
     def __call__(self, profile: str | os.PathLike[str] = "wsg50", **settings: Any) -> SimURL:
-        from urllib.parse import urlencode
-
         from ..backends import get_backend
+        from ..drivers.urls import append_params
         from ..errors import URLError
         from ..profiles import load_profile
         from ..settings import Settings
@@ -66,7 +65,7 @@ class GripperSims:
         unknown = sorted(k for k in settings if k not in given.taken)
         if unknown:
             raise URLError(f"{where}: unknown setting(s) {', '.join(unknown)}")
-        url = SimURL(f"{server.url}{'&' if '?' in server.url else '?'}{urlencode({'profile': chosen.name})}")
+        url = SimURL(append_params(server.url, {"profile": chosen.name}))
         url.simulator = server
         return url
 

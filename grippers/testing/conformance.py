@@ -51,10 +51,10 @@ from grippers import (
     LimitError,
     URLError,
 )
-from grippers.drivers.urls import parse_query
+from grippers.drivers.urls import scheme_of
 from grippers.motions import MotionHandle
 from grippers.units import to_m, to_mm
-from grippers.urls import with_params
+from grippers.urls import parse_url, with_params
 
 from . import GripperSims, SimURL
 
@@ -80,11 +80,10 @@ class Target:
 
     @classmethod
     def parse(cls, text: str) -> Target:
-        rest = text[len("sim://") :] if text.startswith("sim://") else text
-        name, _, query = rest.partition("?")
-        if not name:
+        url = parse_url(text if scheme_of(text) == "sim" else f"sim://{text}")  # the one URL grammar
+        if not url.profile:
             raise URLError(f"conformance target {text!r}: no profile name (sim://NAME?setting=value)")
-        return cls(name, parse_query(text, query))  # the one URL grammar's query rules
+        return cls(url.profile, url.params)
 
     def __str__(self) -> str:
         base = f"sim://{self.profile}"

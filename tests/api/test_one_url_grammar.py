@@ -279,3 +279,87 @@ def test_a_simulator_on_ipv6_loopback_names_a_url_the_grammar_reads_back() -> No
             assert client.system_info() is not None
     finally:
         server.close()
+
+
+# Issue 40 §6: the readers the callers used to write by hand, one rule each (tests/test_readable_tree.py
+# fails on a hand-written copy).
+
+
+def test_scheme_of_is_the_scheme_the_grammar_reads() -> None:
+    assert driver_urls.scheme_of("CAN://virtual/x") == "can"
+    assert driver_urls.scheme_of("wsg+serial://socket://h:4000") == "wsg+serial"
+    assert driver_urls.scheme_of("/dev/ttyUSB0") == driver_urls.scheme_of(None) == ""
+
+
+@pytest.mark.parametrize(
+    ("text", "listen", "expected"),
+    [
+        ("127.0.0.1:8000", False, ("127.0.0.1", 8000)),
+        ("[::1]:7447", False, ("::1", 7447)),
+        ("[fe80::1%25eth0]:1", False, ("fe80::1%eth0", 1)),
+        ("gripper.local:1000", False, ("gripper.local", 1000)),
+        (":8000", True, (None, 8000)),
+        ("0.0.0.0:0", True, ("0.0.0.0", 0)),
+    ],
+)
+def test_parse_address_reads_host_and_port_by_the_urls_rules(
+    text: str, listen: bool, expected: tuple[str | None, int]
+) -> None:
+    assert driver_urls.parse_address(text, listen=listen) == expected
+
+
+@pytest.mark.parametrize(
+    "text", ["127.0.0.1", "h:70000", "h:x", "::1:80", "[::1", "a..b:1", "h:0", ":80", "u@h:1", "h\n:1"]
+)
+def test_parse_address_refuses_what_a_url_refuses(text: str) -> None:
+    with pytest.raises(URLError):
+        driver_urls.parse_address(text)
+
+
+def test_zenoh_endpoints_are_checked_before_any_session() -> None:
+    z = driver_urls.zenoh_endpoint
+    assert z("tcp/127.0.0.1:7447", "--listen") == ("tcp", "127.0.0.1", 7447)
+    assert z("tls/[::1]:0#iface=lo", "--listen") == ("tls", "::1", 0)
+    assert z("unixsock-stream/tmp/sock", "--listen") == ("unixsock-stream", None, None)
+    for bad in ("tcp/127.0.0.1:99999", "tcp/:7447", "tcp", "/x", "tcp/h"):
+        with pytest.raises(URLError, match="--connect"):
+            z(bad, "--connect")
+    assert driver_urls.zenoh_endpoints("tcp/a:1,,tcp/b:2", "connect") == ["tcp/a:1", "tcp/b:2"]
+    assert driver_urls.zenoh_port("tcp/h:0") == 0 and driver_urls.zenoh_port("tcp/h:x") is None
+
+
+def test_a_family_scheme_of_a_listen_url_goes_onto_its_transport() -> None:
+    t = driver_urls.on_transport
+    assert t("urcap://127.0.0.1:0", {"urcap": "tcp"}) == ("tcp://127.0.0.1:0", "urcap")
+    assert t("schunk+http://h:80", {"http": "tcp"}) == ("schunk+tcp://h:80", "http")
+    assert t("tcp://h:1", {"urcap": "tcp"}) == ("tcp://h:1", None)
+    assert t("pty", {"urcap": "tcp"}) == ("pty", None)
+
+
+def test_web_hosts_and_origins() -> None:
+    assert [driver_urls.web_host(h) for h in ("[::1]:8000", "localhost:80", "10.0.0.2", "::1")] == [
+        "::1",
+        "localhost",
+        "10.0.0.2",
+        "::1",
+    ]
+    assert driver_urls.same_origin("http://127.0.0.1:8000", "127.0.0.1:8000")
+    assert driver_urls.same_origin("http://h", "h:80") and driver_urls.same_origin("https://h", "h:443")
+    assert not driver_urls.same_origin("http://evil:8000", "127.0.0.1:8000")
+    assert not driver_urls.same_origin("file://", "h")
+    assert driver_urls.web_target("/adi/data.json?inst=0x0040&count=1") == (
+        "/adi/data.json",
+        {"inst": "0x0040", "count": "1"},
+    )
+    assert driver_urls.web_fields("a&&b") == {}  # malformed: no fields, no exception
+
+
+def test_queries_are_written_as_the_grammar_reads_them() -> None:
+    url = driver_urls.with_query("stepfoc+can://virtual/ch?node=1,2&port=5", {"port": "5"})
+    assert url == "stepfoc+can://virtual/ch?port=5"
+    assert driver_urls.with_query("can://virtual/ch?node=1", {}) == "can://virtual/ch"
+    serial = driver_urls.append_params("wsg+serial://socket://h:1?x=1?baudrate=9600", {"profile": "a b"})
+    assert parse_url(serial).params == {"baudrate": "9600", "profile": "a b"}
+    assert parse_url(serial).serial_port == "socket://h:1?x=1"
+    assert driver_urls.append_params("sim://wsg50", {"profile": "wsg50"}) == "sim://wsg50?profile=wsg50"
+    assert driver_urls.parse_query("", driver_urls.encode_query({"k": "a&b=c"})) == {"k": "a&b=c"}

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from ...modbus_sim import ModbusFaults, ModbusSession
 from ...simkit import SimServer
+from ...urls import on_transport
 from .. import urcap_protocol as urcap
 from ..modbus import READ_HOLDING, WRITE_MULTIPLE, Request
 from ..registers import COMMAND_ADDRESS, STATUS_ADDRESS
@@ -66,9 +67,8 @@ class RobotiqSimServer(SimServer):
         self, model: RobotiqModel, listen: str, *, time_scale: float = 1.0, family: str = "robotiq"
     ) -> None:
         self.model = model
-        is_urcap = listen.startswith("urcap://")
-        if is_urcap:
-            listen = "tcp://" + listen.partition("://")[2]
+        listen, protocol = on_transport(listen, {"urcap": "tcp"})
+        is_urcap = protocol == "urcap"
         faults = ModbusFaults()
         super().__init__(
             listen,

@@ -4,7 +4,7 @@
 from __future__ import annotations
 
 from ...simkit import SimServer
-from ...urls import format_host, parse_url
+from ...urls import format_host, on_transport, parse_url
 from ..protocol import ERR_FAST_STOP
 from .model import ModuleSpec, SchunkModel
 from .web import WebSession
@@ -57,7 +57,7 @@ def serve(model: SchunkModel, listen: str, *, time_scale: float = 1.0, slave: in
         if slave != 12:
             server.url += f"?slave={slave}"
     else:
-        where = parse_url(listen.replace("http://", "tcp://", 1), bare_family="schunk", listen=True)
+        where = parse_url(on_transport(listen, {"http": "tcp"})[0], bare_family="schunk", listen=True)
         host = where.host or "127.0.0.1"
         tcp = f"tcp://{format_host(host, where.port or 0)}"
         server = SchunkServer(

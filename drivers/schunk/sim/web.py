@@ -19,8 +19,7 @@ import json
 import re
 from dataclasses import dataclass
 
-from ...errors import URLError
-from ...urls import parse_query
+from ...urls import web_fields, web_target
 from ..protocol import PARAMETERS, Kind, from_hex
 from .model import SchunkModel
 
@@ -112,13 +111,13 @@ class WebSession:
         return [self.answer(r, now) for r in requests]
 
     def answer(self, request: Request, now: float) -> bytes:
-        path, _, query = request.target.partition("?")
+        path, query = web_target(request.target)
         if path == "/adi/data.json" and request.method == "GET":
             if now < self.unreachable_until[0]:
                 return response(503, {"detail": "Service Unavailable"})
-            return response(200, self.get(_form(request.target, query), now))
+            return response(200, self.get(query, now))
         if path == "/adi/update.json" and request.method == "POST":
-            form = _form(request.target, request.body.decode("latin-1"))
+            form = web_fields(request.body.decode("latin-1"), request.target)
             if "inst" not in form or "value" not in form:
                 return response(422, {"detail": "inst and value are required"}, "Unprocessable Entity")
             return response(200, {"result": self.update(form["inst"], form["value"], now)})
@@ -159,11 +158,3 @@ class WebSession:
 
     def closed(self, now: float) -> None:
         """A dropped connection changes nothing on the unit."""
-
-
-def _form(target: str, text: str) -> dict[str, str]:
-    """A query or a form body as fields (the library's one query parser); malformed: no fields."""
-    try:
-        return parse_query(target, text)
-    except URLError:
-        return {}

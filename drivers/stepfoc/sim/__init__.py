@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from ...urls import scheme_of
 from .can_server import CanSimServer, serve_can
 from .model import MsgModel
 
@@ -25,7 +26,7 @@ def serve_uart(
 
 def serve(models: Any = None, listen: str = "pty", *, time_scale: float = 1.0, **kw: Any) -> Any:
     """Start a simulator on the transport ``listen`` names (``can://…`` or ``pty``)."""
-    if listen.startswith(("can://", "stepfoc+can://")):
+    if scheme_of(listen) in ("can", "stepfoc+can"):
         return serve_can(models, listen, time_scale=time_scale, **kw)
     if listen == "pty" or listen.startswith(("pty", "serial")):
         if isinstance(models, list | tuple):

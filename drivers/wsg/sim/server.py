@@ -19,7 +19,7 @@ from __future__ import annotations
 import can
 
 from ...errors import URLError
-from ...urls import parse_url, refuse_unknown, shown, to_bool, to_int
+from ...urls import parse_url, refuse_unknown, scheme_of, shown, to_bool, to_int
 from .engine import SimServer
 from .model import WsgModel
 from .transports import CanSimServer, PtySimServer, TcpSimServer, UdpSimServer
@@ -45,8 +45,7 @@ def serve(
     """
     if listen in ("pty", "pty://"):
         return PtySimServer(model, time_scale=time_scale)
-    scheme = listen.partition("://")[0].lower()
-    if scheme not in ("tcp", "udp", "can"):
+    if scheme_of(listen) not in ("tcp", "udp", "can"):
         raise URLError(
             f"listen URL {shown(listen)}: expected tcp://HOST:PORT, udp://HOST:PORT, pty or can://IF/CHANNEL"
         )
