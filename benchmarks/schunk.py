@@ -67,11 +67,12 @@ def http_poll(polls: int) -> tuple[float, float, float, float]:
     """(our CPU per state(), the bare GET's CPU, our wall time per state(), servo targets per second)
     against the child simulator."""
     import grippers
+    from grippers.urls import parse_url
 
     child = SimChild("schunk.py", "--serve-http", "schunk+http://")
     try:
-        host, _, port = child.where.removeprefix("schunk+http://").rpartition(":")
-        bare = http.client.HTTPConnection(host, int(port), timeout=1.0)
+        where = parse_url(child.where)  # the one URL grammar
+        bare = http.client.HTTPConnection(where.host or "127.0.0.1", where.port or 80, timeout=1.0)
 
         def get() -> None:
             bare.request("GET", "/adi/data.json?inst=0x0040&count=1")
