@@ -11,6 +11,7 @@ import pytest
 
 import grippers
 from grippers.backends import get_backend
+from grippers.backends.command_hooks import commands_of
 from grippers.backends.robotiq import fault_error
 from grippers.drivers.robotiq.registers import ActivationState, Fault, ObjectDetection, Status
 from grippers.drivers.serial_ports import open_failure
@@ -42,7 +43,7 @@ def test_getting_started_shows_the_urcap_simulator_and_no_stale_gaps() -> None:
     assert "Known gaps" not in START
     line = "grippers sim robotiq --model hand-e --listen urcap://127.0.0.1:63352 &"
     assert line in START and "serving at robotiq+urcap://127.0.0.1:63352" in START
-    assert "urcap://" in get_backend("robotiq").sim_example  # the --help example shows it too
+    assert "urcap://" in commands_of(get_backend("robotiq")).sim_example  # the --help example shows it too
     profile = grippers.load_profile("robotiq-hande")
     from grippers.settings import Settings
 
