@@ -283,14 +283,7 @@ class CanSimServer(SimServer):
         self._start(f"wsg-sim-can-{channel}")
 
     def _wait_and_read(self, timeout: float) -> None:
-        try:
-            msg = self._bus.recv(timeout=timeout)
-        except can.CanError as exc:
-            # The host's interface went down (ip link set vcan0 down): a gripper on the wire would not
-            # notice, so the simulated one keeps running and hears nothing until it is up again.
-            if not is_link_failure(exc):
-                raise
-            return
+        msg = self._recv(timeout)
         while msg is not None:
             if (
                 msg.arbitration_id == self._rx_id
@@ -300,7 +293,19 @@ class CanSimServer(SimServer):
                 and msg.dlc
             ):
                 self._received(self._link, bytes(msg.data))
-            msg = self._bus.recv(timeout=0.0)
+            msg = self._recv(0.0)
+
+    def _recv(self, timeout: float) -> can.Message | None:
+        """The next frame, or None. The host's interface going down (ip link set vcan0 down) is not the
+        simulator's end: a gripper on the wire would not notice, so the simulated one keeps running and hears
+        nothing until it is up again. Every read, the first and those that drain the queue after it (the
+        interface may go down between them: a busy CI run ended the simulator's thread there)."""
+        try:
+            return self._bus.recv(timeout=timeout)
+        except can.CanError as exc:
+            if not is_link_failure(exc):
+                raise
+            return None
 
     def _send_frames(self, data: bytes) -> None:
         extended = self._extended
