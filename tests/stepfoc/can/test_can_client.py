@@ -24,7 +24,7 @@ from grippers.drivers.stepfoc.sim.can_server import CanSimServer
 
 
 def test_poll_and_driver_queries(sim: CanSimServer, canbus: StepfocBus) -> None:
-    node = canbus.node(0, timeout=5.0)  # values, not timing: a CPU-starved simulator answered after 0.5 s (CI N6)
+    node = canbus.node(0, timeout=5.0)  # values, not timing: a starved simulator answered after 0.5 s (CI N6)
     st = node.poll()
     # power-up detection is 3 (STEPFOC common.h), whatever the jaws do
     assert not st.calibrated and st.detection is Detection.AT_POSITION and not node.last_error_bit
