@@ -320,6 +320,7 @@ class SimServer(Closing):
         self._peers: dict[Any, _Peer] = {}
         self._delayed: list[tuple[float, _Peer, bytes]] = []
         self._closed = threading.Event()
+        self._released = False  # _release() ran (by close(), or by the thread when close() gave up on it)
         self._listener: socket.socket | None = None
         self._master = self._slave = -1
         try:
@@ -470,6 +471,9 @@ class SimServer(Closing):
                         self._advance(self.clock.now())
         except BaseException as exc:  # noqa: BLE001 - reported by close() and the gripper_sim fixture
             self.error = exc
+        finally:
+            if self._closed.is_set():  # close() may have given up waiting for this thread: released last
+                self._release()
 
     def close(self) -> None:
         """Stop the thread, close every connection and the pty or listener; idempotent."""
@@ -480,9 +484,17 @@ class SimServer(Closing):
             self._wake_w.send(b"\0")
         if self._thread is not threading.current_thread():
             self._thread.join(timeout=5.0)
+            if self._thread.is_alive():
+                # Still running (a starved CPU): it releases everything itself as it ends (_run). Released
+                # here, a descriptor number could go to the next pty or socket this process opens while the
+                # old thread still reads and writes it.
+                return
         self._release()
 
     def _release(self) -> None:
+        if self._released:
+            return
+        self._released = True
         for sock in self._sockets():
             self._drop(sock)
         if self._listener is not None:

@@ -115,6 +115,11 @@ class UartSimServer(Closing):
         self._stop.set()
         if self._thread is not threading.current_thread():
             self._thread.join(timeout=2.0)
+            if self._thread.is_alive():
+                # Still running (a starved CPU): it closes the pty itself as it ends (_run). Closed here, the
+                # descriptor numbers could go to the next pty this process opens while the old thread still
+                # reads and writes them (a busy CI run: a new simulator's client answered by an old model).
+                return
         self._close_fds()
 
     def _close_fds(self) -> None:
@@ -150,6 +155,9 @@ class UartSimServer(Closing):
         except Exception:  # pragma: no cover - a crashing simulator must not hang the tests
             self._close_fds()
             raise
+        finally:
+            if self._stop.is_set():  # close() may have given up waiting for this thread: its fds, closed last
+                self._close_fds()
 
     def _wait(self) -> float:
         if not self._delayed:

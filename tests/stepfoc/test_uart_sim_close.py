@@ -1,0 +1,48 @@
+"""A simulator whose thread outlives close()'s wait never gives its descriptors back while the thread runs.
+
+A busy CI run (N7) failed two conformance checks on the MSG over a pty: one home saw the driver "leave
+calibration mode", one open got no answer. Both fit one cause: ``close()`` joined the simulator's thread for
+2 s and closed the pty even when the thread was still running (a starved CPU), so the next pty the process
+opened could take the same descriptor numbers while the old thread still read and wrote them: a new client
+answered by an old model. Now the thread that outlives the wait closes its descriptors itself as it ends.
+The thread is held here by the model's lock, which it takes on every tick.
+"""
+
+from __future__ import annotations
+
+import errno
+import os
+
+import pytest
+
+from grippers.drivers.stepfoc.sim import MsgModel
+from grippers.drivers.stepfoc.sim.uart_server import serve_uart
+
+
+def _is_open(fd: int) -> bool:
+    try:
+        os.fstat(fd)
+    except OSError as exc:
+        assert exc.errno == errno.EBADF
+        return False
+    return True
+
+
+@pytest.mark.timeout(60)
+def test_a_thread_that_outlives_close_keeps_its_descriptors_until_it_ends() -> None:
+    server = serve_uart(MsgModel())
+    master, thread = server._master, server._thread
+    with server.lock:  # the thread blocks on its next tick: close() waits 2 s for it in vain
+        server.close()
+        assert thread.is_alive()
+        assert _is_open(master)  # not given back while the old thread may still use the number
+    thread.join(10)
+    assert not thread.is_alive()
+    assert not _is_open(master)  # closed by the thread as it ended
+
+
+def test_close_of_an_idle_simulator_closes_at_once() -> None:
+    server = serve_uart(MsgModel())
+    master = server._master
+    server.close()
+    assert not server._thread.is_alive() and not _is_open(master)
