@@ -11,6 +11,10 @@ test needs to act (milliseconds), far below any client timeout or stall bound.
 from __future__ import annotations
 
 import contextlib
+import linecache
+import sys
+import threading
+import time
 from collections.abc import Callable, Iterator
 from typing import Any
 
@@ -61,3 +65,20 @@ def under_way(g: Any, start: float, *, by: float = 5e-4) -> Callable[[], bool]:
         return bool(st.moving) and abs(st.width - start) > by
 
     return moving
+
+
+def wait_until_at_lock(thread: threading.Thread, *, timeout: float = 10.0) -> None:
+    """Return once ``thread`` waits at a ``with self.lock:`` line (a lock the caller holds: it stays there).
+
+    A simulator's thread checks for close() between its locked steps: a test that holds the lock and closes
+    the simulator must first see the thread past that check, or the thread may leave without ever waiting.
+    """
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        frame = sys._current_frames().get(thread.ident or 0)
+        if frame is not None:
+            line = linecache.getline(frame.f_code.co_filename, frame.f_lineno).strip()
+            if line == "with self.lock:":
+                return
+        time.sleep(0.002)
+    raise AssertionError(f"{thread.name} never came to wait for its lock")

@@ -5,7 +5,8 @@ calibration mode", one open got no answer. Both fit one cause: ``close()`` joine
 2 s and closed the pty even when the thread was still running (a starved CPU), so the next pty the process
 opened could take the same descriptor numbers while the old thread still read and wrote them: a new client
 answered by an old model. Now the thread that outlives the wait closes its descriptors itself as it ends.
-The thread is held here by the model's lock, which it takes on every tick.
+The thread is held here by the model's lock, which it takes on every tick; the test waits until the thread
+waits for it (tests/simhold.py) before close() is called.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ import pytest
 
 from grippers.drivers.stepfoc.sim import MsgModel
 from grippers.drivers.stepfoc.sim.uart_server import serve_uart
+from tests.simhold import wait_until_at_lock
 
 
 def _is_open(fd: int) -> bool:
@@ -32,7 +34,8 @@ def _is_open(fd: int) -> bool:
 def test_a_thread_that_outlives_close_keeps_its_descriptors_until_it_ends() -> None:
     server = serve_uart(MsgModel())
     master, thread = server._master, server._thread
-    with server.lock:  # the thread blocks on its next tick: close() waits 2 s for it in vain
+    with server.lock:
+        wait_until_at_lock(thread)  # the thread waits for the lock: close() waits 2 s for it in vain
         server.close()
         assert thread.is_alive()
         assert _is_open(master)  # not given back while the old thread may still use the number

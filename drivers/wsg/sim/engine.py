@@ -26,6 +26,8 @@ from .model import WsgModel
 SILENT_GAP_S = 0.03
 # Longest the server thread sleeps: bounds how late it notices close(), request_close() and test pokes.
 MAX_WAIT_S = 0.02
+# How long close() waits for the server thread before leaving the release to the thread itself.
+CLOSE_WAIT_S = 5.0
 
 
 class Link:
@@ -56,6 +58,7 @@ class SimServer(Closing):
     """
 
     url: str = ""
+    close_wait_s: float = CLOSE_WAIT_S
 
     def __init__(self, model: WsgModel, *, time_scale: float = 1.0) -> None:
         self.model = model
@@ -68,7 +71,8 @@ class SimServer(Closing):
         self._seq = itertools.count()
         self._closed = threading.Event()
         self._close_lock = threading.Lock()
-        self._released = False
+        self._closing = False  # close() was called
+        self._released = False  # _release() ran: by close(), or by the thread when close() gave up on it
         self._thread: threading.Thread | None = None
 
     # ------------------------------------------------------------------ life cycle
@@ -80,13 +84,27 @@ class SimServer(Closing):
     def close(self) -> None:
         """Stop the thread and release every socket, fd and bus; safe to call twice."""
         with self._close_lock:
+            if self._closing:
+                return
+            self._closing = True
+        self._closed.set()
+        self._wake()
+        thread = self._thread
+        if thread is not None and thread is not threading.current_thread():
+            thread.join(timeout=self.close_wait_s)
+            if thread.is_alive():
+                # Still running (a starved CPU): it releases everything itself as it ends (_run). Released
+                # here, a descriptor number could go to the next socket or pty this process opens while the
+                # old thread still reads and writes it: a new client answered by an old model.
+                return
+        self._release()
+
+    def _release(self) -> None:
+        """Disconnect every link and close the transport, once (by close(), or by the thread as it ends)."""
+        with self._close_lock:
             if self._released:
                 return
             self._released = True
-        self._closed.set()
-        self._wake()
-        if self._thread is not None and self._thread is not threading.current_thread():
-            self._thread.join(timeout=5.0)
         with self.lock:
             for link in list(self._links.values()):
                 self.model.disconnect(link.conn)
@@ -147,6 +165,9 @@ class SimServer(Closing):
             if not self._closed.is_set():
                 self.error = exc
                 raise
+        finally:
+            if self._closed.is_set():  # close() may have given up waiting for this thread: released last
+                self._release()
 
     def _timeout(self) -> float:
         with self.lock:
