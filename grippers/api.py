@@ -12,6 +12,7 @@ from .errors import GripperError, ProfileAssumed, ProfileError, URLError
 from .gripper import Gripper
 from .profiles import PROFILE_SUFFIXES, ProfileBase, load_profile
 from .settings import Settings
+from .timeouts import SIM_MIN_TIMEOUT_S
 from .urls import ConnectionURL, is_url, parse_url
 
 DEFAULT_SIM_PROFILE = "wsg50"
@@ -59,6 +60,8 @@ def open(target: str | os.PathLike[str], **overrides: Any) -> Gripper:  # noqa: 
         profile = load_profile(chosen)
     if url.family == "sim":
         return _open_sim(url, profile, settings)
+    if getattr(target, "simulator", None) is not None:  # grippers.testing.SimURL: served in this process
+        settings.at_least("timeout", SIM_MIN_TIMEOUT_S)
     backend = get_backend(url.family)
     if profile is not None and profile.family != url.family:
         raise ProfileError(
@@ -139,6 +142,7 @@ def _open_sim(url: ConnectionURL, profile: ProfileBase | None, settings: Setting
     try:
         sim_url = _parse(server.url)
         settings.add_defaults(sim_url.params)  # e.g. the UDP simulator's reply port
+        settings.at_least("timeout", SIM_MIN_TIMEOUT_S)  # it shares this process's CPU: grippers.timeouts
         gripper = backend.open(sim_url, profile, settings)
     except BaseException:
         server.close()

@@ -8,7 +8,7 @@ done was misspelt or meant for another family, and is refused with the list of w
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any, TypeVar
+from typing import Any, TypeVar, cast
 
 from grippers.drivers.urls import refuse_unknown, to_bool, to_float, to_int
 
@@ -17,6 +17,7 @@ from .timeouts import MAX_TIMEOUT_S
 
 T = TypeVar("T")
 _text = str  # the builtin, for use inside Settings (whose method ``str`` hides it in the class body)
+_real = float  # likewise (its method ``float``)
 
 
 # The range of every setting that has one, checked where it is taken, so a backend never hands a socket or a
@@ -52,14 +53,13 @@ class Settings:
         self._values: dict[str, Any] = {**query, **overrides}
         self._known: set[str] = set()
         self._expected: set[str] = set()
+        self._floors: dict[str, _real] = {}
 
     def _take(self, name: str, default: T, convert: Callable[[Any, str, str], T]) -> T:
         self._known.add(name)
-        if name not in self._values:
-            return default
-        value = self._values.pop(name)
+        value = self._values.pop(name, None)
         if value is None:
-            return default
+            return self._floored(name, default)
         converted = convert(value, name, self.url)
         bounds = RANGES.get(name)
         if bounds is not None and isinstance(converted, int | float) and not isinstance(converted, bool):
@@ -67,6 +67,12 @@ class Settings:
             if not lo <= converted <= hi:
                 raise URLError(f"{self.url}: {name} must lie within {lo:g}..{hi:g}, not {value!r}")
         return converted
+
+    def _floored(self, name: str, default: T) -> T:
+        floor = self._floors.get(name)
+        if floor is None or not isinstance(default, int | float) or isinstance(default, bool):
+            return default
+        return cast(T, max(default, floor))  # a number, as the default is
 
     def int(self, name: str, default: Any) -> Any:
         return self._take(name, default, to_int)
@@ -97,6 +103,11 @@ class Settings:
         """Settings that apply unless the user gave their own (a simulator's URL parameters)."""
         for key, value in values.items():
             self._values.setdefault(key, value)
+
+    def at_least(self, name: _text, floor: _real) -> None:
+        """When the user gives no ``name``, the backend's default is raised to ``floor`` if below it (an
+        in-process simulator's timeout: grippers.timeouts.SIM_MIN_TIMEOUT_S)."""
+        self._floors[name] = floor
 
     def expect(self, *names: _text) -> None:
         """Names that are taken later, after the device answered (``reconnect=`` and its kin, taken once the

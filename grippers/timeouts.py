@@ -15,3 +15,9 @@ MAX_TIMEOUT_S = 3600.0
 
 # What the CLI waits per exchange (per device, for ``probe``) when ``--timeout`` is not given.
 DEFAULT_TIMEOUT_S = 2.0
+
+# The least exchange timeout of an in-process simulator (``sim://``) when none is given: the simulator's
+# thread shares the process, and its interpreter lock, with the client, so on a loaded host its answers come
+# late by the host's scheduling, which a device's never do (busy CI runs saw an MSG's 0.5 s bound overrun
+# this way, docs/reliability.md). A profile's longer timeout stands; ``timeout=`` sets it as on hardware.
+SIM_MIN_TIMEOUT_S = 2.0

@@ -35,7 +35,10 @@ __all__ = ["GripperSims", "SimURL", "gripper_sim"]
 
 
 class SimURL(str):
-    """A connection URL that also carries the simulator serving it (``.simulator``)."""
+    """A connection URL that also carries the simulator serving it (``.simulator``).
+
+    ``grippers.open`` gives a gripper opened on one, as on ``sim://``, an exchange timeout of at least
+    ``grippers.timeouts.SIM_MIN_TIMEOUT_S`` when none is given: the simulator shares this process's CPU."""
 
     simulator: Any
 

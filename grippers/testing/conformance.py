@@ -125,7 +125,9 @@ class Conformance:
     def open(self, url: str, **query: str) -> grippers.Gripper:
         """``grippers.open`` on a simulator's URL (plus ``query``), closed after the check."""
         if query:
-            url = with_params(url, **query)
+            marked = SimURL(with_params(url, **query))
+            marked.simulator = getattr(url, "simulator", None)  # still served in this process (grippers.open)
+            url = marked
         g = grippers.open(url)
         self.grippers.append(g)
         return g
