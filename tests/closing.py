@@ -4,6 +4,8 @@ starts: the bookkeeping, the closing in start order, and the check that a simula
 from __future__ import annotations
 
 import contextlib
+import errno
+import os
 from collections.abc import Callable, Iterator
 from typing import Any, ParamSpec, TypeVar
 
@@ -29,3 +31,13 @@ def closed_after(make: Callable[P, T], *, simulator: bool = False) -> Iterator[C
         thing.close()
         if simulator:
             assert thing.error is None, f"simulator thread died: {thing.error!r}"
+
+
+def fd_is_open(fd: int) -> bool:
+    """Whether descriptor ``fd`` is open in this process (a simulator's pty or socket given back, or not)."""
+    try:
+        os.fstat(fd)
+    except OSError as exc:
+        assert exc.errno == errno.EBADF
+        return False
+    return True

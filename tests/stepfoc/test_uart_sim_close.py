@@ -11,23 +11,12 @@ waits for it (tests/simhold.py) before close() is called.
 
 from __future__ import annotations
 
-import errno
-import os
-
 import pytest
 
 from grippers.drivers.stepfoc.sim import MsgModel
 from grippers.drivers.stepfoc.sim.uart_server import serve_uart
+from tests.closing import fd_is_open
 from tests.simhold import wait_until_at_lock
-
-
-def _is_open(fd: int) -> bool:
-    try:
-        os.fstat(fd)
-    except OSError as exc:
-        assert exc.errno == errno.EBADF
-        return False
-    return True
 
 
 @pytest.mark.timeout(60)
@@ -38,14 +27,14 @@ def test_a_thread_that_outlives_close_keeps_its_descriptors_until_it_ends() -> N
         wait_until_at_lock(thread)  # the thread waits for the lock: close() waits 2 s for it in vain
         server.close()
         assert thread.is_alive()
-        assert _is_open(master)  # not given back while the old thread may still use the number
+        assert fd_is_open(master)  # not given back while the old thread may still use the number
     thread.join(10)
     assert not thread.is_alive()
-    assert not _is_open(master)  # closed by the thread as it ended
+    assert not fd_is_open(master)  # closed by the thread as it ended
 
 
 def test_close_of_an_idle_simulator_closes_at_once() -> None:
     server = serve_uart(MsgModel())
     master = server._master
     server.close()
-    assert not server._thread.is_alive() and not _is_open(master)
+    assert not server._thread.is_alive() and not fd_is_open(master)

@@ -10,22 +10,11 @@ thread waits for it (tests/simhold.py) before close() is called.
 
 from __future__ import annotations
 
-import errno
-import os
-
 import pytest
 
 from grippers.drivers.wsg.sim import WsgModel, serve
+from tests.closing import fd_is_open
 from tests.simhold import wait_until_at_lock
-
-
-def _is_open(fd: int) -> bool:
-    try:
-        os.fstat(fd)
-    except OSError as exc:
-        assert exc.errno == errno.EBADF
-        return False
-    return True
 
 
 @pytest.mark.timeout(60)
@@ -39,10 +28,10 @@ def test_a_thread_that_outlives_close_keeps_its_descriptors_until_it_ends() -> N
         wait_until_at_lock(thread)
         server.close()  # the thread waits for the lock: close() waits for it in vain
         assert thread.is_alive()
-        assert _is_open(master) and _is_open(wake)  # not given back while the old thread may use them
+        assert fd_is_open(master) and fd_is_open(wake)  # not given back while the old thread may use them
     thread.join(10)
     assert not thread.is_alive()
-    assert not _is_open(master)  # released by the thread as it ended
+    assert not fd_is_open(master)  # released by the thread as it ended
     assert server._wake_r.fileno() == -1
     server.close()  # still idempotent
 
@@ -52,4 +41,4 @@ def test_close_of_an_idle_simulator_releases_at_once() -> None:
     master = server._master
     server.close()
     assert server._thread is not None and not server._thread.is_alive()
-    assert not _is_open(master)
+    assert not fd_is_open(master)
