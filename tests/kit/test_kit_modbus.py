@@ -198,6 +198,7 @@ def test_a_late_reply_is_never_the_next_one_s(kind: str) -> None:
         time.sleep(0.2)
         with server.lock:
             model.holding[100] = 4242
+        client.timeout = 5.0  # a value from here, not a time: a starved simulator overran 0.3 s (CI N16)
         assert client.read_holding_registers(100, 1) == (4242,)  # not the late 1000
     finally:
         client.close()
@@ -212,6 +213,7 @@ def test_corrupt_and_other_slave_replies_say_why_the_exchange_timed_out() -> Non
             with pytest.raises(GripperTimeout, match="dropped: bad CRC") as caught:
                 client.read_holding_registers(100, 1)
             assert isinstance(caught.value.__cause__, ProtocolError)
+            client.timeout = 5.0  # values from here, not times (a starved simulator)
             server.faults.send_garbage(b"\x07\x03\x02\xff")  # a false header: resynchronised
             assert client.read_holding_registers(100, 1) == (1000,)
         with (
@@ -289,6 +291,7 @@ def test_a_plain_fault_hooks_object_is_taken_too() -> None:
             with pytest.raises(GripperTimeout):
                 c.read_holding_registers(100, 1)
             hooks.silent = False
+            c.timeout = 5.0  # a value from here, not a time (a starved simulator)
             assert c.read_holding_registers(100, 1) == (1000,)
     finally:
         server.close()
