@@ -42,6 +42,13 @@ class SimURL(str):
 
     simulator: Any
 
+    @classmethod
+    def serving(cls, text: str, simulator: Any) -> SimURL:
+        """``text``, marked as served by ``simulator`` in this process."""
+        url = cls(text)
+        url.simulator = simulator
+        return url
+
 
 class GripperSims:
     """What the ``gripper_sim`` fixture gives: call it to start a simulator; all are stopped at the end."""
@@ -68,9 +75,7 @@ class GripperSims:
         unknown = sorted(k for k in settings if k not in given.taken)
         if unknown:
             raise URLError(f"{where}: unknown setting(s) {', '.join(unknown)}")
-        url = SimURL(append_params(server.url, {"profile": chosen.name}))
-        url.simulator = server
-        return url
+        return SimURL.serving(append_params(server.url, {"profile": chosen.name}), server)
 
     def close(self) -> list[str]:
         """Stop every simulator; returns what went wrong in them (a thread that died), one line each."""

@@ -125,9 +125,8 @@ class Conformance:
     def open(self, url: str, **query: str) -> grippers.Gripper:
         """``grippers.open`` on a simulator's URL (plus ``query``), closed after the check."""
         if query:
-            marked = SimURL(with_params(url, **query))
-            marked.simulator = getattr(url, "simulator", None)  # still served in this process (grippers.open)
-            url = marked
+            # still served in this process, which grippers.open must know (its timeout)
+            url = SimURL.serving(with_params(url, **query), getattr(url, "simulator", None))
         g = grippers.open(url)
         self.grippers.append(g)
         return g

@@ -26,8 +26,6 @@ from .model import WsgModel
 SILENT_GAP_S = 0.03
 # Longest the server thread sleeps: bounds how late it notices close(), request_close() and test pokes.
 MAX_WAIT_S = 0.02
-# How long close() waits for the server thread before leaving the release to the thread itself.
-CLOSE_WAIT_S = 5.0
 
 
 class Link:
@@ -58,7 +56,7 @@ class SimServer(Closing):
     """
 
     url: str = ""
-    close_wait_s: float = CLOSE_WAIT_S
+    close_wait_s = 5.0  # how long close() waits for the thread before leaving the release to the thread
 
     def __init__(self, model: WsgModel, *, time_scale: float = 1.0) -> None:
         self.model = model
